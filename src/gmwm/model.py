@@ -1,0 +1,219 @@
+"""Composite error models: sums of independent latent processes written as strings.
+
+``Model("WN+RW+AR1+SIN")``, ``Model("2*AR1+2*SIN")``, ``Model("QN+WN+2*GM+RW+DR", freq=250)``.
+Components are held in a canonical order (QN, WN, AR1, GM, SIN, RW, DR, then by index), and
+parameters have stable flat names ``TYPE[k].name`` such as ``AR1[1].phi`` or ``SIN[2].beta``.
+Components of one type are numbered by the time scale they act on, shortest first (AR1 by
+increasing phi, GM by increasing correlation time, SIN by decreasing beta): :meth:`Model.canonical`
+applies that order to any parameter vector so estimates are comparable across fits.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ModelError
+from .processes import PROCESSES, SINGLETONS, Process
+
+_TERM = re.compile(r"^\s*(?:(\d+)\s*\*\s*)?([A-Za-z][A-Za-z0-9]*)\s*$")
+
+
+@dataclass(frozen=True)
+class Component:
+    """One process of a model: its type, index k (1-based within the type) and parameter slice."""
+
+    process: Process
+    index: int
+    start: int
+
+    @property
+    def name(self) -> str:
+        return f"{self.process.name}[{self.index}]"
+
+    @property
+    def slice(self) -> slice:
+        return slice(self.start, self.start + self.process.n_params)
+
+    @property
+    def param_names(self) -> list[str]:
+        return [f"{self.name}.{p}" for p in self.process.param_names]
+
+
+def parse_model(spec: str) -> dict[str, int]:
+    """Count of each process type in a model string, e.g. ``"2*AR1+WN"`` -> {AR1: 2, WN: 1}."""
+    if not isinstance(spec, str) or not spec.strip():
+        raise ModelError("empty model string; write e.g. 'WN+RW+AR1'")
+    counts: dict[str, int] = {}
+    for term in spec.split("+"):
+        match = _TERM.match(term)
+        if match is None:
+            raise ModelError(f"cannot read model term {term.strip()!r} in {spec!r}; "
+                             "write terms like 'WN' or '2*AR1' joined by '+'")
+        mult = int(match.group(1) or 1)
+        name = match.group(2).upper()
+        if name not in PROCESSES:
+            raise ModelError(f"unknown process {match.group(2)!r} in {spec!r}; "
+                             f"known: {', '.join(PROCESSES)}")
+        if mult < 1:
+            raise ModelError(f"multiplicity must be at least 1 in {term.strip()!r}")
+        counts[name] = counts.get(name, 0) + mult
+    for name in SINGLETONS:
+        if counts.get(name, 0) > 1:
+            raise ModelError(f"{name} appears {counts[name]} times in {spec!r}; a sum of "
+                             f"{name} processes is one {name} process (not identifiable)")
+    return counts
+
+
+class Model:
+    """A sum of independent processes with flat, named parameters.
+
+    Parameters
+    ----------
+    spec : model string, e.g. ``"WN+RW+AR1+SIN"``; ``k*TYPE`` repeats a process.
+    freq : sampling frequency in Hz (only GM parameters and scales in seconds depend on it).
+    """
+
+    def __init__(self, spec: str | Model, freq: float = 1.0):
+        if isinstance(spec, Model):
+            freq = spec.freq if freq == 1.0 else freq
+            spec = spec.spec
+        if not np.isfinite(freq) or freq <= 0:
+            raise ModelError(f"sampling frequency must be positive, got {freq}")
+        counts = parse_model(spec)
+        self.freq = float(freq)
+        self.components: list[Component] = []
+        start = 0
+        for name, proc in PROCESSES.items():
+            for k in range(1, counts.get(name, 0) + 1):
+                self.components.append(Component(proc, k, start))
+                start += proc.n_params
+        self.n_params = start
+        self.spec = "+".join(f"{n}*{name}" if n > 1 else name
+                             for name in PROCESSES if (n := counts.get(name, 0)))
+        self.param_names = [n for c in self.components for n in c.param_names]
+
+    def __repr__(self) -> str:
+        return f"Model({self.spec!r}, freq={self.freq:g})"
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Model) and (self.spec, self.freq) == (other.spec, other.freq)
+
+    def __hash__(self) -> int:
+        return hash((self.spec, self.freq))
+
+    @property
+    def component_names(self) -> list[str]:
+        return [c.name for c in self.components]
+
+    @property
+    def is_linear(self) -> bool:
+        """True if the WV is linear in a transform of the parameters (only QN, WN, RW, DR)."""
+        return all(c.process.linear for c in self.components)
+
+    def count(self, name: str) -> int:
+        return sum(c.process.name == name for c in self.components)
+
+    # -- parameter vectors ----------------------------------------------------------------------
+    def theta(self, values: Mapping[str, float] | None = None, **kwargs: float) -> np.ndarray:
+        """Parameter vector from a mapping of flat names, validated and in canonical order."""
+        given = dict(values or {}, **kwargs)
+        unknown = sorted(set(given) - set(self.param_names))
+        if unknown:
+            raise ModelError(f"unknown parameter(s) {', '.join(unknown)} for model {self.spec}; "
+                             f"expected {', '.join(self.param_names)}")
+        missing = [n for n in self.param_names if n not in given]
+        if missing:
+            raise ModelError(f"missing value for parameter(s) {', '.join(missing)}")
+        theta = np.array([float(given[n]) for n in self.param_names])
+        self.check(theta)
+        return self.canonical(theta)
+
+    def as_dict(self, theta: np.ndarray) -> dict[str, float]:
+        return {n: float(v) for n, v in zip(self.param_names, np.asarray(theta), strict=True)}
+
+    def check(self, theta: np.ndarray) -> None:
+        """Raise ModelError naming the first component whose parameters are out of domain."""
+        theta = np.asarray(theta, dtype=float)
+        if theta.shape != (self.n_params,):
+            raise ModelError(f"model {self.spec} has {self.n_params} parameters, got {theta.size}")
+        for c in self.components:
+            msg = c.process.check(theta[c.slice])
+            if msg:
+                raise ModelError(f"{c.name}: {msg}")
+
+    def canonical(self, theta: np.ndarray) -> np.ndarray:
+        """Relabel same-type components in order of the time scale they act on (shortest first)."""
+        theta = np.array(theta, dtype=float)
+        out = theta.copy()
+        for name in PROCESSES:
+            comps = [c for c in self.components if c.process.name == name]
+            if len(comps) < 2:
+                continue
+            keys = [c.process.order_key(theta[c.slice], self.freq) for c in comps]
+            for target, src in zip(comps, np.argsort(keys, kind="stable"), strict=True):
+                out[target.slice] = theta[comps[src].slice]
+        return out
+
+    # -- theoretical wavelet variance -----------------------------------------------------------
+    def component_wv(self, theta: np.ndarray, scales: np.ndarray) -> dict[str, np.ndarray]:
+        """Theoretical WV of each component at filter lengths ``scales`` (samples)."""
+        tau = np.asarray(scales, dtype=float)
+        theta = np.asarray(theta, dtype=float)
+        return {c.name: c.process.wv(theta[c.slice], tau, self.freq) for c in self.components}
+
+    def wv(self, theta: np.ndarray, scales: np.ndarray) -> np.ndarray:
+        """Theoretical Haar WV of the model (sum over independent components)."""
+        tau = np.asarray(scales, dtype=float)
+        total = np.zeros_like(tau)
+        for nu in self.component_wv(theta, tau).values():
+            total += nu
+        return total
+
+    def jacobian(self, theta: np.ndarray, scales: np.ndarray) -> np.ndarray:
+        """Analytic d nu_j / d theta, shape (J, n_params)."""
+        tau = np.asarray(scales, dtype=float)
+        theta = np.asarray(theta, dtype=float)
+        jac = np.empty((tau.size, self.n_params))
+        for c in self.components:
+            jac[:, c.slice] = c.process.jacobian(theta[c.slice], tau, self.freq)
+        return jac
+
+    # -- simulation -----------------------------------------------------------------------------
+    def simulate(self, theta: np.ndarray, n: int,
+                 rng: np.random.Generator | int | None = None) -> np.ndarray:
+        """One realisation of length ``n`` (float64), components drawn in canonical order."""
+        theta = np.asarray(theta, dtype=float)
+        self.check(theta)
+        n = int(n)
+        if n < 1:
+            raise ModelError(f"number of samples must be positive, got {n}")
+        rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        x = np.zeros(n)
+        for c in self.components:
+            x += c.process.simulate(theta[c.slice], n, rng, self.freq)
+        return x
+
+    # -- unconstrained parametrisation ----------------------------------------------------------
+    def to_free(self, theta: np.ndarray) -> np.ndarray:
+        theta = np.asarray(theta, dtype=float)
+        return np.concatenate([c.process.to_free(theta[c.slice]) for c in self.components])
+
+    def from_free(self, eta: np.ndarray) -> np.ndarray:
+        eta = np.asarray(eta, dtype=float)
+        return np.concatenate([c.process.from_free(eta[c.slice]) for c in self.components])
+
+    def dtheta_deta(self, eta: np.ndarray) -> np.ndarray:
+        """Diagonal of d theta / d eta (every transform acts on one parameter)."""
+        eta = np.asarray(eta, dtype=float)
+        return np.concatenate([c.process.dp_deta(eta[c.slice]) for c in self.components])
+
+
+def as_model(model: str | Model, freq: float | None = None) -> Model:
+    """Coerce a model string or Model to a Model (with ``freq`` if given)."""
+    if isinstance(model, Model):
+        return model if freq is None or freq == model.freq else Model(model.spec, freq)
+    return Model(model, 1.0 if freq is None else freq)

@@ -1,0 +1,347 @@
+"""Latent error processes: theoretical Haar wavelet variance, its Jacobian, simulation, transforms.
+
+Conventions (see SPEC.md section 2): parameters are discrete-time, per sample, except GM, whose
+``beta`` is an inverse correlation time in 1/s and needs the sampling frequency ``freq`` [Hz].
+Scales ``tau`` are Haar filter lengths ``2**j`` in samples. Every process maps its own parameter
+vector ``p`` (in the order of ``param_names``) to the WV ``nu_j = E[W_{j,t}^2]``.
+
+Each process also defines a bijection between its domain and R^k (``to_free``/``from_free``) so
+optimisers work unconstrained; ``dp_deta`` is the (diagonal) derivative of that map.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.signal import lfilter
+from scipy.special import expit, logit
+
+# Free-space values are clamped so that wild optimiser steps cannot overflow exp().
+_ETA_MAX = 700.0
+
+
+def _exp(eta: np.ndarray | float) -> np.ndarray:
+    return np.exp(np.clip(eta, -_ETA_MAX, _ETA_MAX))
+
+
+class Process:
+    """Base class. Subclasses set ``name``, ``param_names`` and implement the methods."""
+
+    name: str = ""
+    param_names: tuple[str, ...] = ()
+    #: True if nu is linear in a transform h(p) with a parameter-free design column (QN, WN, RW, DR).
+    linear: bool = False
+
+    @property
+    def n_params(self) -> int:
+        return len(self.param_names)
+
+    def wv(self, p: np.ndarray, tau: np.ndarray, freq: float = 1.0) -> np.ndarray:
+        raise NotImplementedError
+
+    def jacobian(self, p: np.ndarray, tau: np.ndarray, freq: float = 1.0) -> np.ndarray:
+        """d nu / d p, shape (len(tau), n_params)."""
+        raise NotImplementedError
+
+    def simulate(self, p: np.ndarray, n: int, rng: np.random.Generator,
+                 freq: float = 1.0) -> np.ndarray:
+        raise NotImplementedError
+
+    def to_free(self, p: np.ndarray) -> np.ndarray:
+        return np.log(np.asarray(p, dtype=float))
+
+    def from_free(self, eta: np.ndarray) -> np.ndarray:
+        return _exp(eta)
+
+    def dp_deta(self, eta: np.ndarray) -> np.ndarray:
+        return _exp(eta)
+
+    def check(self, p: np.ndarray) -> str | None:
+        """Return a message if ``p`` is outside the domain, else None."""
+        if np.any(~np.isfinite(p)):
+            return "parameters must be finite"
+        if np.any(np.asarray(p) <= 0):
+            return "parameters must be positive"
+        return None
+
+    def order_key(self, p: np.ndarray, freq: float = 1.0) -> float:
+        """Key sorting same-type components by the time scale they act on, shortest first."""
+        return 0.0
+
+
+class WhiteNoise(Process):
+    """WN(sigma2): iid N(0, sigma2). nu_j = sigma2 / tau."""
+
+    name = "WN"
+    param_names = ("sigma2",)
+    linear = True
+
+    def wv(self, p, tau, freq=1.0):
+        return p[0] / tau
+
+    def jacobian(self, p, tau, freq=1.0):
+        return (1.0 / tau)[:, None]
+
+    def simulate(self, p, n, rng, freq=1.0):
+        return np.sqrt(p[0]) * rng.standard_normal(n)
+
+
+class QuantizationNoise(Process):
+    """QN(Q2): X_t = Q (V_{t+1} - V_t), V_t = sqrt(12) U_t, U_t ~ U(0,1). nu_j = 6 Q2 / tau^2."""
+
+    name = "QN"
+    param_names = ("Q2",)
+    linear = True
+
+    def wv(self, p, tau, freq=1.0):
+        return 6.0 * p[0] / tau**2
+
+    def jacobian(self, p, tau, freq=1.0):
+        return (6.0 / tau**2)[:, None]
+
+    def simulate(self, p, n, rng, freq=1.0):
+        v = np.sqrt(12.0 * p[0]) * rng.random(n + 1)
+        return np.diff(v)
+
+
+class RandomWalk(Process):
+    """RW(gamma2): X_t = X_{t-1} + N(0, gamma2). nu_j = gamma2 (tau^2 + 2) / (12 tau)."""
+
+    name = "RW"
+    param_names = ("gamma2",)
+    linear = True
+
+    def wv(self, p, tau, freq=1.0):
+        return p[0] * (tau**2 + 2.0) / (12.0 * tau)
+
+    def jacobian(self, p, tau, freq=1.0):
+        return ((tau**2 + 2.0) / (12.0 * tau))[:, None]
+
+    def simulate(self, p, n, rng, freq=1.0):
+        return np.cumsum(np.sqrt(p[0]) * rng.standard_normal(n))
+
+
+class Drift(Process):
+    """DR(omega): X_t = omega t. nu_j = omega^2 tau^2 / 16 (the sign of omega is not identified
+    by the WV; the free parameter is log|omega| and the sign is kept positive)."""
+
+    name = "DR"
+    param_names = ("omega",)
+    linear = True
+
+    def wv(self, p, tau, freq=1.0):
+        return p[0] ** 2 * tau**2 / 16.0
+
+    def jacobian(self, p, tau, freq=1.0):
+        return (p[0] * tau**2 / 8.0)[:, None]
+
+    def simulate(self, p, n, rng, freq=1.0):
+        return p[0] * np.arange(1, n + 1, dtype=float)
+
+    def to_free(self, p):
+        return np.log(np.abs(np.asarray(p, dtype=float)))
+
+    def check(self, p):
+        if not np.all(np.isfinite(p)) or p[0] == 0:
+            return "omega must be finite and non-zero"
+        return None
+
+
+# --- AR1 ---------------------------------------------------------------------------------------
+# Evaluated in terms of a = -ln(phi) (phi in (0,1)) with the cancellation-free form of SPEC 2.2;
+# the textbook formula loses up to all digits when phi -> 1 (Simulation 2 uses phi = 0.999995).
+_SERIES_SWITCH = 1e-2
+
+
+def _series_coefs(m: np.ndarray) -> list[np.ndarray]:
+    return [
+        m / 6 + 1 / (12 * m),
+        -(m**2) / 8 + m / 6 + 1 / (12 * m),
+        (7 * m**4 - 15 * m**3 + 5 * m**2 + 3) / (120 * m),
+        (-30 * m**5 + 84 * m**4 - 45 * m**3 - 20 * m**2 - 4) / (1440 * m),
+        (m - 1) * (62 * m**5 - 148 * m**4 - m**3 + 104 * m**2 + 27 * m + 27) / (10080 * m),
+    ]
+
+
+def ar1_wv_a(a: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """WV of an AR1 with unit innovation variance and phi = exp(-a) > 0, and its derivative in a."""
+    tau = np.asarray(tau, dtype=float)
+    m = tau / 2
+    nu = np.empty_like(tau)
+    dnu = np.empty_like(tau)
+    big = m * a >= _SERIES_SWITCH
+    if np.any(big):
+        mb = m[big]
+        phi = np.exp(-a)
+        e = -np.expm1(-mb * a)
+        u1 = -np.expm1(-a)
+        u2 = -np.expm1(-2 * a)
+        g = mb * u2 - phi * e * (2 + e)
+        gp = 2 * mb * phi**2 + phi * e * (2 + e) - 2 * phi * mb * (1 - e) * (1 + e)
+        pp = u1**2 * u2
+        ppp = 2 * u1 * phi * u2 + 2 * u1**2 * phi**2
+        t2 = tau[big] ** 2
+        nu[big] = 2 * g / (t2 * pp)
+        dnu[big] = 2 / t2 * (gp * pp - g * ppp) / pp**2
+    small = ~big
+    if np.any(small):
+        c = _series_coefs(m[small])
+        nu[small] = sum(ck * a**k for k, ck in enumerate(c))
+        dnu[small] = sum(k * ck * a ** (k - 1) for k, ck in enumerate(c) if k > 0)
+    return nu, dnu
+
+
+def _ar1_wv_direct(phi: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Closed form for phi <= 0 (no cancellation there); unit innovation variance."""
+    m = tau / 2
+    n = (1 - phi**2) * tau - 2 * phi * (3 - 4 * phi**m + phi**tau)
+    d = tau**2 * (1 - phi) ** 3 * (1 + phi)
+    pm1 = phi ** (m - 1) if phi != 0 else (m == 1).astype(float)
+    pt1 = phi ** (tau - 1) if phi != 0 else np.zeros_like(tau)
+    dn = -2 * phi * tau - 6 + 8 * phi**m - 2 * phi**tau + 8 * m * phi * pm1 - 2 * tau * phi * pt1
+    dd = -2 * tau**2 * (1 - phi) ** 2 * (1 + 2 * phi)
+    return n / d, (dn * d - n * dd) / d**2
+
+
+def ar1_unit_wv(phi: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(nu, d nu / d phi) of an AR1 with unit innovation variance."""
+    tau = np.asarray(tau, dtype=float)
+    if phi > 0:
+        nu, dnu_da = ar1_wv_a(-np.log(phi), tau)
+        return nu, -dnu_da / phi
+    return _ar1_wv_direct(phi, tau)
+
+
+def _simulate_ar1(phi: float, s2: float, n: int, rng: np.random.Generator) -> np.ndarray:
+    e = np.sqrt(s2) * rng.standard_normal(n)
+    e[0] /= np.sqrt(1.0 - phi**2)  # stationary start
+    return lfilter([1.0], [1.0, -phi], e)
+
+
+class AR1(Process):
+    """AR1(phi, sigma2): X_t = phi X_{t-1} + N(0, sigma2), sigma2 the innovation variance,
+    |phi| < 1, stationary start. Free parameters: scaled logit of phi on (-1, 1), log sigma2."""
+
+    name = "AR1"
+    param_names = ("phi", "sigma2")
+
+    def wv(self, p, tau, freq=1.0):
+        return p[1] * ar1_unit_wv(p[0], tau)[0]
+
+    def jacobian(self, p, tau, freq=1.0):
+        nu, dphi = ar1_unit_wv(p[0], tau)
+        return np.column_stack([p[1] * dphi, nu])
+
+    def simulate(self, p, n, rng, freq=1.0):
+        return _simulate_ar1(p[0], p[1], n, rng)
+
+    def to_free(self, p):
+        return np.array([logit((p[0] + 1) / 2), np.log(p[1])])
+
+    def from_free(self, eta):
+        return np.array([2 * expit(eta[0]) - 1, _exp(eta[1])])
+
+    def dp_deta(self, eta):
+        s = expit(eta[0])
+        return np.array([2 * s * (1 - s), _exp(eta[1])])
+
+    def check(self, p):
+        if not np.all(np.isfinite(p)):
+            return "parameters must be finite"
+        if not -1 < p[0] < 1:
+            return f"phi must lie in (-1, 1), got {p[0]:g}"
+        if p[1] <= 0:
+            return "innovation variance sigma2 must be positive"
+        return None
+
+    def order_key(self, p, freq=1.0):
+        return float(p[0])
+
+
+class GaussMarkov(Process):
+    """GM(beta, sigma2): exactly sampled Gauss-Markov process = AR1 with phi = exp(-beta/freq),
+    innovation variance sigma2 (1 - phi^2). beta in 1/s (inverse correlation time), sigma2 the
+    stationary variance."""
+
+    name = "GM"
+    param_names = ("beta", "sigma2")
+
+    def _ar1(self, p, freq):
+        a = p[0] / freq
+        return a, p[1] * -np.expm1(-2 * a)
+
+    def wv(self, p, tau, freq=1.0):
+        a, s2 = self._ar1(p, freq)
+        return s2 * ar1_wv_a(a, tau)[0]
+
+    def jacobian(self, p, tau, freq=1.0):
+        a, s2 = self._ar1(p, freq)
+        nu, dnu_da = ar1_wv_a(a, tau)
+        # d/dbeta: through a (= beta/freq) both directly and via the innovation variance.
+        dbeta = (s2 * dnu_da + nu * p[1] * 2 * np.exp(-2 * a)) / freq
+        dsig = nu * -np.expm1(-2 * a)
+        return np.column_stack([dbeta, dsig])
+
+    def simulate(self, p, n, rng, freq=1.0):
+        a, s2 = self._ar1(p, freq)
+        return _simulate_ar1(np.exp(-a), s2, n, rng)
+
+    def order_key(self, p, freq=1.0):
+        return float(1.0 / p[0])
+
+
+class Sinusoid(Process):
+    """SIN(alpha, beta): X_t = alpha sin(beta t + U), U ~ U(0, 2 pi); alpha > 0 amplitude,
+    beta in (0, pi] rad/sample. nu_j = 2 alpha^2 sin^4(beta tau/4) / (tau^2 sin^2(beta/2))."""
+
+    name = "SIN"
+    param_names = ("alpha", "beta")
+
+    def wv(self, p, tau, freq=1.0):
+        alpha, beta = p
+        return 2 * alpha**2 * np.sin(beta * tau / 4) ** 4 / (tau**2 * np.sin(beta / 2) ** 2)
+
+    def jacobian(self, p, tau, freq=1.0):
+        alpha, beta = p
+        s = np.sin(beta * tau / 4)
+        c = np.cos(beta * tau / 4)
+        s1 = np.sin(beta / 2)
+        da = 4 * alpha * s**4 / (tau**2 * s1**2)
+        db = 2 * alpha**2 / tau**2 * s**3 * (tau * c * s1 - s * np.cos(beta / 2)) / s1**3
+        return np.column_stack([da, db])
+
+    def simulate(self, p, n, rng, freq=1.0):
+        u = rng.uniform(0.0, 2 * np.pi)
+        return p[0] * np.sin(p[1] * np.arange(1, n + 1, dtype=float) + u)
+
+    def to_free(self, p):
+        return np.array([np.log(p[0]), logit(p[1] / np.pi)])
+
+    def from_free(self, eta):
+        return np.array([_exp(eta[0]), np.pi * expit(eta[1])])
+
+    def dp_deta(self, eta):
+        s = expit(eta[1])
+        return np.array([_exp(eta[0]), np.pi * s * (1 - s)])
+
+    def check(self, p):
+        if not np.all(np.isfinite(p)):
+            return "parameters must be finite"
+        if p[0] <= 0:
+            return "amplitude alpha must be positive"
+        if not 0 < p[1] <= np.pi:
+            return f"beta must lie in (0, pi] rad/sample, got {p[1]:g}"
+        return None
+
+    def order_key(self, p, freq=1.0):
+        return float(-p[1])
+
+
+PROCESSES: dict[str, Process] = {
+    proc.name: proc
+    for proc in (QuantizationNoise(), WhiteNoise(), AR1(), GaussMarkov(), Sinusoid(),
+                 RandomWalk(), Drift())
+}
+"""Registry in canonical model order (roughly the time scale each process dominates)."""
+
+#: Processes of which a model may hold at most one (sums of them are the same process).
+SINGLETONS = frozenset({"QN", "WN", "RW", "DR"})
