@@ -1,0 +1,470 @@
+"""Figures in one paper-like style: log-log wavelet variance with CI band, model and component lines;
+boxplots of standardised errors; RMSE and run-time curves.
+
+Every function takes ``ax=None`` (a new figure is made when None) and returns the Axes (or the Figure
+for multi-panel plots). Figures are built with :class:`matplotlib.figure.Figure`, not ``pyplot``, so
+nothing here touches the global backend or figure registry; save with :func:`gmwm.io.save_figure`.
+Colours: the Okabe-Ito colour-blind-safe palette.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from typing import Any
+
+import matplotlib as mpl
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.collections import LineCollection
+from matplotlib.figure import Figure
+
+__all__ = [
+    "PALETTE",
+    "STYLE",
+    "boxplot_grouped",
+    "boxplot_standardized",
+    "new_axes",
+    "plot_av",
+    "plot_model_wv",
+    "plot_rmse_curves",
+    "plot_runtime",
+    "plot_wv",
+    "plot_wv_replicates",
+    "style",
+    "variance_label",
+]
+
+#: Okabe & Ito (2008) colour-blind-safe palette, black first.
+PALETTE = (
+    "#000000",  # black
+    "#0072B2",  # blue
+    "#D55E00",  # vermillion
+    "#009E73",  # bluish green
+    "#E69F00",  # orange
+    "#CC79A7",  # reddish purple
+    "#56B4E9",  # sky blue
+    "#F0E442",  # yellow
+)
+EMPIRICAL_COLOR = PALETTE[1]
+MODEL_COLOR = PALETTE[0]
+COMPONENT_COLORS = PALETTE[2:]
+REPLICATE_COLOR = "#B0B0B0"
+
+#: rcParams of the project style (serif text, light grid, no top/right spines, colour-blind palette).
+STYLE: dict[str, Any] = {
+    "font.family": "serif",
+    "font.size": 9,
+    "axes.labelsize": 9,
+    "axes.titlesize": 10,
+    "legend.fontsize": 8,
+    "xtick.labelsize": 8,
+    "ytick.labelsize": 8,
+    "axes.grid": True,
+    "axes.grid.which": "major",
+    "grid.color": "#DDDDDD",
+    "grid.linewidth": 0.5,
+    "grid.linestyle": "-",
+    "axes.spines.top": False,
+    "axes.spines.right": False,
+    "axes.linewidth": 0.6,
+    "axes.prop_cycle": mpl.cycler(color=list(PALETTE[1:]) + [PALETTE[0]]),
+    "lines.linewidth": 1.2,
+    "lines.markersize": 3.5,
+    "legend.frameon": False,
+    "figure.figsize": (5.0, 3.4),
+    "figure.dpi": 100,
+    "savefig.dpi": 200,
+    "savefig.bbox": "tight",
+    "mathtext.fontset": "dejavuserif",
+}
+
+
+@contextmanager
+def style() -> Iterator[None]:
+    """Context in which matplotlib uses the project style (:data:`STYLE`)."""
+    with mpl.rc_context(STYLE):
+        yield
+
+
+def new_axes(ax: Axes | None = None, figsize: tuple[float, float] | None = None) -> Axes:
+    """``ax`` itself, or the Axes of a new styled Figure (no pyplot involved)."""
+    if ax is not None:
+        return ax
+    with style():
+        fig = Figure(figsize=figsize or STYLE["figure.figsize"], layout="constrained")
+        return fig.add_subplot()
+
+
+def variance_label(quantity: str, units: str = "") -> str:
+    """Axis label such as ``Wavelet variance [(deg/s)²]``; the unit is squared, bracketed if compound."""
+    if not units:
+        return quantity
+    u = units.strip()
+    squared = f"({u})²" if any(c in u for c in "/*· ") else f"{u}²"
+    return f"{quantity} [{squared}]"
+
+
+def _scale_label(freq: float, what: str = "Scale") -> str:
+    return f"{what} τ [samples]" if freq == 1.0 else f"{what} τ [s]"
+
+
+def _positive(y: np.ndarray) -> np.ndarray:
+    """``y`` as float with non-positive values masked (NaN), so log axes skip exact zeros."""
+    y = np.asarray(y, dtype=float).copy()
+    y[~(y > 0)] = np.nan
+    return y
+
+
+def _model_theta(model: Any, theta: Any, result: Any) -> tuple[Any, np.ndarray | None]:
+    if result is not None:
+        return result.model, np.asarray(result.params, dtype=float)
+    if model is None:
+        return None, None
+    if isinstance(model, str):
+        from gmwm.model import Model
+
+        model = Model(model)
+    if theta is None:
+        raise ValueError("plotting a model needs theta (or a fit result)")
+    if isinstance(theta, Mapping):
+        theta = model.theta(dict(theta))
+    return model, np.asarray(theta, dtype=float)
+
+
+def _draw_model(
+    ax: Axes,
+    x: np.ndarray,
+    scales: np.ndarray,
+    model: Any,
+    theta: np.ndarray,
+    components: bool,
+    label: str = "Model",
+) -> None:
+    ax.plot(x, _positive(model.wv(theta, scales)), color=MODEL_COLOR, lw=1.5, label=label, zorder=4)
+    if not components:
+        return
+    comps = model.component_wv(theta, scales)
+    if len(comps) < 2:  # a single component is the model line itself
+        return
+    for i, (name, y) in enumerate(comps.items()):
+        ax.plot(
+            x,
+            _positive(y),
+            ls="--",
+            lw=1.0,
+            color=COMPONENT_COLORS[i % len(COMPONENT_COLORS)],
+            label=name,
+            gid="component",
+            zorder=3,
+        )
+
+
+def _draw_estimate(
+    ax: Axes,
+    x: np.ndarray,
+    y: np.ndarray,
+    lo: np.ndarray | None,
+    hi: np.ndarray | None,
+    label: str,
+    ci_label: str,
+) -> None:
+    if lo is not None and hi is not None:
+        ax.fill_between(
+            x, lo, hi, color=EMPIRICAL_COLOR, alpha=0.2, lw=0, label=ci_label, gid="ci_band"
+        )
+    ax.plot(x, y, "o-", color=EMPIRICAL_COLOR, ms=3.5, lw=0.8, label=label, zorder=5)
+
+
+def plot_wv(
+    wv: Any,
+    *,
+    model: Any = None,
+    theta: Any = None,
+    result: Any = None,
+    components: bool = True,
+    ax: Axes | None = None,
+    units: str = "",
+    label: str | None = None,
+) -> Axes:
+    """Empirical wavelet variance (points, shaded CI band) with the model WV and its components.
+
+    ``wv`` is a ``gmwm.wv.WaveletVariance``; x is the scale tau_j in seconds (samples when
+    ``wv.freq == 1``), log-log. The model comes from ``result`` (a GMWM fit) or ``model`` + ``theta``
+    (array or ``{name: value}``); ``components`` adds one dashed line per component. ``units`` is the
+    signal unit (e.g. ``"deg/s"``); the y axis is in its square.
+    """
+    model, theta = _model_theta(model, theta, result)
+    ax = new_axes(ax)
+    scales = np.asarray(wv.scales, dtype=float)
+    freq = float(getattr(wv, "freq", 1.0))
+    x = scales / freq
+    level = 100 * (1 - float(getattr(wv, "alpha", 0.05)))
+    with style():
+        _draw_estimate(
+            ax, x, np.asarray(wv.variance, float), np.asarray(wv.ci_low, float),
+            np.asarray(wv.ci_high, float), label or "Empirical WV", f"{level:g}% CI",
+        )
+        if model is not None:
+            _draw_model(ax, x, scales, model, theta, components)
+        _finish_loglog(ax, _scale_label(freq), variance_label("Wavelet variance", units))
+    return ax
+
+
+def plot_av(av: Any, *, ax: Axes | None = None, units: str = "", label: str | None = None) -> Axes:
+    """Allan variance with its CI band, log-log against the cluster time m / freq.
+
+    ``av`` needs ``variance``, ``ci_low``, ``ci_high``, ``freq`` and the cluster lengths in samples as
+    ``clusters`` (or ``m``; or ``scales``, halved, when it is a wavelet-variance-like object).
+    """
+    ax = new_axes(ax)
+    freq = float(getattr(av, "freq", 1.0))
+    m = _clusters(av)
+    with style():
+        _draw_estimate(
+            ax, m / freq, np.asarray(av.variance, float), np.asarray(av.ci_low, float),
+            np.asarray(av.ci_high, float), label or "Allan variance",
+            f"{100 * (1 - float(getattr(av, 'alpha', 0.05))):g}% CI",
+        )
+        _finish_loglog(ax, _scale_label(freq, "Cluster time"), variance_label("Allan variance", units))
+    return ax
+
+
+def _clusters(av: Any) -> np.ndarray:
+    for name in ("clusters", "cluster", "m"):
+        if getattr(av, name, None) is not None:
+            return np.asarray(getattr(av, name), dtype=float)
+    return np.asarray(av.scales, dtype=float) / 2.0
+
+
+def plot_model_wv(
+    model: Any,
+    theta: Any,
+    scales: Sequence[float],
+    *,
+    freq: float = 1.0,
+    components: bool = True,
+    ax: Axes | None = None,
+    units: str = "",
+) -> Axes:
+    """Theoretical WV of ``model`` at ``theta`` on ``scales`` (samples), total and per component."""
+    model, theta = _model_theta(model, theta, None)
+    ax = new_axes(ax)
+    scales = np.asarray(scales, dtype=float)
+    with style():
+        _draw_model(ax, scales / freq, scales, model, theta, components, label="Model WV (total)")
+        _finish_loglog(ax, _scale_label(freq), variance_label("Wavelet variance", units))
+    return ax
+
+
+def _finish_loglog(ax: Axes, xlabel: str, ylabel: str) -> None:
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, which="major", color=STYLE["grid.color"], lw=0.5)
+    ax.legend(loc="best")
+
+
+def plot_wv_replicates(
+    scales: Sequence[float],
+    variances: np.ndarray,
+    model: Any,
+    theta: Any,
+    *,
+    freq: float = 1.0,
+    components: bool = True,
+    ax: Axes | None = None,
+    units: str = "",
+) -> Axes:
+    """Empirical WVs of many replicates (light grey, shape (R, J)) with the true model WV and its
+    components (paper 000 Figure 3 style); ``scales`` in samples."""
+    model, theta = _model_theta(model, theta, None)
+    ax = new_axes(ax)
+    scales = np.asarray(scales, dtype=float)
+    v = np.atleast_2d(np.asarray(variances, dtype=float))
+    if v.shape[1] != scales.size:
+        raise ValueError(f"variances have {v.shape[1]} scales, expected {scales.size}")
+    x = scales / freq
+    with style():
+        # one LineCollection instead of R Line2D objects: fast for hundreds of replicates
+        segs = [np.column_stack([x, _positive(row)]) for row in v]
+        lc = LineCollection(segs, colors=REPLICATE_COLOR, linewidths=0.5, alpha=0.5, zorder=1,
+                            label=f"Empirical WV ({v.shape[0]} replicates)", gid="replicates")
+        ax.add_collection(lc)
+        _draw_model(ax, x, scales, model, theta, components, label="Model WV")
+        ax.set_xlim(x.min() / 1.2, x.max() * 1.2)
+        pos = v[v > 0]
+        if pos.size:
+            ax.set_ylim(pos.min() / 2, pos.max() * 2)
+        _finish_loglog(ax, _scale_label(freq), variance_label("Wavelet variance", units))
+    return ax
+
+
+def _as_columns(
+    data: Mapping[str, Any] | np.ndarray, labels: Sequence[str] | None
+) -> tuple[list[str], list[np.ndarray]]:
+    if isinstance(data, Mapping):
+        names = [str(k) for k in data]
+        cols = [np.asarray(v, dtype=float).ravel() for v in data.values()]
+    else:
+        a = np.atleast_2d(np.asarray(data, dtype=float))
+        cols = [a[:, i] for i in range(a.shape[1])]
+        names = [str(s) for s in labels] if labels is not None else [str(i) for i in range(len(cols))]
+        if len(names) != len(cols):
+            raise ValueError(f"{len(names)} labels for {len(cols)} columns")
+    return names, [c[np.isfinite(c)] for c in cols]
+
+
+def _box(ax: Axes, cols: list[np.ndarray], positions: Sequence[float], color: str, width: float):
+    return ax.boxplot(
+        cols,
+        positions=positions,
+        widths=width,
+        patch_artist=True,
+        showfliers=True,
+        medianprops={"color": "black", "lw": 1.0},
+        boxprops={"facecolor": color, "alpha": 0.55, "lw": 0.6},
+        whiskerprops={"lw": 0.6},
+        capprops={"lw": 0.6},
+        flierprops={"marker": "o", "ms": 2, "mec": color, "alpha": 0.5},
+    )
+
+
+def boxplot_standardized(
+    data: Mapping[str, Any] | np.ndarray,
+    *,
+    labels: Sequence[str] | None = None,
+    ax: Axes | None = None,
+    title: str | None = None,
+    ylabel: str = "Standardized error",
+) -> Axes:
+    """Boxplots of standardized errors ((estimate - truth) / SD), one box per parameter, with a zero
+    line (paper 000 Figures 4 and 9). ``data``: ``{param: values}`` or a 2-D array (R, p) + ``labels``."""
+    names, cols = _as_columns(data, labels)
+    ax = new_axes(ax)
+    with style():
+        ax.axhline(0.0, color=PALETTE[2], lw=0.8, zorder=0, gid="zero_line")
+        _box(ax, cols, range(1, len(cols) + 1), PALETTE[1], 0.6)
+        ax.set_xticks(range(1, len(cols) + 1), names)
+        ax.set_ylabel(ylabel)
+        ax.grid(False, axis="x")
+        if title:
+            ax.set_title(title)
+    return ax
+
+
+def boxplot_grouped(
+    values: Mapping[str, Mapping[str, Any]],
+    *,
+    ax: Axes | None = None,
+    title: str | None = None,
+    ylabel: str = "Standardized error",
+    zero_line: bool = True,
+) -> Axes:
+    """Side-by-side boxplots of several groups (e.g. methods) per parameter:
+    ``values[group][param] -> array``. Parameters are taken in first-seen order across groups."""
+    groups = list(values)
+    params: list[str] = []
+    for g in groups:
+        params += [p for p in values[g] if p not in params]
+    ng = max(len(groups), 1)
+    width = 0.8 / ng
+    ax = new_axes(ax)
+    with style():
+        if zero_line:
+            ax.axhline(0.0, color="#777777", lw=0.8, zorder=0, gid="zero_line")
+        for gi, g in enumerate(groups):
+            color = PALETTE[1 + gi % (len(PALETTE) - 1)]
+            present = [i for i, p in enumerate(params) if p in values[g]]
+            cols = [np.asarray(values[g][params[i]], float).ravel() for i in present]
+            cols = [c[np.isfinite(c)] for c in cols]
+            pos = [i + 1 - 0.4 + width * (gi + 0.5) for i in present]
+            _box(ax, cols, pos, color, width * 0.85)
+            ax.plot([], [], "s", color=color, alpha=0.55, label=g)  # legend proxy
+        ax.set_xticks(range(1, len(params) + 1), params)
+        ax.set_xlim(0.4, len(params) + 0.6)
+        ax.set_ylabel(ylabel)
+        ax.grid(False, axis="x")
+        ax.legend(loc="best")
+        if title:
+            ax.set_title(title)
+    return ax
+
+
+def plot_rmse_curves(
+    T: Sequence[float],
+    rmse: Mapping[str, Mapping[str, Any]],
+    *,
+    ncols: int | None = None,
+    xlabel: str = "Sample size T",
+    ylabel: str = "RMSE",
+    param_labels: Mapping[str, str] | None = None,
+    fig: Figure | None = None,
+) -> Figure:
+    """RMSE against sample size, log-log, one panel per parameter and one line per method:
+    ``rmse[method][param] -> array over T``."""
+    methods = list(rmse)
+    params: list[str] = []
+    for m in methods:
+        params += [p for p in rmse[m] if p not in params]
+    n = len(params)
+    ncols = ncols or min(n, 4)
+    nrows = -(-n // ncols)
+    T = np.asarray(T, dtype=float)
+    with style():
+        if fig is None:
+            fig = Figure(figsize=(2.3 * ncols + 0.4, 2.1 * nrows + 0.3), layout="constrained")
+        axes = fig.subplots(nrows, ncols, squeeze=False)
+        for k, ax in enumerate(axes.ravel()):
+            if k >= n:
+                ax.set_visible(False)
+                continue
+            p = params[k]
+            for i, m in enumerate(methods):
+                if p in rmse[m]:
+                    ax.plot(T, _positive(rmse[m][p]), "o-", color=PALETTE[1 + i % 7], label=m)
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set_title((param_labels or {}).get(p, p))
+            if k % ncols == 0:
+                ax.set_ylabel(ylabel)
+            if k // ncols == nrows - 1:
+                ax.set_xlabel(xlabel)
+        axes.ravel()[0].legend(loc="best")
+    return fig
+
+
+def plot_runtime(
+    T: Sequence[float],
+    times: Mapping[str, Any],
+    *,
+    ax: Axes | None = None,
+    ratio: tuple[str, str] | None = None,
+    xlabel: str = "Sample size T",
+    ylabel: str = "Mean run time [s]",
+) -> Axes:
+    """Run time against sample size, log-log, one line per method, with the speed-up
+    ``times[slow] / times[fast]`` annotated at each T (``ratio=(slow, fast)``; default: the slowest
+    and the fastest method by overall mean, when there are at least two)."""
+    T = np.asarray(T, dtype=float)
+    ax = new_axes(ax)
+    with style():
+        for i, (m, t) in enumerate(times.items()):
+            ax.plot(T, _positive(t), "o-", color=PALETTE[1 + i % 7], label=m)
+        if ratio is None and len(times) >= 2:
+            order = sorted(times, key=lambda m: float(np.nanmean(np.asarray(times[m], float))))
+            ratio = (order[-1], order[0])
+        if ratio is not None:
+            slow, fast = (np.asarray(times[r], float) for r in ratio)
+            for t, s, f in zip(T, slow, fast, strict=True):
+                if np.isfinite(s) and np.isfinite(f) and f > 0:
+                    ax.annotate(f"×{s / f:.3g}", (t, np.sqrt(s * f)), ha="center", va="center",
+                                fontsize=7, color="#444444", gid="speedup")
+            ax.plot([], [], " ", label=f"×: {ratio[0]} / {ratio[1]}")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
+        ax.legend(loc="best")
+    return ax
