@@ -9,6 +9,7 @@ still printed, with a warning on stderr); 130 interrupted.
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import re
 import sys
@@ -240,7 +241,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="gmwm: WV moments; armav: log10 Allan variance; avsm: Allan-variance slopes")
     p.add_argument("--n-samples", type=_positive_int, default=None, metavar="T",
                    help="signal length T, for a WV table without an 'n' column")
-    p.add_argument("--n-starts", type=_positive_int, default=8, help="number of optimizer starts")
+    p.add_argument("--n-starts", type=_positive_int, default=None, metavar="K",
+                   help="number of optimizer starts (default: the library's)")
     p.add_argument("--seed", type=int, default=0, help="seed for the random starting values")
     p.add_argument("--reweight", type=int, default=0, metavar="K",
                    help="refit K times with weights from the fitted model WV (reduces bias)")
@@ -432,8 +434,8 @@ def cmd_av(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     t0 = time.perf_counter()
     av = avar(x, levels=args.levels, alpha=args.alpha, freq=args.freq)
     seconds = time.perf_counter() - t0
-    m = _av_clusters(av)
-    var = np.asarray(av.variance, float)
+    m = np.asarray(av.clusters, dtype=float)
+    var = np.asarray(av.avar, float)
     lo, hi = np.asarray(av.ci_low, float), np.asarray(av.ci_high, float)
     n = np.asarray(av.n)
     headers = ["cluster_m", "tau_s", "allan_var", "ci_low", "ci_high", "allan_dev", "n"]
@@ -456,13 +458,6 @@ def cmd_av(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                   f"freq = {args.freq:g} Hz, {100 * (1 - args.alpha):g}% CI, {seconds:.3f} s\n")
         out.write(format_table(headers, rows) + "\n")
     return EXIT_OK
-
-
-def _av_clusters(av: Any) -> np.ndarray:
-    for name in ("clusters", "cluster", "m"):
-        if getattr(av, name, None) is not None:
-            return np.asarray(getattr(av, name), dtype=float)
-    return np.asarray(av.scales, dtype=float) / 2.0
 
 
 def _write_outputs(args: argparse.Namespace, headers: Sequence[str], rows: Sequence[Sequence]) -> None:
@@ -500,24 +495,35 @@ def _load_fit_data(args: argparse.Namespace, n_params: int):
     return x, None
 
 
-def _run_fit(args: argparse.Namespace, data: Any, model: Any):
+def _run_fit(args: argparse.Namespace, data: Any, model: Any) -> tuple[Any, float | None]:
+    """The fit result and the seconds spent computing the WV here (None: the result knows)."""
+    levels = args.levels if isinstance(data, np.ndarray) else None  # a table is already subset
     if args.method == "avsm":
         try:
             from gmwm.avsm import fit_avsm
         except ModuleNotFoundError as exc:
             raise GMWMError(f"--method avsm needs the module {exc.name}, not available here") from None
-        return fit_avsm(data, model, levels=args.levels, freq=args.freq)
+        seconds_wv = 0.0
+        if isinstance(data, np.ndarray):
+            from gmwm.wv import wvar
+
+            t0 = time.perf_counter()
+            data = wvar(data, levels=levels, freq=args.freq)
+            seconds_wv = time.perf_counter() - t0
+        return fit_avsm(data, model), seconds_wv
     from gmwm.fit import fit
 
-    return fit(data, model, levels=args.levels, freq=args.freq, weights=args.weights,
-               method=args.method, n_starts=args.n_starts, seed=args.seed, reweight=args.reweight)
+    options = {} if args.n_starts is None else {"n_starts": args.n_starts}
+    res = fit(data, model, levels=levels, freq=args.freq, weights=args.weights,
+              method=args.method, seed=args.seed, reweight=args.reweight, **options)
+    return res, None
 
 
 def _identify_module():
     try:
-        from gmwm import identify
+        identify = importlib.import_module("gmwm.identify")
     except ModuleNotFoundError as exc:
-        if exc.name not in ("gmwm.identify",):
+        if exc.name != "gmwm.identify":
             raise
         raise GMWMError("--check needs the identifiability module gmwm.identify, which is not "
                         "available in this installation yet; run without --check") from None
@@ -531,9 +537,10 @@ def cmd_fit(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     model = Model(args.model, freq=args.freq)
     data, seconds_wv = _load_fit_data(args, model.n_params)
     t0 = time.perf_counter()
-    res = _run_fit(args, data, model)
+    res, seconds_wv_here = _run_fit(args, data, model)
     elapsed = time.perf_counter() - t0
-    seconds_wv = getattr(res, "seconds_wv", None) if seconds_wv is None else seconds_wv
+    if seconds_wv is None:  # a signal: the WV was computed by the fit (or just above for AVSM)
+        seconds_wv = seconds_wv_here if seconds_wv_here is not None else getattr(res, "seconds_wv", None)
     seconds_fit = getattr(res, "seconds_fit", None)
     if seconds_fit is None:
         seconds_fit = elapsed - (seconds_wv or 0.0)
@@ -546,15 +553,15 @@ def cmd_fit(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         _save_plot(plot_wv(res.wv, result=res, units=args.units), args.plot)
     names = list(res.param_names)
     params = np.asarray(res.params, float)
-    se = getattr(res, "se", None)
-    se = np.full(params.shape, np.nan) if se is None else np.asarray(se, float)
+    se = getattr(res, "se", None)  # AVSM has no standard errors
+    se = [None] * len(names) if se is None else [float(s) for s in np.asarray(se, float)]
     if args.json:
         obj = {
             "command": "fit", "input": args.input, "model": res.model.spec, "method": args.method,
             "weights": args.weights, "n": int(res.wv.n_samples), "freq": args.freq,
             "params": dict(zip(names, params, strict=True)),
             "se": dict(zip(names, se, strict=True)),
-            "objective": float(res.objective), "converged": converged,
+            "objective": getattr(res, "objective", None), "converged": converged,
             "message": str(getattr(res, "message", "")),
             "wv": _wv_dict(res.wv), "seconds_wv": seconds_wv, "seconds_fit": seconds_fit,
         }
@@ -562,13 +569,14 @@ def cmd_fit(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             obj["check"] = _check_json(check)
         _print_json(obj, out)
     else:
-        out.write(f"GMWM fit of {res.model.spec} to {args.input} (method {args.method}, weights "
-                  f"{args.weights}): T = {res.wv.n_samples} samples, J = {res.wv.n_levels} scales, "
-                  f"freq = {args.freq:g} Hz\n")
-        z = 1.959963984540054
-        rows = [(n, p, s, p - z * s, p + z * s) for n, p, s in zip(names, params, se, strict=True)]
+        how = "AVSM" if args.method == "avsm" else f"{args.method.upper()} ({args.weights} weights)"
+        out.write(f"{how} fit of {res.model.spec} to {args.input}: T = {res.wv.n_samples} samples, "
+                  f"J = {res.wv.n_levels} scales, freq = {args.freq:g} Hz\n")
+        z = 1.959963984540054  # normal 97.5% quantile: 95% Wald intervals from the sandwich SE
+        rows = [(n, p, s, None if s is None else p - z * s, None if s is None else p + z * s)
+                for n, p, s in zip(names, params, se, strict=True)]
         out.write(format_table(["parameter", "estimate", "se", "ci95_low", "ci95_high"], rows) + "\n")
-        out.write(f"objective {float(res.objective):.6g}, converged {'yes' if converged else 'NO'}; "
+        out.write(f"objective {_fmt(getattr(res, 'objective', None))}, converged {'yes' if converged else 'NO'}; "
                   f"WV {_fmt_s(seconds_wv)}, fit {_fmt_s(seconds_fit)}\n")
         if check is not None:
             out.write(_check_text(check) + "\n")

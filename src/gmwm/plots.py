@@ -208,26 +208,36 @@ def plot_wv(
         if model is not None:
             _draw_model(ax, x, scales, model, theta, components)
         _finish_loglog(ax, _scale_label(freq), variance_label("Wavelet variance", units))
+        if model is not None and components:
+            # components that vanish at some scales (SIN) would squash the data into a strip
+            data = np.concatenate([np.asarray(wv.ci_low, float), np.asarray(wv.variance, float)])
+            floor = np.nanmin(_positive(data)) / 100.0
+            if np.isfinite(floor) and ax.get_ylim()[0] < floor:
+                ax.set_ylim(bottom=floor)
     return ax
 
 
 def plot_av(av: Any, *, ax: Axes | None = None, units: str = "", label: str | None = None) -> Axes:
     """Allan variance with its CI band, log-log against the cluster time m / freq.
 
-    ``av`` needs ``variance``, ``ci_low``, ``ci_high``, ``freq`` and the cluster lengths in samples as
-    ``clusters`` (or ``m``; or ``scales``, halved, when it is a wavelet-variance-like object).
+    ``av`` is a ``gmwm.wv.AllanVariance`` (``avar``, ``ci_low``, ``ci_high``, ``clusters`` in samples,
+    ``freq``); objects with ``variance`` and ``scales`` (halved to cluster lengths) work too.
     """
     ax = new_axes(ax)
     freq = float(getattr(av, "freq", 1.0))
     m = _clusters(av)
     with style():
         _draw_estimate(
-            ax, m / freq, np.asarray(av.variance, float), np.asarray(av.ci_low, float),
+            ax, m / freq, np.asarray(_av_values(av), float), np.asarray(av.ci_low, float),
             np.asarray(av.ci_high, float), label or "Allan variance",
             f"{100 * (1 - float(getattr(av, 'alpha', 0.05))):g}% CI",
         )
         _finish_loglog(ax, _scale_label(freq, "Cluster time"), variance_label("Allan variance", units))
     return ax
+
+
+def _av_values(av: Any) -> np.ndarray:
+    return av.avar if getattr(av, "avar", None) is not None else av.variance
 
 
 def _clusters(av: Any) -> np.ndarray:
