@@ -469,7 +469,8 @@ def plot_runtime(
             slow, fast = (np.asarray(times[r], float) for r in ratio)
             for t, s, f in zip(T, slow, fast, strict=True):
                 if np.isfinite(s) and np.isfinite(f) and f > 0:
-                    ax.annotate(f"×{s / f:.3g}", (t, np.sqrt(s * f)), ha="center", va="center",
+                    r = s / f
+                    ax.annotate(f"×{r:.0f}" if r >= 10 else f"×{r:.2g}", (t, np.sqrt(s * f)), ha="center", va="center",
                                 fontsize=7, color="#444444", gid="speedup")
             ax.plot([], [], " ", label=f"×: {ratio[0]} / {ratio[1]}")
         ax.set_xscale("log")
