@@ -381,8 +381,12 @@ def _wv_table_rows(wv: Any, factor: float = 1.0, halve: bool = False):
 
 
 def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from gmwm.io import write_signal
+    from gmwm.io import SIGNAL_SUFFIXES, write_signal
 
+    suffix = Path(args.output).suffix.lower()
+    if suffix not in SIGNAL_SUFFIXES:  # before a possibly long simulation
+        raise InputError(f"unknown output extension '{suffix}' for {args.output}: "
+                         f"use one of {', '.join(SIGNAL_SUFFIXES)}")
     model, theta = _model_theta(args.model, args.param, args.freq)
     t0 = time.perf_counter()
     x = model.simulate(theta, args.n_samples, np.random.default_rng(args.seed))

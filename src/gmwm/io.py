@@ -269,9 +269,10 @@ def _validated(x: np.ndarray, p: Path, check_finite: bool) -> np.ndarray:
             first = int(np.argmax(bad))
             n_nan = int(np.isnan(x).sum())
             n_inf = int(bad.sum()) - n_nan
+            what = " and ".join(f"{k} {name}" for k, name in ((n_nan, "NaN"), (n_inf, "inf")) if k)
             raise InputError(
-                f"signal in {p} contains {n_nan} NaN and {n_inf} inf value(s) "
-                f"(first at sample {first}); clean or interpolate it first"
+                f"signal in {p} contains {what} value(s) (first at sample {first}); "
+                "clean or interpolate it first"
             )
     return x
 
