@@ -275,6 +275,7 @@ BAD_CASES = {
                           "missing value"),
     "bad option value": (["fit", "{short}", "WN", "--weights", "foo"], 2, "invalid choice"),
     "no command": ([], 2, "required"),
+    "bad plot extension": (["wv", "{short}", "--plot", "{dir}/p.gif"], 2, "--plot"),
     "bad output extension": (["simulate", "WN", "-p", "WN[1].sigma2=1", "-n", "5", "-o",
                               "{dir}/o.xyz"], 1, "unknown output extension"),
 }

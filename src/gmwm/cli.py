@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import os
 import re
 import sys
 import time
@@ -345,10 +346,17 @@ def _print_json(obj: Any, out: TextIO) -> None:
 def _save_plot(ax_or_fig: Any, path: str) -> None:
     from gmwm.io import save_figure
 
-    fig = getattr(ax_or_fig, "figure", ax_or_fig)
-    if Path(path).suffix.lower().lstrip(".") not in ("png", "pdf", "svg", "jpg", "jpeg", "eps", "tif", "tiff"):
-        raise UsageError(f"--plot {path}: use a .png, .pdf or .svg file name")
-    save_figure(fig, path)
+    save_figure(getattr(ax_or_fig, "figure", ax_or_fig), path)
+
+
+_PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".tif", ".tiff")
+
+
+def _check_args(args: argparse.Namespace) -> None:
+    """Checks of option values that argparse cannot do, made before any computation."""
+    plot = getattr(args, "plot", None)
+    if plot and Path(plot).suffix.lower() not in _PLOT_SUFFIXES:
+        raise UsageError(f"--plot {plot}: use a .png, .pdf or .svg file name")
 
 
 def _wv_dict(wv: Any) -> dict[str, Any]:
@@ -548,7 +556,11 @@ def cmd_fit(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     seconds_fit = getattr(res, "seconds_fit", None)
     if seconds_fit is None:
         seconds_fit = elapsed - (seconds_wv or 0.0)
-    check = identify.check(res) if identify is not None else None
+    check = None
+    if identify is not None:
+        if not hasattr(identify, "check"):
+            raise GMWMError("--check: gmwm.identify does not provide check(result) yet")
+        check = identify.check(res)
     converged = bool(getattr(res, "converged", True))
 
     if args.plot:
@@ -650,6 +662,15 @@ def _one_line(exc: BaseException) -> str:
     return first
 
 
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null so the interpreter's final flush does not fail again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # no real file descriptor (e.g. captured)
+        pass
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``gmwm`` command line; return the exit status (see the module docstring)."""
     out, err = sys.stdout, sys.stderr
@@ -659,6 +680,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:  # --help, --version, usage errors
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
     try:
+        _check_args(args)
         return args.func(args, out, err)
     except UsageError as exc:
         err.write(f"gmwm: error: {_one_line(exc)} (see 'gmwm {args.command} --help')\n")
@@ -667,7 +689,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         err.write(f"gmwm: error: {_one_line(exc)}\n")
         return EXIT_ERROR
     except OSError as exc:
-        if isinstance(exc, BrokenPipeError):  # e.g. 'gmwm wv x.npy | head'
+        if isinstance(exc, BrokenPipeError):  # e.g. 'gmwm wv x.npy | head': not an error
+            _silence_stdout()
             return EXIT_OK
         err.write(f"gmwm: error: {_one_line(exc)}\n")
         return EXIT_ERROR
