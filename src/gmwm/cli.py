@@ -460,7 +460,8 @@ def cmd_av(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         _save_plot(plot_av(av, units=args.units), args.plot)
     if args.json:
         _print_json({
-            "command": "av", "input": args.input, "cluster": m.astype(int).tolist(),
+            "command": "av", "input": args.input, "levels": np.asarray(av.levels).tolist(),
+            "cluster": m.astype(int).tolist(),
             "tau_s": (m / args.freq).tolist(), "variance": var.tolist(), "ci_low": lo.tolist(),
             "ci_high": hi.tolist(), "deviation": np.sqrt(var).tolist(), "n": n.tolist(),
             "n_samples": int(x.size), "freq": args.freq, "alpha": args.alpha, "seconds": seconds,
