@@ -1,0 +1,30 @@
+"""Rule figure_boxplot: boxplots of (estimate - truth) / empirical SD per parameter (Fig. 4 style)."""
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+from wflog import get_logger
+
+from gmwm.io import save_figure
+from gmwm.plots import boxplot_standardized
+from gmwm.store import read_dataset
+from gmwm.studies import standardized_errors
+
+snakemake = globals()["snakemake"]  # injected by Snakemake
+log = get_logger(snakemake)
+ds = read_dataset(snakemake.input[0])
+data = standardized_errors(ds)
+n_conv = int(ds["converged"].sum())
+fig, ax = plt.subplots(figsize=(1.0 + 0.8 * len(data), 4.5))
+boxplot_standardized(
+    data, ax=ax,
+    title=(f"{ds.attrs['study']}: {ds.attrs['model']}, T = {ds.attrs['n_samples']:.3g}, "
+           f"{n_conv}/{ds.sizes['replicate']} converged fits ({ds.attrs['estimator']})"),
+)
+base = Path(snakemake.output[0]).with_suffix("")
+written = save_figure(fig, base, formats=snakemake.params.formats)
+plt.close(fig)
+log.info("wrote %s", ", ".join(map(str, written)))

@@ -1,0 +1,35 @@
+"""Rule index: one Markdown page listing every study with its figures, key numbers and run time."""
+
+from pathlib import Path
+
+import pandas as pd
+from wflog import get_logger
+
+from gmwm.io import write_text_atomic
+from gmwm.studies import read_benchmarks, render_index, run_summary
+
+KEY_COLUMNS = ["n_samples", "parameter", "truth", "rel_bias", "rel_sd", "std_bias",
+               "share_not_converged"]
+
+snakemake = globals()["snakemake"]  # injected by Snakemake
+log = get_logger(snakemake)
+out = Path(snakemake.output[0])
+entries = []
+for name, s in snakemake.params.studies.items():
+    targets = [Path(t) for t in s["targets"]]
+    rel = [t.relative_to(out.parent) if t.is_relative_to(out.parent) else t for t in targets]
+    csv = next((t for t in targets if t.suffix == ".csv"), None)
+    key = None
+    if csv is not None:
+        table = pd.read_csv(csv)
+        key = table[[c for c in KEY_COLUMNS if c in table.columns]]
+    entries.append({
+        "name": name, "model": s["model"], "description": s["description"],
+        "n_samples": s["n_samples"], "replicates": s["replicates"],
+        "figures": [str(r) for r in rel if r.suffix == ".png"],
+        "table": next((str(r) for r in rel if r.suffix == ".md"), ""),
+        "key": key,
+    })
+summary = run_summary(read_benchmarks(snakemake.params.benchmarks))
+write_text_atomic(out, render_index(entries, summary, snakemake.params.config_id))
+log.info("wrote %s (%d studies)", out, len(entries))
