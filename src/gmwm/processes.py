@@ -16,7 +16,7 @@ from scipy.signal import lfilter
 from scipy.special import expit, logit
 
 # Free-space values are clamped so that wild optimiser steps cannot overflow exp().
-_ETA_MAX = 700.0
+_ETA_MAX = 300.0
 
 
 def _exp(eta: np.ndarray | float) -> np.ndarray:
@@ -314,7 +314,7 @@ class Sinusoid(Process):
         return p[0] * np.sin(p[1] * np.arange(1, n + 1, dtype=float) + u)
 
     def to_free(self, p):
-        return np.array([np.log(p[0]), logit(p[1] / np.pi)])
+        return np.array([np.log(p[0]), logit(np.clip(p[1] / np.pi, 1e-300, 1 - 1e-12))])
 
     def from_free(self, eta):
         return np.array([_exp(eta[0]), np.pi * expit(eta[1])])
