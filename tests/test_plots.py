@@ -20,7 +20,7 @@ from gmwm.plots import (
     plot_runtime,
     plot_wv,
     plot_wv_replicates,
-    style,
+    subplots,
     variance_label,
 )
 from gmwm.wv import avar, wvar
@@ -89,11 +89,12 @@ def test_plot_wv_single_component_and_samples_axis():
 
 def test_plot_wv_draws_into_given_axes(sim1):
     _, _, wv = sim1
-    with style():
-        fig = Figure()
-        ax = fig.add_subplot()
+    fig, (ax, ax2) = subplots(1, 2)
+    assert ax.figure is fig
     assert plot_wv(wv, ax=ax) is ax
-    assert len(ax.get_lines()) == 1
+    assert len(ax.get_lines()) == 1 and ax2.get_lines() == []
+    assert not ax.spines["top"].get_visible()  # the grid was made in the project style
+    assert plot_wv(wv, ax=Figure().add_subplot()).get_xscale() == "log"
 
 
 def test_plot_av_uses_cluster_time():

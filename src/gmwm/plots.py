@@ -32,6 +32,7 @@ __all__ = [
     "plot_wv",
     "plot_wv_replicates",
     "style",
+    "subplots",
     "variance_label",
 ]
 
@@ -94,6 +95,15 @@ def new_axes(ax: Axes | None = None, figsize: tuple[float, float] | None = None)
     with style():
         fig = Figure(figsize=figsize or STYLE["figure.figsize"], layout="constrained")
         return fig.add_subplot()
+
+
+def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float] | None = None,
+             **kwargs: Any) -> tuple[Figure, Any]:
+    """A styled Figure and its Axes grid (like ``pyplot.subplots``, without pyplot), for composing
+    several of the plots here into one figure by passing ``ax=``."""
+    with style():
+        fig = Figure(figsize=figsize or STYLE["figure.figsize"], layout="constrained")
+        return fig, fig.subplots(nrows, ncols, **kwargs)
 
 
 def variance_label(quantity: str, units: str = "") -> str:
