@@ -29,8 +29,8 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from functools import lru_cache
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -184,7 +184,8 @@ def weight_matrix(wv: WaveletVariance, weights: str | np.ndarray, method: str = 
     if isinstance(weights, np.ndarray) or not isinstance(weights, str):
         V = np.asarray(weights, dtype=float)
         if V.shape != (J, J):
-            raise InputError(f"weight covariance must be {J}x{J} (one row per level), got {V.shape}")
+            raise InputError(f"weight covariance must be {J}x{J} (one row per level), "
+                             f"got {V.shape}")
         if not np.all(np.isfinite(V)) or np.any(np.diag(V) <= 0):
             raise InputError("weight covariance must be finite with a positive diagonal")
         Vf = V
@@ -521,17 +522,17 @@ def _fit_once(wv: WaveletVariance, model: Model, omega: np.ndarray, V: np.ndarra
                                 jac=prob.free_jac, method="trf", bounds=(lo, hi), x_scale="jac",
                                 xtol=1e-10, ftol=1e-12, gtol=1e-10, max_nfev=max_nfev)
         except (ValueError, FloatingPointError, np.linalg.LinAlgError) as err:
-            runs.append((np.inf, None, f"optimiser failed: {err}", 0))
+            runs.append((np.inf, None, f"optimiser failed: {err}", False))
             continue
         theta = model.canonical(model.from_free(sol.x))
         obj = prob.objective(theta)
-        ok = sol.status > 0 and np.all(np.isfinite(theta)) and np.isfinite(obj)
-        runs.append((obj if np.isfinite(obj) else np.inf, theta if ok else theta, sol.message
-                     if ok else f"stopped: {sol.message}", int(sol.nfev) if ok else -int(sol.nfev)))
+        ok = bool(sol.status > 0 and np.all(np.isfinite(theta)) and np.isfinite(obj))
+        runs.append((obj if np.isfinite(obj) else np.inf, theta,
+                     sol.message if ok else f"stopped: {sol.message}", ok))
     objs = np.array([r[0] for r in runs])
     best = int(np.argmin(objs))
-    obj, theta, msg, nfev = runs[best]
-    converged = theta is not None and nfev > 0 and np.isfinite(obj)
+    obj, theta, msg, ok = runs[best]
+    converged = theta is not None and ok and np.isfinite(obj)
     if theta is None:
         theta = candidates[0]
         obj = prob.objective(theta)
@@ -606,4 +607,3 @@ def _condition(A: np.ndarray) -> float:
     except np.linalg.LinAlgError:
         return np.inf
     return float(sv[0] / sv[-1]) if sv[-1] > 0 else np.inf
-    return cov, se, cond

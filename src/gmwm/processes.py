@@ -28,7 +28,7 @@ class Process:
 
     name: str = ""
     param_names: tuple[str, ...] = ()
-    #: True if nu is linear in a transform h(p) with a parameter-free design column (QN, WN, RW, DR).
+    #: True if nu is linear in a transform h(p) with a parameter-free column (QN, WN, RW, DR).
     linear: bool = False
 
     @property
