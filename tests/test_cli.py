@@ -5,6 +5,7 @@ traceback)."""
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import importlib.util
 import json
 import subprocess
@@ -187,15 +188,15 @@ def test_fit_avsm_method(capsys, tmp_path):
 
 
 def test_fit_not_converged_exits_3_with_estimate(capsys, signal_files, monkeypatch):
-    import gmwm.fit
-
-    real = gmwm.fit.fit
+    # the package re-exports the function gmwm.fit, so reach the module through importlib
+    fit_module = importlib.import_module("gmwm.fit")
+    real = fit_module.fit
 
     def not_converged(*args, **kwargs):
         return dataclasses.replace(real(*args, **kwargs), converged=False,
                                    message="iteration limit reached")
 
-    monkeypatch.setattr(gmwm.fit, "fit", not_converged)
+    monkeypatch.setattr(fit_module, "fit", not_converged)
     code, out, err = run(capsys, "fit", signal_files["npy"], "WN+AR1")
     assert code == 3
     assert "AR1[1].phi" in out and "converged NO" in out
