@@ -19,8 +19,9 @@ It is evaluated cache-friendly in two phases:
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any, Iterable
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -28,12 +29,14 @@ from scipy.stats import chi2
 
 from gmwm.errors import InputError
 
-__all__ = ["WaveletVariance", "AllanVariance", "wvar", "wvar_many", "avar", "chi2_ci"]
+__all__ = ["AllanVariance", "WaveletVariance", "avar", "chi2_ci", "wvar", "wvar_many"]
 
-# Phase-1 block length as a multiple of the halo 2**L, and sub-series gathered per panel in phase 2.
-# Tuned on a 2-core AMD EPYC (512 KiB L2); see benchmarks/README.md.
-_BLOCK_FACTOR = 8
-_PANEL = 8
+def _layout(T: int, n_levels: int) -> tuple[int, int, int]:
+    """Default (L, block length, panel width): L about half the levels so that both the phase-1
+    blocks (``8 * 2**L`` samples) and the phase-2 sub-series (``~T / 2**L`` samples) stay short.
+    Tuned on a 2-core AMD EPYC (512 KiB L2, 32 MiB L3); see benchmarks/README.md."""
+    n_block = max(1, min(n_levels, (n_levels + 1) // 2))
+    return n_block, 8 << n_block, 8
 
 
 # --------------------------------------------------------------------------------------------------
@@ -143,20 +146,27 @@ def _wv_sums(x: np.ndarray, n_levels: int, n_block: int, sums: np.ndarray, buf_a
 
 
 class _Workspace:
-    """Work arrays for one signal length, reused across replicates by ``wvar_many``."""
+    """Work arrays for one signal length, reused across replicates by ``wvar_many``.
 
-    def __init__(self, T: int, n_levels: int) -> None:
-        self.n_block = max(1, min(n_levels, (n_levels + 1) // 2))
+    ``n_block`` = L (levels done on time blocks, halo ``2**L - 1``), ``block`` = samples per time
+    block, ``panel`` = sub-series gathered together in phase 2. Defaults: see ``_layout``.
+    """
+
+    def __init__(self, T: int, n_levels: int, n_block: int | None = None,
+                 block: int | None = None, panel: int | None = None) -> None:
+        d_block, d_len, d_panel = _layout(T, n_levels)
+        self.n_block = d_block if n_block is None else min(n_block, n_levels)
         halo = (1 << self.n_block) - 1
-        block = min(T, _BLOCK_FACTOR * (halo + 1))
-        self.buf_a = np.empty(block + halo)
-        self.buf_b = np.empty(block + halo)
+        blen = min(T, d_len if block is None else block)
+        self.buf_a = np.empty(blen + halo)
+        self.buf_b = np.empty(blen + halo)
         if n_levels > self.n_block:
             n_out = T - halo
             rows = -(-n_out // (halo + 1))
+            width = d_panel if panel is None else panel
             self.v_l = np.empty(n_out)
-            self.pan_a = np.empty(rows * _PANEL)
-            self.pan_b = np.empty(rows * _PANEL)
+            self.pan_a = np.empty(rows * width)
+            self.pan_b = np.empty(rows * width)
         else:
             self.v_l = self.pan_a = self.pan_b = np.empty(0)
 

@@ -1,0 +1,116 @@
+"""Benchmark gmwm.wv.wvar against a straightforward NumPy cumulative-sum implementation.
+
+Usage: python benchmarks/bench_wv.py [--big] [--repeat 3]
+Prints, per signal length T: best-of-N wall and CPU time of ``wvar`` (all default levels, CI included) after a
+warm-up call, the same for the NumPy baseline, the wall-time ratio, the agreement between the two, and the
+peak extra memory of each (tracemalloc, in units of the signal's size). Then the numba first-call
+time with a cold and with a warm on-disk cache (fresh NUMBA_CACHE_DIR, separate processes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+import tracemalloc
+from collections.abc import Callable
+from functools import partial
+
+import numpy as np
+
+from gmwm.wv import wvar
+
+
+def numpy_cumsum_wv(x: np.ndarray, levels: int) -> np.ndarray:
+    """Baseline: global cumulative sum, W = (S_t - 2 S_{t-m} + S_{t-2m}) / tau, one level at a time."""
+    S = np.concatenate(([0.0], np.cumsum(x - x.mean())))
+    T = x.size
+    out = np.empty(levels)
+    for j in range(1, levels + 1):
+        tau, m = 2**j, 2 ** (j - 1)
+        w = (S[tau:] - 2.0 * S[m:T + 1 - m] + S[:T + 1 - tau]) / tau
+        out[j - 1] = np.dot(w, w) / w.size
+    return out
+
+
+def best_time(fn: Callable[[], object], repeat: int) -> tuple[float, float]:
+    """Best wall and best CPU seconds over ``repeat`` calls after a warm-up call (CPU time is the
+    fairer number when other processes share the cores)."""
+    fn()                                        # warm-up (JIT / cache load, page faults)
+    wall, cpu = [], []
+    for _ in range(repeat):
+        t0, c0 = time.perf_counter(), time.process_time()
+        fn()
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return min(wall), min(cpu)
+
+
+def peak_extra_bytes(fn: Callable[[], object]) -> int:
+    tracemalloc.start()
+    try:
+        fn()
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+_COMPILE_SNIPPET = """
+import time, numpy as np
+t0 = time.perf_counter()
+from gmwm.wv import wvar
+t1 = time.perf_counter()
+wvar(np.random.default_rng(0).standard_normal(5000))
+t2 = time.perf_counter()
+print(f"{t1 - t0:.3f} {t2 - t1:.3f}")
+"""
+
+
+def first_call_times() -> tuple[float, float, float]:
+    """(import s, first-call s with a cold cache, first-call s with a warm cache)."""
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        runs = []
+        for _ in range(2):
+            out = subprocess.run([sys.executable, "-c", _COMPILE_SNIPPET], env=env, check=True,
+                                 capture_output=True, text=True).stdout.split()
+            runs.append((float(out[0]), float(out[1])))
+    return runs[1][0], runs[0][1], runs[1][1]
+
+
+def bench_row(T: int, rng: np.random.Generator, repeat: int) -> str:
+    """One table row for a RW(1) + WN(1e-4) + offset signal of T samples (the numerically hard case)."""
+    x = 1e3 + np.cumsum(rng.standard_normal(T)) + 1e-2 * rng.standard_normal(T)
+    J = int(np.floor(np.log2(T))) - 1
+    ours = partial(wvar, x)
+    base = partial(numpy_cumsum_wv, x, J)
+    t_ours, t_np = best_time(ours, repeat), best_time(base, repeat)
+    diff = np.max(np.abs(ours().variance / base() - 1.0))
+    mem_ours, mem_np = peak_extra_bytes(ours) / x.nbytes, peak_extra_bytes(base) / x.nbytes
+    return (f"{T:>9.0e} {J:>3} {t_ours[0]:>7.3f} / {t_ours[1]:>6.3f} {t_np[0]:>8.3f} / "
+            f"{t_np[1]:>6.3f} {t_np[0] / t_ours[0]:>6.1f} {diff:>12.1e} {mem_ours:>8.2f}x "
+            f"{mem_np:>8.2f}x")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--big", action="store_true", help="also T = 1e8 (needs ~6 GB, ~1 min)")
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args(argv)
+    sizes = [10**6, 10**7] + ([10**8] if args.big else [])
+    rng = np.random.default_rng(12345)
+    print(f"{'T':>9} {'J':>3} {'wvar wall/cpu s':>16} {'numpy wall/cpu s':>17} {'ratio':>6} "
+          f"{'max rel diff':>12} {'mem wvar':>9} {'mem numpy':>9}")
+    for T in sizes:
+        print(bench_row(T, rng, args.repeat), flush=True)
+    t_imp, cold, warm = first_call_times()
+    print(f"import gmwm.wv: {t_imp:.2f} s; first wvar call: {cold:.2f} s with a cold numba cache "
+          f"(compile), {warm:.2f} s with a warm cache")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
