@@ -1,6 +1,6 @@
 """Benchmark gmwm.wv.wvar against a straightforward NumPy cumulative-sum implementation.
 
-Usage: python benchmarks/bench_wv.py [--big] [--repeat 3]
+Usage: python benchmarks/bench_wv.py [--big] [--repeat 3] [--tune]
 Prints, per signal length T: best-of-N wall and CPU time of ``wvar`` (all default levels, CI included) after a
 warm-up call, the same for the NumPy baseline, the wall-time ratio, the agreement between the two, and the
 peak extra memory of each (tracemalloc, in units of the signal's size). Then the numba first-call
@@ -21,7 +21,7 @@ from functools import partial
 
 import numpy as np
 
-from gmwm.wv import wvar
+from gmwm.wv import _layout, _Workspace, wvar
 
 
 def numpy_cumsum_wv(x: np.ndarray, levels: int) -> np.ndarray:
@@ -61,7 +61,7 @@ def peak_extra_bytes(fn: Callable[[], object]) -> int:
 _COMPILE_SNIPPET = """
 import time, numpy as np
 t0 = time.perf_counter()
-from gmwm.wv import wvar
+from gmwm.wv import _layout, _Workspace, wvar
 t1 = time.perf_counter()
 wvar(np.random.default_rng(0).standard_normal(5000))
 t2 = time.perf_counter()
@@ -95,11 +95,29 @@ def bench_row(T: int, rng: np.random.Generator, repeat: int) -> str:
             f"{mem_np:>8.2f}x")
 
 
+def tune(T: int, repeat: int) -> None:
+    """CPU seconds of the kernel alone for a grid of (L, block/2**L, panel) layouts around the default."""
+    x = np.cumsum(np.random.default_rng(1).standard_normal(T))
+    J = int(np.floor(np.log2(T))) - 1
+    L0, _, p0 = _layout(T, J)
+    print(f"T={T:.0e}, J={J}, default L={L0}, block=8*2**L, panel={p0}")
+    for L in sorted({max(1, L0 - 2), L0 - 1, L0, min(J, L0 + 1), min(J, L0 + 2)}):
+        for factor in (4, 8, 16):
+            for panel in (4, 8, 16):
+                ws = _Workspace(T, J, L, factor << L, panel)
+                cpu = best_time(partial(ws.sums, x, J), repeat)[1]
+                print(f"  L={L:>2} block={factor:>2}*2**L panel={panel:>2}: {cpu:.4f} s cpu")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--big", action="store_true", help="also T = 1e8 (needs ~6 GB, ~1 min)")
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--tune", action="store_true", help="time kernel layouts at T = 1e7 only")
     args = parser.parse_args(argv)
+    if args.tune:
+        tune(10**7, args.repeat)
+        return 0
     sizes = [10**6, 10**7] + ([10**8] if args.big else [])
     rng = np.random.default_rng(12345)
     print(f"{'T':>9} {'J':>3} {'wvar wall/cpu s':>16} {'numpy wall/cpu s':>17} {'ratio':>6} "

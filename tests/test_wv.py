@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import json
 from fractions import Fraction
+from functools import cache
 from itertools import accumulate
 
 import numpy as np
@@ -14,7 +15,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from scipy.stats import chi2
 
 from gmwm.errors import GMWMError, InputError
-from gmwm.wv import AllanVariance, WaveletVariance, avar, wvar, wvar_many
+from gmwm.wv import AllanVariance, WaveletVariance, _Workspace, avar, wvar, wvar_many
 
 # --------------------------------------------------------------------------------------------------
 # references
@@ -71,6 +72,7 @@ def naive_cumsum_wv(x: np.ndarray, J: int) -> np.ndarray:
     return np.array(out)
 
 
+@cache
 def hard_signals(T: int = 4000) -> dict[str, np.ndarray]:
     rng = np.random.default_rng(20240601)
     return {
@@ -88,13 +90,23 @@ def rel_err(a: np.ndarray, b: np.ndarray) -> float:
 # exactness and agreement with independent implementations
 
 
+# (L, block, panel) layouts of the two-phase kernel: None = default (one block for T = 4000), then
+# many short blocks with halos and several interleaved sub-series panels, incl. a ragged last panel
+LAYOUTS = [None, (2, 37, 3), (5, 100, 8), (7, 1000, 5)]
+
+
+@pytest.mark.parametrize("layout", LAYOUTS)
 @pytest.mark.parametrize("name", list(hard_signals()))
-def test_exact_rational_reference_on_hard_signals(name: str) -> None:
+def test_exact_rational_reference_on_hard_signals(name: str, layout: tuple | None) -> None:
     x = hard_signals()[name]
     J = int(np.floor(np.log2(x.size)))           # every scale, including M_J = T - 2**J + 1 small
-    got = wvar(x, J).variance
     ref = exact_wv(x, J)
-    # acceptance criterion is 1e-9; the pyramid is measured at ~1e-15, so assert a tighter bound
+    if layout is None:
+        got = wvar(x, J).variance
+    else:
+        n = x.size - 2.0 ** np.arange(1, J + 1) + 1
+        got = 0.25 * _Workspace(x.size, J, *layout).sums(x, J) / n
+    # acceptance criterion is 1e-9; the pyramid is measured at ~4e-16, so assert a tighter bound
     assert rel_err(got, ref) < 1e-12
 
 
@@ -113,12 +125,13 @@ def test_matches_direct_filter_all_levels(T: int) -> None:
         np.testing.assert_allclose(wvar(x, levels).variance, direct_wv(x, levels), rtol=1e-11)
 
 
-@pytest.mark.parametrize("T", [2**16, 2**17 + 11, 300_007])
-def test_matches_longdouble_pyramid_long_signals(T: int) -> None:
-    # long enough for many blocks and many interleaved sub-series panels
+@pytest.mark.parametrize(("T", "J"), [(2**16, 16), (2**17 + 11, 17), (300_007, 18), (300_007, 3),
+                                    (300_007, 12)])
+def test_matches_longdouble_pyramid_long_signals(T: int, J: int) -> None:
+    # default layout on long signals: many blocks, many interleaved sub-series panels, and (J <= 11)
+    # the blocked phase only
     rng = np.random.default_rng(7)
     x = 50.0 + np.cumsum(rng.standard_normal(T)) + rng.standard_normal(T)
-    J = int(np.floor(np.log2(T)))
     assert rel_err(wvar(x, J).variance, longdouble_pyramid(x, J)) < 1e-12
 
 

@@ -32,10 +32,11 @@ from gmwm.errors import InputError
 __all__ = ["AllanVariance", "WaveletVariance", "avar", "chi2_ci", "wvar", "wvar_many"]
 
 def _layout(T: int, n_levels: int) -> tuple[int, int, int]:
-    """Default (L, block length, panel width): L about half the levels so that both the phase-1
-    blocks (``8 * 2**L`` samples) and the phase-2 sub-series (``~T / 2**L`` samples) stay short.
-    Tuned on a 2-core AMD EPYC (512 KiB L2, 32 MiB L3); see benchmarks/README.md."""
-    n_block = max(1, min(n_levels, (n_levels + 1) // 2))
+    """Default (L, block length, panel width). Phase 1 does up to 11 levels (blocks of
+    ``8 * 2**L`` samples, ~300 KiB of work arrays, sit in L2) and more only when needed to keep the
+    phase-2 sub-series (``~T / 2**L`` samples) short. Chosen from ``bench_wv.py --tune`` on a
+    2-core AMD EPYC (512 KiB L2, 32 MiB L3); timings are flat within 10 % around this choice."""
+    n_block = min(n_levels, max((n_levels + 1) // 2, 11))
     return n_block, 8 << n_block, 8
 
 
@@ -102,7 +103,7 @@ def _wv_sums(x: np.ndarray, n_levels: int, n_block: int, sums: np.ndarray, buf_a
              buf_b: np.ndarray, v_l: np.ndarray, pan_a: np.ndarray, pan_b: np.ndarray) -> None:
     """Add ``sum_t (2 W_{j,t})**2`` over the boundary-free coefficients of ``x`` to ``sums[j-1]``.
 
-    Work arrays (see ``_Workspace``): ``buf_a/buf_b`` hold ``n_block + 2**L - 1`` values,
+    Work arrays (see ``_Workspace``): ``buf_a/buf_b`` hold ``block + 2**L - 1`` values,
     ``v_l`` holds ``T - 2**L + 1`` and ``pan_a/pan_b`` a panel of sub-series.
     """
     T = x.shape[0]
