@@ -1,0 +1,376 @@
+"""Kalman-filter maximum-likelihood baseline for Simulation 1 of the vibration-noise paper (SPEC 5.7).
+
+Model (per-sample, discrete time): ``x_t = mu_t + c_t + e_t + b_1 cos(beta t) + b_2 sin(beta t)`` with
+``mu_t`` a random walk (increment variance ``gamma2``, diffuse start), ``c_t`` an AR(1)
+(``c_t = phi c_{t-1} + w_t``, ``Var w_t = sigma2_AR`` = innovation variance, stationary start) and
+``e_t`` white noise (``sigma2``). The sinusoid is deterministic with known frequency ``beta`` (rad/sample);
+its amplitude is ``alpha = hypot(b_1, b_2)``.
+
+The exact Gaussian likelihood (exact diffuse initialisation of the level) is computed by statsmodels'
+``UnobservedComponents(level="llevel", autoregressive=1)`` Kalman filter. The regression part
+``X b`` is subtracted from the data before filtering rather than passed as ``exog``: the likelihood is
+identical, but a time-invariant model lets the filter switch to its steady state, about twice as fast.
+The optimiser is scipy's BFGS in a parametrisation whitened by the Whittle (spectral) Fisher
+information, so that one unit is about one standard error in every direction; this makes the
+convergence tolerance meaningful for parameters as different as ``gamma2 ~ 1e-4`` and ``phi ~ 0.98``.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize, nnls
+from statsmodels.tsa.statespace.structural import UnobservedComponents
+
+from gmwm.errors import InputError, ModelError
+
+__all__ = ["PARAM_KEYS", "MLEResult", "fit_mle"]
+
+PARAM_KEYS = ("WN[1].sigma2", "RW[1].gamma2", "AR1[1].phi", "AR1[1].sigma2")
+_SM_NAMES = {  # statsmodels name -> our name (sigma2.ar is the AR innovation variance, see tests)
+    "sigma2.irregular": "WN[1].sigma2",
+    "sigma2.level": "RW[1].gamma2",
+    "sigma2.ar": "AR1[1].sigma2",
+    "ar.L1": "AR1[1].phi",
+}
+_MIN_SAMPLES = 64
+_PHI_BOUND = 0.9999  # |phi| at or beyond this counts as a boundary solution
+_VAR_REL_FLOOR = 1e-12  # variances are kept above this times Var(diff x) ...
+_VAR_REL_BOUND = 1e-6  # ... and flagged as on the boundary below this times Var(diff x)
+_GTOL = 1e-3  # gradient tolerance in standard-error units (log-likelihood scale)
+_FD_STEP = 1e-3  # forward-difference step in standard-error units
+
+
+@dataclass
+class MLEResult:
+    """Outcome of :func:`fit_mle`.
+
+    ``params`` holds ``WN[1].sigma2``, ``RW[1].gamma2``, ``AR1[1].phi``, ``AR1[1].sigma2`` (innovation
+    variance), all per sample, plus ``SIN[1].alpha`` (amplitude, for information). ``loglike`` is the
+    exact Gaussian log-likelihood (statsmodels' exact-diffuse convention). ``start`` names the winning
+    start: ``'gmwm'`` (the supplied start), ``'variogram'`` (data-driven), ``'grid-k'``, ``'default'``
+    (statsmodels' own start values).
+    """
+
+    params: dict[str, float]
+    converged: bool
+    loglike: float
+    start: str
+    n_starts: int
+    seconds: float
+    message: str
+
+
+# ----------------------------------------------------------------------------------------------
+# input, regressors, parametrisation
+
+
+def _check_input(x: np.ndarray, beta: float) -> np.ndarray:
+    x = np.asarray(x, dtype=float)
+    if x.ndim != 1:
+        raise InputError(f"signal must be 1-D, got shape {x.shape}")
+    if x.size < _MIN_SAMPLES:
+        raise InputError(f"signal too short for the MLE: {x.size} samples (need >= {_MIN_SAMPLES})")
+    if not np.all(np.isfinite(x)):
+        raise InputError("signal contains NaN or inf")
+    if not (np.isfinite(beta) and 0.0 < beta <= np.pi):
+        raise InputError(f"sinusoid frequency beta must be in (0, pi] rad/sample, got {beta}")
+    if np.var(np.diff(x)) <= 0.0:
+        raise InputError("signal is constant or linear: no noise to estimate")
+    return x
+
+
+def _regressors(n: int, beta: float) -> np.ndarray:
+    """(n, 2) matrix ``[cos(beta t), sin(beta t)]``, ``t = 0..n-1``."""
+    t = np.arange(n) * beta
+    return np.column_stack([np.cos(t), np.sin(t)])
+
+
+def _sin_ols(x: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """Sinusoid coefficients by least squares on first differences (removes level and RW)."""
+    b, *_ = np.linalg.lstsq(np.diff(X, axis=0), np.diff(x), rcond=None)
+    return b
+
+
+def _to_eta(theta: dict[str, float], b: np.ndarray) -> np.ndarray:
+    """Free parameters: log variances, atanh(phi), sinusoid coefficients."""
+    return np.array([
+        np.log(theta["WN[1].sigma2"]),
+        np.log(theta["RW[1].gamma2"]),
+        np.log(theta["AR1[1].sigma2"]),
+        np.arctanh(theta["AR1[1].phi"]),
+        b[0],
+        b[1],
+    ])
+
+
+def _from_eta(eta: np.ndarray) -> tuple[dict[str, float], np.ndarray]:
+    theta = {
+        "WN[1].sigma2": float(np.exp(eta[0])),
+        "RW[1].gamma2": float(np.exp(eta[1])),
+        "AR1[1].sigma2": float(np.exp(eta[2])),
+        "AR1[1].phi": float(np.tanh(eta[3])),
+    }
+    return theta, np.asarray(eta[4:6], dtype=float)
+
+
+def _clean_theta(theta: dict[str, float], scale: float) -> dict[str, float]:
+    """Move a start strictly inside the domain (a GMWM estimate may sit on a boundary)."""
+    floor = 1e-5 * scale
+    out = {k: float(theta[k]) for k in PARAM_KEYS}
+    for k in ("WN[1].sigma2", "RW[1].gamma2", "AR1[1].sigma2"):
+        if not np.isfinite(out[k]) or out[k] < floor:
+            out[k] = floor
+    phi = out["AR1[1].phi"]
+    out["AR1[1].phi"] = float(np.clip(phi if np.isfinite(phi) else 0.5, -0.99, 0.9995))
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# starting values
+
+
+def _variogram_fit(y: np.ndarray, lags: np.ndarray, vhat: np.ndarray, phi: float
+                   ) -> tuple[dict[str, float], float]:
+    """Linear part of ``E(y_{t+L}-y_t)^2 = 2 s2 + L g2 + 2 s2_ar (1-phi^L)/(1-phi^2)`` by NNLS, phi fixed.
+
+    Rows are weighted by ``1/vhat`` (relative misfit). Returns the start and the weighted residual norm.
+    """
+    A = np.column_stack([np.full(lags.size, 2.0), lags, 2.0 * (1.0 - phi**lags) / (1.0 - phi**2)])
+    w = 1.0 / vhat
+    coef, resid = nnls(A * w[:, None], vhat * w)
+    theta = {"WN[1].sigma2": coef[0], "RW[1].gamma2": coef[1], "AR1[1].sigma2": coef[2],
+             "AR1[1].phi": phi}
+    return theta, float(resid)
+
+
+def _variogram_starts(y: np.ndarray, n_grid: int = 4) -> list[tuple[str, dict[str, float]]]:
+    """Data-driven starts from the empirical variogram of the de-sinusoided signal.
+
+    The best phi on a grid gives ``'variogram'``; the next local minima (or spread grid values)
+    give ``'grid-k'``.
+    """
+    n = y.size
+    lags = np.unique(np.round(np.geomspace(1, max(2, n // 10), 30)).astype(int))
+    vhat = np.array([np.mean((y[L:] - y[:-L]) ** 2) for L in lags])
+    vhat = np.maximum(vhat, 1e-300)
+    grid = 1.0 - np.geomspace(1e-4, 0.95, 60)
+    fits = [_variogram_fit(y, lags, vhat, phi) for phi in grid]
+    res = np.array([f[1] for f in fits])
+    is_min = np.r_[True, res[1:] <= res[:-1]] & np.r_[res[:-1] <= res[1:], True]
+    # local minima first, then the rest, keeping only phi values well apart in log(1 - phi)
+    order: list[int] = []
+    for i in sorted(range(grid.size), key=lambda i: (not is_min[i], res[i])):
+        if all(abs(np.log1p(-grid[i]) - np.log1p(-grid[j])) > 1.0 for j in order):
+            order.append(i)
+    out = [("variogram", fits[order[0]][0])]
+    out += [(f"grid-{k}", fits[i][0]) for k, i in enumerate(order[1:n_grid + 1], start=1)]
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# likelihood and its scaling
+
+
+class _Likelihood:
+    """Exact log-likelihood of ``x`` given ``eta`` (see :func:`_to_eta`), via statsmodels."""
+
+    def __init__(self, x: np.ndarray, X: np.ndarray):
+        self.x, self.X = x, X
+        self.order = [_SM_NAMES[name] for name in self._model(x).param_names]
+
+    @staticmethod
+    def _model(y: np.ndarray) -> UnobservedComponents:
+        # A fresh model per data vector: statsmodels caches its copy of the data, so re-binding new
+        # data to an existing model is silently ignored by the filter (construction costs < 1 ms).
+        model = UnobservedComponents(y, level="llevel", autoregressive=1, use_exact_diffuse=True)
+        # both are exact for a univariate observation; they only skip work
+        model.ssm.set_filter_method(filter_univariate=True)
+        model.ssm.set_stability_method(0)
+        return model
+
+    def __call__(self, eta: np.ndarray) -> float:
+        theta, b = _from_eta(eta)
+        model = self._model(self.x - self.X @ b)
+        return float(model.loglike(np.array([theta[k] for k in self.order])))
+
+    def default_start(self) -> dict[str, float]:
+        """statsmodels' own start values (known to lead to a wrong optimum, SPEC 5.7)."""
+        model = self._model(self.x - self.X @ _sin_ols(self.x, self.X))
+        return dict(zip(self.order, (float(v) for v in model.start_params), strict=True))
+
+
+def _whittle_info(eta: np.ndarray, n: int, beta: float) -> np.ndarray:
+    """Whittle Fisher information (total, for n samples) of ``eta`` (see :func:`_to_eta`).
+
+    Uses the spectrum of the first differences,
+    ``S(w) = s2 g + g2 + s2_ar g / |1 - phi e^{-iw}|^2``, ``g = 2 - 2 cos w``, summed over the Fourier
+    frequencies (each contributes ``grad log S grad log S^T``); the sinusoid coefficients get
+    ``(n/2) / S_x(beta)`` with ``S_x = S / g`` and no cross terms (mean and covariance parameters
+    are orthogonal in a Gaussian model).
+    """
+    theta, _ = _from_eta(eta)
+    s2, g2 = theta["WN[1].sigma2"], theta["RW[1].gamma2"]
+    s2ar, phi = theta["AR1[1].sigma2"], theta["AR1[1].phi"]
+
+    def parts(w: np.ndarray) -> tuple[np.ndarray, ...]:
+        g = 2.0 - 2.0 * np.cos(w)
+        d = 1.0 - 2.0 * phi * np.cos(w) + phi**2
+        ar = s2ar * g / d
+        return g, d, ar, s2 * g + g2 + ar
+
+    w = 2.0 * np.pi * np.arange(1, (n - 1) // 2 + 1) / n
+    g, d, ar, S = parts(w)
+    dphi = ar * (2.0 * np.cos(w) - 2.0 * phi) / d * (1.0 - phi**2)  # d ar / d atanh(phi)
+    grad = np.vstack([s2 * g, np.full_like(w, g2), ar, dphi]) / S
+    info = np.zeros((6, 6))
+    info[:4, :4] = grad @ grad.T
+    gb, _, _, Sb = parts(np.array([beta]))
+    info[4, 4] = info[5, 5] = 0.5 * n * gb[0] / Sb[0]
+    return info
+
+
+def _whitening(info: np.ndarray) -> np.ndarray:
+    """``R`` with ``R^T info R ~ I``; directions with less than unit information are left unscaled."""
+    lam, U = np.linalg.eigh(0.5 * (info + info.T))
+    return U / np.sqrt(np.maximum(lam, 1.0))
+
+
+# ----------------------------------------------------------------------------------------------
+# optimisation
+
+
+def _eta_box(scale: float) -> tuple[np.ndarray, np.ndarray]:
+    ls = np.log(scale)
+    lo = np.array([ls + np.log(_VAR_REL_FLOOR)] * 3 + [-np.arctanh(0.999999), -np.inf, -np.inf])
+    hi = np.array([ls + np.log(1e6)] * 3 + [np.arctanh(0.999999), np.inf, np.inf])
+    return lo, hi
+
+
+def _bfgs(loglike: _Likelihood, eta0: np.ndarray, n: int, beta: float, box: tuple, maxiter: int
+          ) -> tuple[np.ndarray, float, bool, int, str]:
+    """Maximise the log-likelihood from ``eta0`` with BFGS in whitened coordinates.
+
+    Outside ``box`` the parameters are clamped and a quadratic penalty pulls them back, so the
+    filter never sees overflowing values. Returns (eta, loglike, success, iterations, message).
+    """
+    lo, hi = box
+    R = _whitening(_whittle_info(np.clip(eta0, lo, hi), n, beta))
+    ll0 = loglike(np.clip(eta0, lo, hi))
+    if not np.isfinite(ll0):
+        return eta0, -np.inf, False, 0, "log-likelihood not finite at the start"
+
+    def f(z: np.ndarray) -> float:
+        eta = eta0 + R @ z
+        clamped = np.clip(eta, lo, hi)
+        ll = loglike(clamped)
+        if not np.isfinite(ll):
+            return 1e10
+        return -(ll - ll0) + 0.5 * float(np.sum((eta - clamped) ** 2)) * n
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        opt = minimize(f, np.zeros(eta0.size), method="BFGS",
+                       options={"gtol": _GTOL, "eps": _FD_STEP, "maxiter": maxiter})
+    eta = np.clip(eta0 + R @ opt.x, lo, hi)
+    return eta, ll0 - float(opt.fun), bool(opt.success), int(opt.nit), str(opt.message)
+
+
+def _maximise(loglike: _Likelihood, eta0: np.ndarray, n: int, beta: float, box: tuple,
+              maxiter: int, scale: float) -> tuple[np.ndarray, float, bool, str]:
+    """BFGS from the start, then a polish re-whitened at the optimum found (its success is the
+    convergence flag: a converged first run needs a single gradient there). The polish is skipped
+    for a boundary solution, which is reported as not converged anyway."""
+    eta, ll, ok1, nit1, msg1 = _bfgs(loglike, eta0, n, beta, box, maxiter)
+    if not np.isfinite(ll):
+        return eta, ll, False, msg1
+    if _boundary_problem(_from_eta(eta)[0], scale):
+        return eta, ll, ok1, f"{nit1} BFGS iterations, no polish at the boundary"
+    eta, ll, ok2, nit2, msg2 = _bfgs(loglike, eta, n, beta, box, maxiter)
+    return eta, ll, ok2, f"{nit1}+{nit2} BFGS iterations; {msg2 if not ok2 else 'gradient < tol'}"
+
+
+def _boundary_problem(theta: dict[str, float], scale: float) -> str:
+    if abs(theta["AR1[1].phi"]) >= _PHI_BOUND:
+        return f"AR1[1].phi on the boundary ({theta['AR1[1].phi']:.6f})"
+    for k in ("WN[1].sigma2", "RW[1].gamma2", "AR1[1].sigma2"):
+        if theta[k] < _VAR_REL_BOUND * scale:
+            return f"{k} on the zero boundary ({theta[k]:.3g})"
+    return ""
+
+
+# ----------------------------------------------------------------------------------------------
+# public
+
+
+def fit_mle(x: np.ndarray, beta: float, start: dict[str, float] | None = None, *, n_starts: int = 2,
+            maxiter: int = 200) -> MLEResult:
+    """Exact Gaussian MLE of WN + RW + AR1 + deterministic sinusoid of known frequency ``beta``.
+
+    Parameters
+    ----------
+    x : 1-D signal, per-sample units.
+    beta : sinusoid frequency in rad/sample (known; regressors ``cos(beta t)``, ``sin(beta t)``).
+    start : optional start ``{'WN[1].sigma2', 'RW[1].gamma2', 'AR1[1].phi', 'AR1[1].sigma2'}``
+        (e.g. the GMWM estimate; extra keys are ignored). Tried first, as start ``'gmwm'``.
+    n_starts : number of starts optimised; after the supplied one come ``'variogram'`` (best AR1
+        on a grid fitted to the empirical variogram), ``'grid-1'``, ... (other grid values), and
+        ``'default'`` (statsmodels' start values). The highest log-likelihood wins.
+    maxiter : BFGS iteration cap per start (and per polish).
+
+    Never raises for non-convergence: ``converged`` is False (with ``message``) when the optimiser
+    did not meet its gradient tolerance, the log-likelihood is not finite, ``|phi| >= 0.9999`` or a
+    variance is below ``1e-6 * Var(diff x)``. Raises :class:`InputError` for unusable input and
+    :class:`ModelError` for a start missing a parameter.
+    """
+    t0 = time.perf_counter()
+    x = _check_input(x, beta)
+    if n_starts < 1:
+        raise InputError(f"n_starts must be >= 1, got {n_starts}")
+    if maxiter < 1:
+        raise InputError(f"maxiter must be >= 1, got {maxiter}")
+    if start is not None:
+        missing = [k for k in PARAM_KEYS if k not in start]
+        if missing:
+            raise ModelError(f"start is missing {', '.join(missing)}")
+
+    n = x.size
+    scale = float(np.var(np.diff(x)))
+    X = _regressors(n, beta)
+    b0 = _sin_ols(x, X)
+    loglike = _Likelihood(x, X)
+
+    starts: list[tuple[str, dict[str, float]]] = []
+    if start is not None:
+        starts.append(("gmwm", start))
+    starts += _variogram_starts(x - X @ b0)
+    starts.append(("default", None))  # computed only if reached
+    starts = starts[:n_starts]
+
+    box = _eta_box(scale)
+    best: tuple | None = None
+    for name, theta in starts:
+        theta = loglike.default_start() if theta is None else theta
+        eta0 = _to_eta(_clean_theta(theta, scale), b0)
+        eta, ll, ok, msg = _maximise(loglike, eta0, n, beta, box, maxiter, scale)
+        if best is None or (np.isfinite(ll) and ll > best[1]):
+            best = (eta, ll, ok, msg, name)
+
+    eta, ll, ok, msg, name = best
+    theta, b = _from_eta(eta)
+    problem = "" if np.isfinite(ll) else "log-likelihood not finite"
+    problem = problem or _boundary_problem(theta, scale)
+    converged = ok and not problem
+    if problem:
+        message = f"not converged: {problem} (start {name}; {msg})"
+    elif not ok:
+        message = f"not converged: {msg} (start {name})"
+    else:
+        message = f"converged from start {name} ({msg})"
+    params = {k: theta[k] for k in PARAM_KEYS}
+    params["SIN[1].alpha"] = float(np.hypot(*b))
+    return MLEResult(params=params, converged=converged, loglike=float(ll), start=name,
+                     n_starts=len(starts), seconds=time.perf_counter() - t0, message=message)
