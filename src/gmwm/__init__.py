@@ -4,17 +4,36 @@ Quick start::
 
     import gmwm
     model = gmwm.Model("WN+RW+AR1+SIN")
-    x = model.simulate(model.theta({...}), 100_000, rng=1)
+    theta = model.theta({"WN[1].sigma2": 1.0, "RW[1].gamma2": 4e-4, "AR1[1].phi": 0.975,
+                         "AR1[1].sigma2": 0.03, "SIN[1].alpha": 0.85, "SIN[1].beta": 0.35})
+    x = model.simulate(theta, 100_000, rng=1)
     res = gmwm.fit(x, model)
     print(res.summary())
+
+The public names below are imported on first use, so ``gmwm --help`` starts fast.
 """
 
-from .errors import GMWMError, IdentifiabilityError, InputError, ModelError
+from importlib import import_module
+from typing import Any
+
+# Imported eagerly: importing the submodule gmwm.fit would otherwise rebind the package
+# attribute ``fit`` to the module instead of the function.
 from .fit import GMWMResult, fit
-from .model import Model
-from .wv import AllanVariance, WaveletVariance, avar, wvar
 
 __version__ = "0.1.0"
 
-__all__ = ["AllanVariance", "GMWMError", "GMWMResult", "IdentifiabilityError", "InputError",
-           "Model", "ModelError", "WaveletVariance", "avar", "fit", "wvar"]
+_EXPORTS = {
+    "GMWMError": "errors", "IdentifiabilityError": "errors", "InputError": "errors",
+    "ModelError": "errors", "DataUnavailableError": "errors",
+    "Model": "model",
+    "wvar": "wv", "avar": "wv", "WaveletVariance": "wv", "AllanVariance": "wv",
+    "fit_avsm": "avsm",
+}
+
+__all__ = sorted([*_EXPORTS, "GMWMResult", "fit"])
+
+
+def __getattr__(name: str) -> Any:
+    if name in _EXPORTS:
+        return getattr(import_module(f".{_EXPORTS[name]}", __name__), name)
+    raise AttributeError(f"module 'gmwm' has no attribute {name!r}")
