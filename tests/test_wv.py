@@ -273,6 +273,10 @@ def test_avar_is_twice_wv_and_matches_definition() -> None:
         assert value == pytest.approx(np.sum(d * d) / (2 * (x.size - 2 * m + 1)), rel=1e-12)
     json.dumps(av.to_dict())
     assert AllanVariance.from_wv(wv).avar.tolist() == av.avar.tolist()
+    with pytest.raises(ValueError):
+        av.avar[0] = 1.0                                         # read-only like the WV
+    with pytest.raises(InputError, match="one entry per level"):
+        AllanVariance([1, 2], [1, 2], [1.0, 2.0], [1.0], [0.5], [2.0], [99], 100)
 
 
 # --------------------------------------------------------------------------------------------------

@@ -254,10 +254,18 @@ def chi2_ci(variance: np.ndarray, edof: np.ndarray, alpha: float = 0.05
     return low, high
 
 
-def _frozen_array(a: Any, dtype: type) -> np.ndarray:
-    arr = np.array(a, dtype=dtype, copy=True).reshape(-1)
-    arr.setflags(write=False)
-    return arr
+def _freeze_fields(obj: Any, arrays: tuple[tuple[str, type], ...]) -> None:
+    """Coerce a frozen dataclass's per-level fields to read-only 1-D copies of one length, and its
+    scalars to plain Python numbers."""
+    for name, dtype in arrays:
+        arr = np.array(getattr(obj, name), dtype=dtype, copy=True).reshape(-1)
+        arr.setflags(write=False)
+        object.__setattr__(obj, name, arr)
+    if len({getattr(obj, name).size for name, _ in arrays}) != 1:
+        raise InputError(f"{type(obj).__name__} arrays must all have one entry per level")
+    object.__setattr__(obj, "n_samples", int(obj.n_samples))
+    object.__setattr__(obj, "freq", float(obj.freq))
+    object.__setattr__(obj, "alpha", float(obj.alpha))
 
 
 @dataclass(frozen=True, eq=False)
@@ -276,17 +284,9 @@ class WaveletVariance:
     alpha: float = 0.05
 
     def __post_init__(self) -> None:
-        for name, dtype in (("levels", np.int64), ("scales", np.float64),
-                            ("variance", np.float64), ("ci_low", np.float64),
-                            ("ci_high", np.float64), ("n", np.int64)):
-            object.__setattr__(self, name, _frozen_array(getattr(self, name), dtype))
-        sizes = {getattr(self, k).size for k in ("levels", "scales", "variance", "ci_low",
-                                                 "ci_high", "n")}
-        if len(sizes) != 1:
-            raise InputError("WaveletVariance arrays must all have one entry per level")
-        object.__setattr__(self, "n_samples", int(self.n_samples))
-        object.__setattr__(self, "freq", float(self.freq))
-        object.__setattr__(self, "alpha", float(self.alpha))
+        _freeze_fields(self, (("levels", np.int64), ("scales", np.float64),
+                              ("variance", np.float64), ("ci_low", np.float64),
+                              ("ci_high", np.float64), ("n", np.int64)))
 
     @property
     def n_levels(self) -> int:
@@ -394,6 +394,11 @@ class AllanVariance:
     freq: float = 1.0
     alpha: float = 0.05
 
+    def __post_init__(self) -> None:
+        _freeze_fields(self, (("levels", np.int64), ("clusters", np.int64), ("tau", np.float64),
+                              ("avar", np.float64), ("ci_low", np.float64),
+                              ("ci_high", np.float64), ("n", np.int64)))
+
     @property
     def adev(self) -> np.ndarray:
         """Allan deviation ``sqrt(avar)``."""
@@ -402,9 +407,8 @@ class AllanVariance:
     @classmethod
     def from_wv(cls, wv: WaveletVariance) -> AllanVariance:
         clusters = (wv.scales // 2).astype(np.int64)
-        return cls(wv.levels.copy(), clusters, clusters / wv.freq, 2.0 * wv.variance,
-                   2.0 * wv.ci_low, 2.0 * wv.ci_high, wv.n.copy(), wv.n_samples, wv.freq,
-                   wv.alpha)
+        return cls(wv.levels, clusters, clusters / wv.freq, 2.0 * wv.variance, 2.0 * wv.ci_low,
+                   2.0 * wv.ci_high, wv.n, wv.n_samples, wv.freq, wv.alpha)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able dict (plain lists and numbers)."""
