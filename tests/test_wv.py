@@ -379,4 +379,7 @@ def test_bad_inputs() -> None:
     with pytest.raises(GMWMError):                   # GMWMError is a ValueError subclass
         avar(x, 20)
     assert wvar(x.tolist(), 3).n_levels == 3         # lists are fine
+    np.testing.assert_array_equal(wvar(x[::3]).variance, wvar(x[::3].copy()).variance)  # strided
+    np.testing.assert_allclose(wvar(x.astype(np.float32)).variance,
+                               wvar(x.astype(np.float32).astype(float)).variance, rtol=0)
     assert wvar(np.arange(8), 3).variance[0] == pytest.approx(0.25)   # ints are fine

@@ -183,13 +183,12 @@ class _Workspace:
 
 
 def _as_signal(x: Any, name: str = "signal", ndim: int = 1) -> np.ndarray:
+    """``x`` as a C-contiguous float64 array of ``ndim`` dimensions (copied only if needed)."""
+    if np.iscomplexobj(x):
+        raise InputError(f"{name} is complex; a real-valued signal is required")
     try:
-        if np.iscomplexobj(x):
-            raise InputError(f"{name} is complex; a real-valued signal is required")
         arr = np.ascontiguousarray(x, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        if isinstance(exc, InputError):
-            raise
         raise InputError(f"{name} is not numeric: {exc}") from None
     if arr.ndim != ndim:
         shape = "1-D (T,)" if ndim == 1 else "2-D (R, T)"
