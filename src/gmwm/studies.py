@@ -101,9 +101,8 @@ def check_truth(model_spec: str, truth: Mapping[str, float]) -> np.ndarray:
             f"truth of model {model_spec!r} has unknown parameter(s) {unknown}; "
             f"expected {model.param_names}"
         )
-    theta = model.theta(dict(truth))
-    model.check(theta)
-    canon = model.canonical(theta)
+    canon = model.theta(dict(truth))  # validated, canonical (relabelled if needed)
+    theta = np.array([float(truth[n]) for n in model.param_names])
     if not np.array_equal(canon, theta):
         swapped = [n for n, a, b in zip(model.param_names, theta, canon, strict=True) if a != b]
         raise ModelError(

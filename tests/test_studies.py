@@ -1,0 +1,218 @@
+"""Tests of the study machinery: seeded streams, WV/estimate stores, chunking, summaries, archive."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+import xarray as xr
+
+from gmwm import store
+from gmwm import studies as gs
+from gmwm.errors import InputError, ModelError
+from gmwm.seeds import replicate_rng, replicate_seed, stable_int
+
+SIM3 = "AR1+RW+WN+SIN"
+SIM3_TRUTH = {"WN[1].sigma2": 8e-4, "AR1[1].phi": 0.9997083, "AR1[1].sigma2": 9e-6,
+              "SIN[1].alpha": 0.025, "SIN[1].beta": 0.056, "RW[1].gamma2": 1.2288e-7}
+
+
+# --- seeds ---------------------------------------------------------------------------------------
+
+def test_stable_int_is_fixed_across_processes():
+    # crc32 of a fixed string: a constant, unlike the salted built-in hash()
+    assert stable_int("sim2") == 0x74c64ab
+    assert stable_int("sim2") != stable_int("sim3")
+
+
+def test_replicate_streams_are_keyed_by_study_size_and_replicate():
+    a = replicate_rng("sim2", 1000, 5, 1).normal(size=4)
+    np.testing.assert_array_equal(a, replicate_rng("sim2", 1000, 5, 1).normal(size=4))
+    for other in (replicate_rng("sim3", 1000, 5, 1), replicate_rng("sim2", 2000, 5, 1),
+                  replicate_rng("sim2", 1000, 6, 1), replicate_rng("sim2", 1000, 5, 2)):
+        assert not np.allclose(a, other.normal(size=4))
+    assert replicate_seed("sim2", 1000, 5, 1) != replicate_seed("sim2", 1000, 6, 1)
+
+
+def test_seed_rejects_negative_replicate():
+    with pytest.raises(InputError, match="replicate"):
+        replicate_rng("sim2", 1000, -1, 0)
+
+
+# --- chunking ------------------------------------------------------------------------------------
+
+def test_chunk_bounds_cover_every_replicate_once():
+    bounds = gs.chunk_bounds(23, 5)
+    assert bounds[0] == (0, 5) and bounds[-1] == (20, 23)
+    reps = [r for c in range(len(bounds)) for r in gs.chunk_replicates(c, 23, 5)]
+    assert reps == list(range(23))
+    with pytest.raises(InputError, match="chunk 5 out of range"):
+        gs.chunk_replicates(5, 23, 5)
+
+
+def test_simulated_wv_does_not_depend_on_chunking():
+    kw = {"model_spec": SIM3, "truth": SIM3_TRUTH, "n_samples": 4096, "study": "sim3",
+          "base_seed": 7}
+    whole = gs.simulate_wv_chunk(replicates=range(6), **kw)
+    parts = [gs.simulate_wv_chunk(replicates=r, **kw) for r in ([0, 1, 2, 3], [4, 5])]
+    np.testing.assert_array_equal(whole.variances, np.vstack([p.variances for p in parts]))
+    # one replicate alone, out of order, gives the same row
+    alone = gs.simulate_wv_chunk(replicates=[4], **kw)
+    np.testing.assert_array_equal(alone.variances[0], whole.variances[4])
+    assert whole.variances.shape == (6, 11)  # default J = floor(log2 4096) - 1
+
+
+def test_fits_do_not_depend_on_chunking():
+    kw = {"model_spec": "WN+RW", "truth": {"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-3},
+          "n_samples": 2048, "study": "t", "base_seed": 3}
+    settings = {"n_starts": 2}
+    whole = gs.fit_chunk(gs.simulate_wv_chunk(replicates=range(4), **kw), settings)
+    parts = gs.gather(gs.fit_chunk(gs.simulate_wv_chunk(replicates=r, **kw), settings)
+                      for r in ([2, 3], [0, 1]))
+    np.testing.assert_array_equal(parts["estimate"].values, whole["estimate"].values)
+    assert whole.attrs["n_samples"] == 2048 and list(whole["parameter"].values) == [
+        "WN[1].sigma2", "RW[1].gamma2"]
+    assert np.all(np.isfinite(whole["estimate"].values))
+
+
+def test_truth_must_be_canonical_and_complete():
+    bad = {**{k: v for k, v in SIM3_TRUTH.items()}, "AR1[2].phi": 0.5}
+    with pytest.raises(ModelError, match="unknown parameter"):
+        gs.check_truth(SIM3, bad)
+    two = {"AR1[1].phi": 0.9, "AR1[1].sigma2": 1.0, "AR1[2].phi": 0.1, "AR1[2].sigma2": 1.0}
+    with pytest.raises(ModelError, match="canonical"):
+        gs.check_truth("2*AR1", two)
+
+
+# --- stores --------------------------------------------------------------------------------------
+
+def _chunk(reps=(3, 4, 5)) -> store.WVChunk:
+    r = len(reps)
+    return store.WVChunk(
+        study="s", model="WN", truth={"WN[1].sigma2": 2.0}, n_samples=64, base_seed=1,
+        replicates=np.array(reps), levels=np.arange(1, 5), scales=2.0 ** np.arange(1, 5),
+        n=64 - 2 ** np.arange(1, 5) + 1, variances=np.arange(r * 4, dtype=float).reshape(r, 4) + 1,
+        seconds_simulate=np.full(r, 0.5), seconds_wv=np.full(r, 0.25),
+    )
+
+
+def test_wv_chunk_round_trip(tmp_path):
+    c = _chunk()
+    store.write_wv_chunk(tmp_path / "c.h5", c)
+    back = store.read_wv_chunk(tmp_path / "c.h5")
+    np.testing.assert_array_equal(back.variances, c.variances)
+    np.testing.assert_array_equal(back.replicates, c.replicates)
+    np.testing.assert_array_equal(back.seconds_wv, c.seconds_wv)
+    assert (back.study, back.model, back.truth, back.n_samples) == ("s", "WN", c.truth, 64)
+    both = store.read_wv_chunks([tmp_path / "c.h5", _write(tmp_path / "d.h5", _chunk((0, 1)))])
+    assert list(both.replicates) == [0, 1, 3, 4, 5]
+
+
+def _write(path, chunk):
+    store.write_wv_chunk(path, chunk)
+    return path
+
+
+def test_interrupted_write_leaves_no_target(tmp_path, monkeypatch):
+    target = tmp_path / "c.h5"
+
+    def crash(*args, **kwargs):
+        raise KeyboardInterrupt("killed mid-write")
+
+    monkeypatch.setattr(store.h5py.File, "create_dataset", crash)
+    with pytest.raises(KeyboardInterrupt):
+        store.write_wv_chunk(target, _chunk())
+    assert list(tmp_path.iterdir()) == []  # neither the target nor a temporary file remains
+
+
+def test_interrupted_dataset_write_keeps_previous_file(tmp_path, monkeypatch):
+    target = tmp_path / "e.nc"
+    ds = _estimates(np.zeros((4, 1)), truth=[1.0])
+    store.write_dataset(ds, target)
+    before = target.read_bytes()
+
+    def crash(self, *args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(xr.Dataset, "to_netcdf", crash)
+    with pytest.raises(OSError):
+        store.write_dataset(ds.assign(estimate=ds["estimate"] + 1), target)
+    assert target.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["e.nc"]
+
+
+def test_dataset_round_trip(tmp_path):
+    ds = _estimates(np.arange(6.0).reshape(3, 2), truth=[1.0, 2.0])
+    store.write_dataset(ds, tmp_path / "e.nc")
+    back = store.read_dataset(tmp_path / "e.nc")
+    xr.testing.assert_identical(back, ds)
+
+
+# --- summaries -----------------------------------------------------------------------------------
+
+def _estimates(est: np.ndarray, truth, converged=None, reps=None) -> xr.Dataset:
+    r, p = est.shape
+    converged = np.ones(r, bool) if converged is None else np.asarray(converged)
+    reps = np.arange(r) if reps is None else np.asarray(reps)
+    return xr.Dataset(
+        {"estimate": (("replicate", "parameter"), est),
+         "converged": ("replicate", converged),
+         "message": ("replicate", np.array([""] * r, dtype=object))},
+        coords={"replicate": reps, "parameter": [f"P[{i + 1}].x" for i in range(p)],
+                "truth": ("parameter", np.asarray(truth, float))},
+        attrs={"study": "t", "model": "m", "n_samples": 100, "estimator": "gmwm"},
+    )
+
+
+def test_summary_recovers_known_bias_and_sd():
+    # 4000 draws: estimate = truth + 0.5 + N(0, 2^2). MC SE of the mean is 2/sqrt(4000) = 0.032
+    # and of the SD about 2/sqrt(2*4000) = 0.022; tolerances are ~5 MC SEs.
+    rng = np.random.default_rng(3)
+    x = 10.0 + 0.5 + 2.0 * rng.standard_normal((4000, 1))
+    conv = np.ones(4000, bool)
+    conv[:400] = False
+    x[:400] = 1e6  # non-converged fits must not leak into the statistics
+    df = gs.summarize(_estimates(x, truth=[10.0], converged=conv))
+    row = df.iloc[0]
+    assert row.bias == pytest.approx(0.5, abs=0.16)
+    assert row.sd == pytest.approx(2.0, abs=0.11)
+    assert row.rmse == pytest.approx(np.hypot(0.5, 2.0), abs=0.12)
+    assert row.std_bias == pytest.approx(0.25, abs=0.08)
+    assert row.share_not_converged == pytest.approx(0.1)
+    assert row.n_used == 3600
+    z = gs.standardized_errors(_estimates(x, truth=[10.0], converged=conv))["P[1].x"]
+    assert len(z) == 3600 and np.std(z, ddof=1) == pytest.approx(1.0)
+
+
+def test_gather_sorts_and_rejects_duplicates():
+    a = _estimates(np.ones((2, 1)), [1.0], reps=[2, 3])
+    b = _estimates(np.zeros((2, 1)), [1.0], reps=[0, 1])
+    g = gs.gather([a, b])
+    assert list(g["replicate"].values) == [0, 1, 2, 3]
+    with pytest.raises(InputError, match="duplicate"):
+        gs.gather([a, a])
+
+
+def test_tables_written(tmp_path):
+    df = pd.DataFrame({"parameter": ["a"], "bias": [0.123456789]})
+    gs.write_table(df, tmp_path / "t.csv", tmp_path / "t.md", title="T")
+    assert "0.1235" in (tmp_path / "t.md").read_text()
+    assert pd.read_csv(tmp_path / "t.csv").bias[0] == pytest.approx(0.123456789)
+
+
+def test_archive_never_overwrites(tmp_path):
+    (tmp_path / "r").mkdir()
+    f = tmp_path / "r" / "x.md"
+    f.write_text("hello")
+    bench = pd.DataFrame({"rule": ["fit"], "study": ["s"], "job": ["j"], "seconds": [1.0]})
+    cfg = {"seed": 1}
+    a = gs.make_archive(tmp_path / "arch", cfg, [f], bench, base=tmp_path)
+    b = gs.make_archive(tmp_path / "arch", cfg, [f], bench, base=tmp_path)
+    assert a != b and a.name.endswith(gs.config_hash(cfg))
+    for d in (a, b):
+        assert (d / "r" / "x.md").read_text() == "hello"
+        assert json.loads((d / "config.json").read_text()) == cfg
+        assert (d / "timings.csv").exists() and (d / "versions.json").exists()
+    assert not [p for p in (tmp_path / "arch").iterdir() if p.name.startswith(".")]
