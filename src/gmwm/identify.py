@@ -1,0 +1,966 @@
+"""Identifiability checks of a GMWM fit: local (Jacobian), global (multi-start), posterior (emcee).
+
+Everything is evaluated in the optimiser's free coordinates ``eta`` (logs of variances and
+amplitudes, scaled logit of AR1 phi, pi-logistic of SIN beta; ``Model.to_free``), where a unit
+step is a factor ``e`` in a scale parameter, so thresholds are dimensionless:
+
+Local (:func:`local_check`), at the estimate, parameters at the boundary 0 left out:
+
+* ``A = L' d f(nu)/d eta`` (``Omega = L L'``) with unit-norm columns; its singular values give the
+  numerical ``rank`` (``s_i > RANK_RTOL * s_1``, ``RANK_RTOL = 1e-8``) and ``condition_number``
+  (warn above ``COND_MAX = 1e6``); right singular vectors of the small singular values name the
+  parameter combinations the WV cannot tell apart (loadings ``>= LOADING_MIN = 0.3``).
+* Statistical size of the flat directions: eigenvectors of the sandwich covariance in free
+  coordinates whose SD exceeds ``SD_FREE_MAX = 1`` (a 1-SD move changes a scale parameter by a
+  factor e) are reported as weakly identified.
+* Known degenerate configurations at the estimate (:func:`degeneracies`): a component whose WV
+  is below the noise of the WV estimate (``sqrt(sum_j (nu_c,j / sd_j)^2) < 1``, ``sd_j`` the
+  Gaussian SD ``nu_j sqrt(2 / eta_j)``; it vanishes), an AR1/GM with ``phi ~ 0`` next to
+  a WN, an AR1/GM whose correlation time exceeds 5 times the longest scale (a random walk over the
+  observed scales), a SIN whose period exceeds the longest scale (confounded with a drift), two
+  AR1/GM or two SIN with nearly equal shape (only their sum is identified).
+
+Global (:func:`global_check`): least-squares refinements of the same objective from dispersed
+starts; two optima are distinct if some free coordinate differs by more than
+``min(max(3 SD, 0.05), 1)`` and near-equal if their objectives differ by less than 1 on the
+chi-square scale (Gaussian inverse-variance weights of the WV) or by less than 1 %.
+
+Posterior (:func:`posterior_check`): emcee on the quasi-posterior ``exp(-Q/2)`` with
+``Q = (f(nu_hat) - f(nu))' V^-1 (f(nu_hat) - f(nu))`` and flat priors on a box around the
+estimate in free coordinates; chains are extended until ``n_steps > 50 tau_int``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .errors import GMWMError, InputError
+from .fit import GMWMResult, weight_matrix
+from .model import Model
+from .processes import _series_coefs
+from .wv import WaveletVariance
+
+__all__ = ["COND_MAX", "LOADING_MIN", "RANK_RTOL", "SD_FREE_MAX", "GlobalCheck",
+           "IdentifiabilityReport", "LocalCheck", "PosteriorCheck", "batch_wv", "check",
+           "corner_plot", "degeneracies", "global_check", "local_check", "posterior_check"]
+
+COND_MAX = 1e6
+RANK_RTOL = 1e-8
+SD_FREE_MAX = 1.0
+LOADING_MIN = 0.3
+TAU_FACTOR = 50  # chains must be longer than TAU_FACTOR integrated autocorrelation times
+_LOG10E = np.log10(np.e)
+
+
+# -- the problem ----------------------------------------------------------------------------------
+@dataclass
+class _Setup:
+    """The fitted quantities every check needs."""
+
+    model: Model
+    theta: np.ndarray
+    wv: WaveletVariance
+    omega: np.ndarray          # weight matrix of the fit (for f(nu))
+    omega_chi: np.ndarray      # inverse covariance of f(nu_hat): chi-square scale
+    cov: np.ndarray            # sandwich covariance of theta_hat
+    method: str = "gmwm"
+    objective: float = np.nan
+
+    @property
+    def tau(self) -> np.ndarray:
+        return self.wv.scales.astype(float)
+
+    def f(self, nu: np.ndarray) -> np.ndarray:
+        return np.log10(np.maximum(nu, 1e-300)) if self.method == "armav" else nu
+
+    def jac_theta(self, theta: np.ndarray) -> np.ndarray:
+        A = self.model.jacobian(theta, self.tau)
+        if self.method == "armav":
+            A = A * (_LOG10E / np.maximum(self.model.wv(theta, self.tau), 1e-300))[:, None]
+        return A
+
+    def quad(self, theta: np.ndarray, omega: np.ndarray) -> float:
+        r = self.f(self.wv.variance) - self.f(self.model.wv(theta, self.tau))
+        return float(r @ omega @ r)
+
+
+def _whitener(omega: np.ndarray) -> np.ndarray:
+    """L with ``Omega = L L'`` (eigen-factor when Omega is only semi-definite)."""
+    if np.allclose(omega, np.diag(np.diag(omega))):
+        return np.diag(np.sqrt(np.clip(np.diag(omega), 0, None)))
+    try:
+        return np.linalg.cholesky(omega)
+    except np.linalg.LinAlgError:
+        w, U = np.linalg.eigh(omega)
+        return U * np.sqrt(np.clip(w, 0, None))
+
+
+def _sandwich(A: np.ndarray, omega: np.ndarray, V: np.ndarray) -> np.ndarray:
+    B = np.linalg.pinv(A.T @ omega @ A, hermitian=True)
+    G = B @ A.T @ omega
+    return G @ V @ G.T
+
+
+def _user_cov(result: GMWMResult) -> bool:
+    """True if the fit used a caller's covariance (not one of the named weight kinds)."""
+    for kind in ("ci", "gaussian", "identity"):
+        if np.allclose(result.weights, weight_matrix(result.wv, kind, result.method)[0],
+                       rtol=1e-10, atol=0):
+            return False
+    refit = weight_matrix(result.wv, "gaussian", result.method, model_wv=result.model_wv())[0]
+    return not np.allclose(result.weights, refit, rtol=1e-6, atol=0)
+
+
+def _setup(obj: Any, cov: np.ndarray | None = None) -> _Setup:
+    """From a GMWMResult or a tuple ``(model, theta, wv, omega[, V])``; ``cov`` (J, J) is a
+    covariance of nu_hat (e.g. from a bootstrap) that replaces the Gaussian one."""
+    if isinstance(obj, GMWMResult):
+        model, theta, wv, omega, method = obj.model, obj.params, obj.wv, obj.weights, obj.method
+        if cov is None and _user_cov(obj):
+            omega_chi = np.asarray(obj.weights, dtype=float)
+        else:
+            omega_chi = None
+        V = None
+    elif isinstance(obj, tuple) and len(obj) in (4, 5):
+        model, theta, wv, omega = obj[:4]
+        V = obj[4] if len(obj) == 5 else None
+        method, omega_chi = "gmwm", None
+        if not isinstance(model, Model) or not isinstance(wv, WaveletVariance):
+            raise InputError("expected (Model, theta, WaveletVariance, Omega[, V])")
+    else:
+        raise InputError("identifiability checks need a GMWM/ARMAV fit result "
+                         "or a tuple (model, theta, wv, Omega[, V])")
+    theta = np.asarray(theta, dtype=float)
+    omega = np.asarray(omega, dtype=float)
+    J = wv.n_levels
+    if theta.shape != (model.n_params,) or omega.shape != (J, J):
+        raise InputError(f"theta must have {model.n_params} entries and Omega be {J}x{J}")
+    Vuse = cov if cov is not None else V
+    if Vuse is not None:
+        _, Vg = weight_matrix(wv, np.asarray(Vuse, dtype=float), method)
+        if method == "armav":
+            F = np.diag(_LOG10E / wv.variance)
+            omega_chi = np.linalg.pinv(F @ Vg @ F.T, hermitian=True)
+        else:
+            omega_chi = np.linalg.pinv(Vg, hermitian=True)
+    else:
+        Vg = weight_matrix(wv, "gaussian", method)[1]
+    if omega_chi is None:
+        omega_chi = weight_matrix(wv, "gaussian", method)[0]
+    s = _Setup(model, theta, wv, omega, omega_chi, np.zeros((1, 1)), method)
+    if isinstance(obj, GMWMResult) and cov is None:
+        s.cov = np.asarray(obj.cov, dtype=float)
+        s.objective = float(obj.objective)
+    else:
+        Vf = Vg
+        if method == "armav":
+            F = np.diag(_LOG10E / wv.variance)
+            Vf = F @ Vg @ F.T
+        with np.errstate(all="ignore"):
+            s.cov = _sandwich(s.jac_theta(theta), omega, Vf)
+        s.objective = s.quad(theta, omega)
+    return s
+
+
+# -- batched theoretical WV (posterior sampling) --------------------------------------------------
+class _BatchWV:
+    """Theoretical Haar WV of ``model`` at fixed scales for many parameter vectors at once, with
+    the scale-only constants precomputed (the emcee log-probability calls it thousands of times)."""
+
+    def __init__(self, model: Model, scales: np.ndarray):
+        tau = np.asarray(scales, dtype=float)
+        self.model, self.tau, self.m = model, tau, tau / 2
+        self.cols = {"WN": 1 / tau, "QN": 6 / tau**2, "RW": (tau**2 + 2) / (12 * tau),
+                     "DR": tau**2 / 16}
+        self.series = np.array(_series_coefs(self.m))  # (5, J), AR1 with m a < 1e-2
+        self.tau2 = tau**2
+
+    def ar1_unit(self, phi: np.ndarray) -> np.ndarray:
+        """Unit-innovation AR1 WV for phi (N, 1): the cancellation-free form of SPEC 2.2 in
+        a = -ln phi (series when m a < 1e-2), the plain closed form for phi <= 0."""
+        m, tau = self.m, self.tau
+        with np.errstate(all="ignore"):
+            a = -np.log(np.where(phi > 0, phi, 0.5))
+            ma = m * a
+            e = -np.expm1(-ma)
+            u1, u2 = -np.expm1(-a), -np.expm1(-2 * a)
+            out = 2 * (m * u2 - np.exp(-a) * e * (2 + e)) / (self.tau2 * u1**2 * u2)
+            small = ma < 1e-2
+            if small.any():
+                pw = a[..., None] ** np.arange(5)  # (N, 1, 5)
+                series = np.einsum("nk,kj->nj", pw[:, 0, :], self.series)
+                out = np.where(small, series, out)
+            neg = phi[:, 0] <= 0
+            if neg.any():
+                q = phi[neg]
+                n = (1 - q**2) * tau - 2 * q * (3 - 4 * q**m + q**tau)
+                out[neg] = n / (self.tau2 * (1 - q) ** 3 * (1 + q))
+        return out
+
+    def __call__(self, theta: np.ndarray) -> np.ndarray:
+        TH = np.atleast_2d(np.asarray(theta, dtype=float))
+        tau, model = self.tau, self.model
+        out = np.zeros((TH.shape[0], tau.size))
+        for c in model.components:
+            P = TH[:, c.slice]
+            p0 = P[:, :1]
+            name = c.process.name
+            if name in ("WN", "QN", "RW"):
+                out += p0 * self.cols[name]
+            elif name == "DR":
+                out += p0**2 * self.cols["DR"]
+            elif name == "SIN":
+                b = P[:, 1:2]
+                out += 2 * p0**2 * np.sin(b * tau / 4) ** 4 / (self.tau2 * np.sin(b / 2) ** 2)
+            elif name == "AR1":
+                out += P[:, 1:2] * self.ar1_unit(p0)
+            elif name == "GM":
+                a = p0 / model.freq
+                out += P[:, 1:2] * -np.expm1(-2 * a) * self.ar1_unit(np.exp(-a))
+            else:  # a process added later: the per-vector formula
+                out += np.array([c.process.wv(p, tau, model.freq) for p in P])
+        return out
+
+
+def batch_wv(model: Model, theta: np.ndarray, scales: np.ndarray) -> np.ndarray:
+    """Theoretical Haar WV for many parameter vectors at once: theta (N, p) -> (N, J)."""
+    return _BatchWV(model, scales)(theta)
+
+
+_SHAPE_KEY = {"AR1": lambda P: P[:, 0], "GM": lambda P: 1.0 / P[:, 0], "SIN": lambda P: -P[:, 1]}
+
+
+def _canonical_batch(model: Model, TH: np.ndarray) -> np.ndarray:
+    """Model.canonical applied to every row of TH (N, p)."""
+    out = TH.copy()
+    for name, key in _SHAPE_KEY.items():
+        comps = [c for c in model.components if c.process.name == name]
+        if len(comps) < 2:
+            continue
+        keys = np.column_stack([key(TH[:, c.slice]) for c in comps])
+        order = np.argsort(keys, axis=1, kind="stable")
+        blocks = np.stack([TH[:, c.slice] for c in comps], axis=1)  # (N, k, q)
+        sorted_blocks = np.take_along_axis(blocks, order[:, :, None], axis=1)
+        for i, c in enumerate(comps):
+            out[:, c.slice] = sorted_blocks[:, i]
+    return out
+
+
+# -- degenerate configurations ----------------------------------------------------------------------
+def _ar1_a(comp, p: np.ndarray, freq: float) -> float:
+    """a = -ln(phi) (inf for phi <= 0) of an AR1 or GM component."""
+    if comp.process.name == "GM":
+        return float(p[0] / freq)
+    return float(-np.log(p[0])) if p[0] > 0 else np.inf
+
+
+def degeneracies(model: Model, theta: np.ndarray, wv: WaveletVariance) -> list[str]:
+    """Known non-identifiable configurations of ``theta`` given the observed scales of ``wv``
+    (criteria in the module docstring). Returns human-readable reasons (empty: none found)."""
+    theta = np.asarray(theta, dtype=float)
+    tau = wv.scales.astype(float)
+    tau_max = float(tau[-1])
+    total = model.wv(theta, tau)
+    sd = np.sqrt(2.0 / wv.edof) * np.abs(total)
+    notes: list[str] = []
+    comp_wv = model.component_wv(theta, tau)
+    for c in model.components:
+        nu_c = np.nan_to_num(comp_wv[c.name])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            snr = float(np.sqrt(np.sum(np.where(sd > 0, nu_c / sd, np.inf) ** 2)))
+        if snr < 1:
+            share = float(np.max(nu_c / total)) if np.all(total > 0) else 0.0
+            notes.append(f"{c.name} vanishes: its WV is below the noise of the WV estimate "
+                         f"(signal/noise {snr:.2g} over all scales, max share {share:.2g})")
+            continue
+        p = theta[c.slice]
+        name = c.process.name
+        if name in ("AR1", "GM"):
+            a = _ar1_a(c, p, model.freq)
+            if a > 3 and model.count("WN"):
+                notes.append(f"{c.name} collapses into white noise (phi = {np.exp(-a):.3g}, "
+                             "correlation time below one sample): its split with WN[1] is not "
+                             "identified")
+            elif a * tau_max / 2 < 0.1:
+                notes.append(f"{c.name} behaves like a random walk over the observed scales "
+                             f"(correlation time {1 / a:.3g} samples > 5 x the longest scale "
+                             f"{tau_max:g}): phi is not identified")
+        elif name == "SIN" and 2 * np.pi / p[1] > tau_max:
+            notes.append(f"{c.name} has a period of {2 * np.pi / p[1]:.3g} samples, beyond the "
+                         f"longest scale {tau_max:g}: confounded with a drift (DR)")
+    for name, rel in (("AR1", 0.1), ("GM", 0.1), ("SIN", 0.05)):
+        comps = [c for c in model.components if c.process.name == name]
+        for i, c1 in enumerate(comps):
+            for c2 in comps[i + 1:]:
+                if name == "SIN":
+                    s1, s2 = theta[c1.start + 1], theta[c2.start + 1]
+                else:
+                    s1 = _ar1_a(c1, theta[c1.slice], model.freq)
+                    s2 = _ar1_a(c2, theta[c2.slice], model.freq)
+                if np.isfinite(s1) and np.isfinite(s2) and abs(s1 - s2) < rel * max(s1, s2):
+                    what = "beta" if name == "SIN" else "correlation time"
+                    notes.append(f"{c1.name} and {c2.name} have nearly equal {what}: only their "
+                                 "sum is identified")
+    return notes
+
+
+# -- local ------------------------------------------------------------------------------------------
+def _loadings(v: np.ndarray, names: list[str]) -> dict[str, float]:
+    v = v / np.max(np.abs(v)) * np.sign(v[np.argmax(np.abs(v))]) * np.linalg.norm(v)
+    big = np.argsort(-np.abs(v))
+    return {names[i]: float(round(v[i], 3)) for i in big if abs(v[i]) >= LOADING_MIN}
+
+
+def _fmt_direction(load: dict[str, float]) -> str:
+    return " ".join(f"{c:+.2f} {n}" for n, c in load.items())
+
+
+@dataclass
+class LocalCheck:
+    """Outcome of :func:`local_check`. Directions are unit vectors in free coordinates over
+    ``active`` parameters; ``free_sd`` is the sandwich SD of each free coordinate."""
+
+    param_names: list[str]
+    active: list[str]
+    singular_values: np.ndarray
+    condition_number: float
+    rank: int
+    free_sd: np.ndarray
+    null_directions: list[dict[str, Any]] = field(default_factory=list)
+    weak_directions: list[dict[str, Any]] = field(default_factory=list)
+    degeneracies: list[str] = field(default_factory=list)
+    boundary: list[str] = field(default_factory=list)
+    reasons: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.reasons
+
+    def to_json_dict(self) -> dict[str, Any]:
+        return {"ok": self.ok, "rank": self.rank, "n_active": len(self.active),
+                "condition_number": _num(self.condition_number),
+                "singular_values": [_num(s) for s in self.singular_values],
+                "free_sd": dict(zip(self.param_names, [_num(s) for s in self.free_sd],
+                                    strict=True)),
+                "null_directions": self.null_directions, "weak_directions": self.weak_directions,
+                "degeneracies": self.degeneracies, "boundary": self.boundary,
+                "reasons": self.reasons}
+
+
+def _num(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
+def local_check(result: GMWMResult | tuple, *, cov: np.ndarray | None = None) -> LocalCheck:
+    """Rank, condition number and weak directions of the whitened WV Jacobian at the estimate.
+
+    ``result`` is a :class:`GMWMResult` or ``(model, theta, wv, Omega[, V])``; ``cov`` optionally
+    replaces the WV covariance behind the SEs (e.g. a bootstrap covariance). Thresholds:
+    ``RANK_RTOL``, ``COND_MAX``, ``SD_FREE_MAX``, ``LOADING_MIN`` (module docstring).
+    """
+    s = _setup(result, cov)
+    model, theta = s.model, s.theta
+    names = model.param_names
+    with np.errstate(all="ignore"):
+        eta = model.to_free(theta)
+        d = model.dtheta_deta(np.where(np.isfinite(eta), eta, 0.0))
+    degen = degeneracies(model, theta, s.wv)
+    boundary = [n for n, e, dd in zip(names, eta, d, strict=True)
+                if not np.isfinite(e) or dd == 0]
+    act = np.array([n not in boundary for n in names])
+    reasons: list[str] = []
+    if boundary:
+        reasons.append("at the boundary of the parameter space (not locally identified): "
+                       + ", ".join(boundary))
+    free_sd = np.full(len(names), np.nan)
+    with np.errstate(all="ignore"):
+        C = s.cov / np.outer(d, d)
+    free_sd[act] = np.sqrt(np.clip(np.diag(C)[act], 0, None))
+    anames = [n for n, a in zip(names, act, strict=True) if a]
+    sv = np.zeros(0)
+    cond, rank = np.inf, 0
+    null_dirs: list[dict[str, Any]] = []
+    weak_dirs: list[dict[str, Any]] = []
+    if act.any():
+        L = _whitener(s.omega)
+        with np.errstate(all="ignore"):
+            A = L.T @ s.jac_theta(theta)[:, act] * d[act]
+        norms = np.linalg.norm(A, axis=0)
+        if np.all(np.isfinite(A)) and np.all(norms > 0):
+            _, sv, Vt = np.linalg.svd(A / norms, full_matrices=False)
+            rank = int(np.sum(sv > RANK_RTOL * sv[0]))
+            cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else np.inf
+            for k in range(sv.size):
+                if sv[k] * COND_MAX < sv[0]:
+                    load = _loadings(Vt[k], anames)
+                    null_dirs.append({"singular_value": float(sv[k] / sv[0]), "loadings": load})
+        else:
+            bad = [n for n, ok in zip(anames, np.isfinite(norms) & (norms > 0), strict=True)
+                   if not ok]
+            null_dirs.append({"singular_value": 0.0, "loadings": dict.fromkeys(bad, 1.0)})
+            reasons.append("the WV does not respond to " + ", ".join(bad))
+        Ca = C[np.ix_(act, act)]
+        if np.all(np.isfinite(Ca)):
+            w, U = np.linalg.eigh((Ca + Ca.T) / 2)
+            for k in np.argsort(-w):
+                sdk = float(np.sqrt(max(w[k], 0.0)))
+                if sdk > SD_FREE_MAX:
+                    weak_dirs.append({"sd": sdk, "loadings": _loadings(U[:, k], anames)})
+    if rank < len(anames):
+        reasons.append(f"Jacobian of the WV is rank deficient (rank {rank} < {len(anames)})")
+    elif cond > COND_MAX:
+        reasons.append(f"Jacobian of the WV is ill-conditioned (condition number {cond:.3g} "
+                       f"> {COND_MAX:g})")
+    for nd in null_dirs:
+        if nd["loadings"] and nd["singular_value"] > 0:
+            reasons.append(", ".join(nd["loadings"]) + " cannot be told apart (near-null "
+                           f"direction {_fmt_direction(nd['loadings'])})")
+    for wd in weak_dirs:
+        reasons.append(", ".join(wd["loadings"]) + f" weakly identified: SD {wd['sd']:.3g} in "
+                       f"free coordinates along {_fmt_direction(wd['loadings'])}")
+    reasons.extend(degen)
+    return LocalCheck(names, anames, sv, cond, rank, free_sd, null_dirs, weak_dirs, degen,
+                      boundary, reasons)
+
+
+# -- global -----------------------------------------------------------------------------------------
+@dataclass
+class GlobalCheck:
+    """Outcome of :func:`global_check`: ``optima`` are the distinct local optima found (best
+    first), each with parameters, objective, ``delta`` (objective - best) and ``delta_chi2``
+    (the same on the chi-square scale), and ``alternatives`` those near-equal to the best."""
+
+    n_starts: int
+    n_failed: int
+    estimate_objective: float
+    optima: list[dict[str, Any]]
+    alternatives: list[dict[str, Any]]
+    better_found: bool
+    reasons: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        return not self.reasons
+
+    def to_json_dict(self) -> dict[str, Any]:
+        return {"ok": self.ok, "n_starts": self.n_starts, "n_failed": self.n_failed,
+                "estimate_objective": self.estimate_objective, "optima": self.optima,
+                "alternatives": self.alternatives, "better_found": self.better_found,
+                "reasons": self.reasons, "seconds": self.seconds}
+
+
+def _finite_free(model: Model, theta: np.ndarray, wv: WaveletVariance) -> np.ndarray:
+    """Free coordinates of theta with boundary values moved just inside the domain."""
+    th = theta.copy()
+    for c in model.components:
+        p = th[c.slice]
+        if c.process.linear and p[0] == 0:
+            col = c.process.wv(np.ones(1), wv.scales.astype(float), model.freq)
+            v = 1e-4 * np.min(wv.variance / col)
+            p[0] = np.sqrt(v) if c.process.name == "DR" else v
+        th[c.slice] = p
+    with np.errstate(all="ignore"):
+        eta = model.to_free(th)
+    return np.clip(np.nan_to_num(eta, nan=0.0, posinf=30.0, neginf=-30.0), -30, 30)
+
+
+def _random_start(model: Model, eta_hat: np.ndarray, wv: WaveletVariance,
+                  rng: np.random.Generator, dispersed: bool) -> np.ndarray:
+    """Perturbation of the estimate (dispersed=False) or a random draw of every shape parameter
+    over the observed scales with perturbed scale parameters (dispersed=True)."""
+    eta = eta_hat + rng.normal(0.0, 2.0, eta_hat.size)
+    if not dispersed:
+        return eta
+    tau_max = float(wv.scales[-1])
+    th = model.from_free(eta)
+    for c in model.components:
+        name = c.process.name
+        if name in ("AR1", "GM"):
+            a = np.exp(rng.uniform(np.log(0.2 / tau_max), np.log(3.0)))
+            th[c.start] = a * model.freq if name == "GM" else np.exp(-a)
+        elif name == "SIN":
+            th[c.start + 1] = np.exp(rng.uniform(np.log(1.0 / tau_max), np.log(0.999 * np.pi)))
+    return model.to_free(th)
+
+
+def _optimise(s: _Setup, eta0: np.ndarray, center: np.ndarray) -> tuple[np.ndarray, float, bool]:
+    model, tau = s.model, s.tau
+    L = _whitener(s.omega)
+    target = s.f(s.wv.variance)
+    scale = float(np.linalg.norm(L.T @ target)) or 1.0
+
+    def resid(eta: np.ndarray) -> np.ndarray:
+        return L.T @ (target - s.f(model.wv(model.from_free(eta), tau))) / scale
+
+    def jac(eta: np.ndarray) -> np.ndarray:
+        th = model.from_free(eta)
+        return -(L.T @ s.jac_theta(th)) * model.dtheta_deta(eta) / scale
+
+    lo, hi = center - 40.0, center + 40.0
+    x0 = np.clip(eta0, lo + 1e-6, hi - 1e-6)
+    with np.errstate(all="ignore"):
+        sol = least_squares(resid, x0, jac=jac, method="trf", bounds=(lo, hi), x_scale="jac",
+                            xtol=1e-10, ftol=1e-12, gtol=1e-10, max_nfev=400)
+    th = model.canonical(model.from_free(sol.x))
+    obj = s.quad(th, s.omega)
+    ok = bool(sol.status > 0 and np.all(np.isfinite(th)) and np.isfinite(obj))
+    return th, obj, ok
+
+
+def _describe(model: Model, best: np.ndarray, alt: np.ndarray, far: np.ndarray,
+              wv: WaveletVariance) -> list[str]:
+    """Name what differs between two near-equal optima."""
+    comps = [c.name for c in model.components if np.any(far[c.slice])]
+    kinds: list[str] = []
+    for name in ("SIN", "AR1", "GM"):
+        moved = [c for c in model.components if c.process.name == name and c.name in comps]
+        if len(moved) >= 2:
+            verb = "swap roles" if name == "SIN" else "trade variance"
+            kinds.append(f"{' and '.join(c.name for c in moved)} {verb}")
+    before = set(degeneracies(model, best, wv))
+    kinds += [d for d in degeneracies(model, alt, wv) if d not in before]
+    if not kinds and comps:
+        kinds.append("components that differ: " + ", ".join(comps))
+    return kinds
+
+
+def global_check(result: GMWMResult | tuple, *, n_starts: int = 16, seed: int = 0,
+                 cov: np.ndarray | None = None) -> GlobalCheck:
+    """Refine the fit's objective from ``n_starts`` dispersed starts (half large free-coordinate
+    perturbations of the estimate, sd 2; half random shape parameters over the observed scales)
+    and report distinct optima whose objective is near-equal to the best (criteria in the
+    module docstring), naming the kind when recognisable."""
+    t0 = time.perf_counter()
+    s = _setup(result, cov)
+    model, wv = s.model, s.wv
+    rng = np.random.default_rng(seed)
+    eta_hat = _finite_free(model, s.theta, wv)
+    with np.errstate(all="ignore"):
+        d = model.dtheta_deta(eta_hat)
+        sd = np.sqrt(np.clip(np.diag(s.cov), 0, None)) / np.abs(d)
+    thr = np.minimum(np.maximum(3 * np.nan_to_num(sd, nan=np.inf), 0.05), 1.0)
+    runs: list[tuple[np.ndarray, float]] = []
+    n_failed = 0
+    for k in range(int(n_starts)):
+        eta0 = _random_start(model, eta_hat, wv, rng, dispersed=bool(k % 2))
+        try:
+            th, obj, ok = _optimise(s, eta0, eta_hat)
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError):
+            ok = False
+        if ok:
+            runs.append((th, obj))
+        else:
+            n_failed += 1
+    est_obj = s.quad(s.theta, s.omega)
+    runs.append((s.theta.copy(), est_obj))
+    runs.sort(key=lambda r: r[1])
+
+    def free(th: np.ndarray) -> np.ndarray:
+        return _finite_free(model, th, wv)
+
+    optima: list[dict[str, Any]] = []
+    kept: list[np.ndarray] = []
+    best_th, best_obj = runs[0]
+    best_chi = s.quad(best_th, s.omega_chi)
+    for th, obj in runs:
+        e = free(th)
+        if any(np.all(np.abs(e - k) <= thr) for k in kept):
+            continue
+        kept.append(e)
+        chi = s.quad(th, s.omega_chi)
+        optima.append({"params": model.as_dict(th), "objective": obj,
+                       "delta": obj - best_obj, "delta_chi2": chi - best_chi,
+                       "is_estimate": bool(np.all(np.abs(e - free(s.theta)) <= thr))})
+    alternatives = []
+    for opt in optima[1:]:
+        near = opt["delta_chi2"] < 1.0 or opt["delta"] < 0.01 * max(best_obj, 1e-300)
+        if near:
+            th = model.theta(opt["params"])
+            far = np.abs(free(th) - free(best_th)) > thr
+            opt["kind"] = _describe(model, best_th, th, far, wv)
+            alternatives.append(opt)
+    better = bool(best_obj < est_obj - max(1e-6 * abs(est_obj), 1e-12)
+                  and not optima[0]["is_estimate"])
+    reasons = []
+    if better:
+        reasons.append(f"a better optimum exists (objective {best_obj:.6g} < {est_obj:.6g}): "
+                       + ", ".join(f"{k}={v:.4g}" for k, v in optima[0]["params"].items()))
+    groups: dict[str, list[dict[str, Any]]] = {}
+    for alt in alternatives:
+        groups.setdefault("; ".join(alt["kind"]) or "parameters far apart", []).append(alt)
+    for kind, alts in groups.items():
+        dmax = max(a["delta"] for a in alts)
+        cmax = max(a["delta_chi2"] for a in alts)
+        reasons.append(f"{len(alts)} distinct optim{'um' if len(alts) == 1 else 'a'} with "
+                       f"near-equal objective (differences up to {dmax:.3g}, chi-square scale "
+                       f"{cmax:.3g}): {kind}")
+    return GlobalCheck(int(n_starts), n_failed, est_obj, optima, alternatives, better, reasons,
+                       time.perf_counter() - t0)
+
+
+# -- posterior --------------------------------------------------------------------------------------
+@dataclass
+class PosteriorCheck:
+    """Outcome of :func:`posterior_check`. ``samples`` (n, p) are canonical parameter draws after
+    burn-in and thinning; ``tau`` the integrated autocorrelation times (steps) per free coordinate."""
+
+    param_names: list[str]
+    samples: np.ndarray
+    estimate: np.ndarray
+    sandwich_se: np.ndarray
+    tau: np.ndarray
+    n_walkers: int
+    n_steps: int
+    burn: int
+    thin: int
+    tau_ok: bool
+    acceptance: float
+    map_params: np.ndarray
+    unimodal: bool
+    multimodal: list[str]
+    seconds: float
+    reasons: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.reasons
+
+    @property
+    def median(self) -> np.ndarray:
+        return np.median(self.samples, axis=0)
+
+    @property
+    def sd(self) -> np.ndarray:
+        return np.std(self.samples, axis=0, ddof=1)
+
+    @property
+    def centred(self) -> np.ndarray:
+        """Per parameter: ``|median - estimate| < 1 posterior SD``."""
+        return np.abs(self.median - self.estimate) < self.sd
+
+    @property
+    def sd_ratio(self) -> np.ndarray:
+        """Posterior SD / sandwich SE per parameter (about 1 when the asymptotics hold)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self.sd / self.sandwich_se
+
+    def plot(self, truths: np.ndarray | None = None, fig=None):
+        return corner_plot(self.samples, self.param_names, truths=truths, fig=fig)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        names = self.param_names
+        as_d = lambda v: dict(zip(names, [_num(x) for x in v], strict=True))
+        return {"ok": self.ok, "n_walkers": self.n_walkers, "n_steps": self.n_steps,
+                "burn": self.burn, "thin": self.thin, "n_samples": int(self.samples.shape[0]),
+                "tau": as_d(self.tau), "tau_ok": self.tau_ok, "tau_factor": TAU_FACTOR,
+                "acceptance": self.acceptance, "unimodal": self.unimodal,
+                "multimodal": self.multimodal, "median": as_d(self.median), "sd": as_d(self.sd),
+                "centred": dict(zip(names, self.centred.tolist(), strict=True)),
+                "sd_ratio": as_d(self.sd_ratio), "map": as_d(self.map_params),
+                "reasons": self.reasons, "seconds": self.seconds}
+
+
+def _n_modes(x: np.ndarray, n_grid: int = 200) -> int:
+    """Number of separated modes of a 1-D sample: KDE maxima above 10 % of the highest peak,
+    separated from their neighbour by a valley below 70 % of the lower peak."""
+    from scipy.stats import gaussian_kde
+
+    lo, hi = np.quantile(x, [0.002, 0.998])
+    if not hi > lo:
+        return 1
+    grid = np.linspace(lo, hi, n_grid)
+    y = gaussian_kde(x)(grid)
+    peaks = [i for i in range(1, n_grid - 1) if y[i] >= y[i - 1] and y[i] > y[i + 1]
+             and y[i] > 0.1 * y.max()]
+    modes = 1
+    last = peaks[0] if peaks else None
+    for i in peaks[1:]:
+        valley = y[last:i + 1].min()
+        if valley < 0.7 * min(y[last], y[i]):
+            modes += 1
+            last = i
+        elif y[i] > y[last]:
+            last = i
+    return modes
+
+
+def posterior_check(result: GMWMResult | tuple, *, n_walkers: int | None = None,
+                    n_steps: int = 1000, max_steps: int = 10000, seed: int = 0,
+                    cov: np.ndarray | None = None, box: float = 10.0,
+                    progress: bool = False) -> PosteriorCheck:
+    """emcee sample of the quasi-posterior ``exp(-Q(eta)/2)`` with flat priors on a box of
+    half-width ``clip(box * SD_i, 0.5, box)`` around the estimate in free coordinates
+    (``SD_i`` the sandwich SD of free coordinate i), ``Q`` on the chi-square scale
+    (Gaussian inverse-variance weights, or ``cov`` = a covariance of nu_hat such as a bootstrap's).
+
+    Runs ``n_steps`` and extends by ``n_steps`` until the chain is longer than ``TAU_FACTOR = 50``
+    integrated autocorrelation times (or ``max_steps``); burn-in ``2 tau_max``, thinning
+    ``tau_max / 2``. Verdicts: unimodal (one KDE mode per parameter and along the two leading
+    principal axes), centred (|median - estimate| < 1 posterior SD), spread (posterior SD /
+    sandwich SE in [0.5, 2]), MAP within one posterior SD of the estimate.
+    Parameters at the boundary 0 are held fixed.
+    """
+    import emcee
+
+    t0 = time.perf_counter()
+    s = _setup(result, cov)
+    model, tau = s.model, s.tau
+    names = model.param_names
+    with np.errstate(all="ignore"):
+        eta_raw = model.to_free(s.theta)
+    act = np.isfinite(eta_raw)
+    # components with a parameter at the boundary are held fixed (their WV is a constant)
+    fixed_comps = [c for c in model.components if not np.all(act[c.slice])]
+    for c in fixed_comps:
+        act[c.slice] = False
+    if not act.any():
+        raise InputError("no interior parameter to sample")
+    offset = np.zeros(tau.size)
+    for c in fixed_comps:
+        offset += np.nan_to_num(c.process.wv(s.theta[c.slice], tau, model.freq))
+    eta_hat = eta_raw[act]
+    ndim = int(act.sum())
+    with np.errstate(all="ignore"):
+        d = model.dtheta_deta(np.where(act, eta_raw, 0.0))
+        sd = (np.sqrt(np.clip(np.diag(s.cov), 0, None)) / np.abs(d))[act]
+    half = np.clip(box * np.nan_to_num(sd, nan=box, posinf=box), 0.5, box)
+    lo, hi = eta_hat - half, eta_hat + half
+    L = _whitener(s.omega_chi)
+    target = s.f(s.wv.variance)
+    base = s.theta.copy()
+    wv_of = _BatchWV(model, tau)
+
+    pos = np.cumsum(act) - 1  # column of each active parameter in the sampled vector
+    blocks = [(c, np.arange(c.start, c.start + c.process.n_params))
+              for c in model.components if c not in fixed_comps]
+
+    def to_theta(E: np.ndarray) -> np.ndarray:
+        TH = np.tile(base, (E.shape[0], 1))
+        for c, cols in blocks:
+            TH[:, cols] = c.process.from_free(E[:, pos[cols]].T).T
+        return TH
+
+    def log_prob(E: np.ndarray) -> np.ndarray:
+        E = np.atleast_2d(E)
+        inside = np.all((E > lo) & (E < hi), axis=1)
+        out = np.full(E.shape[0], -np.inf)
+        if inside.any():
+            TH = to_theta(E[inside])
+            with np.errstate(all="ignore"):
+                nu = wv_of(_zero_fixed(TH, fixed_comps)) + offset
+                R = (target - s.f(nu)) @ L
+                q = np.einsum("ij,ij->i", R, R)
+            out[inside] = np.where(np.isfinite(q), -0.5 * q, -np.inf)
+        return out
+
+    nw = int(n_walkers) if n_walkers else max(32, 4 * ndim)
+    nw += nw % 2
+    rng = np.random.default_rng(seed)
+    spread = 0.1 * np.clip(np.nan_to_num(sd, nan=1.0, posinf=1.0), 1e-3, 1.0)
+    p0 = eta_hat + spread * rng.standard_normal((nw, ndim))
+    p0 = np.clip(p0, lo + 1e-9 * half, hi - 1e-9 * half)
+    # differential-evolution moves mix faster than the default stretch move on these
+    # near-Gaussian targets (shorter tau for the same number of evaluations)
+    moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
+    sampler = emcee.EnsembleSampler(nw, ndim, log_prob, vectorize=True, moves=moves)
+    # emcee draws from its own RandomState (numpy's global one by default): seed it
+    sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
+    state = sampler.run_mcmc(p0, min(n_steps, max_steps), progress=progress)
+    while True:
+        tau_int = sampler.get_autocorr_time(tol=0)
+        needed = TAU_FACTOR * np.nanmax(tau_int)
+        done = sampler.iteration > needed
+        # stop when even the current (short-chain, optimistic) tau says max_steps will not do
+        if done or needed >= max_steps or not np.isfinite(needed):
+            break
+        extra = int(min(max(1.2 * needed - sampler.iteration, n_steps / 2), max_steps
+                        - sampler.iteration))
+        state = sampler.run_mcmc(state, extra, progress=progress)
+    tmax = float(np.nanmax(tau_int))
+    burn = min(int(np.ceil(2 * tmax)), sampler.iteration // 2)
+    thin = max(1, int(tmax / 2))
+    chain = sampler.get_chain(discard=burn, thin=thin, flat=True)
+    lp = sampler.get_log_prob(flat=True)
+    best_eta = sampler.get_chain(flat=True)[int(np.argmax(lp))]
+    samples = _canonical_batch(model, to_theta(chain))
+    map_params = model.canonical(to_theta(best_eta[None, :])[0])
+    # modes, in free coordinates of the canonical draws
+    with np.errstate(all="ignore"):
+        free = np.array([model.to_free(t) for t in samples[:: max(1, len(samples) // 4000)]])
+    free = free[:, act]
+    multimodal = [n for n, x in zip(np.array(names)[act], free.T, strict=True)
+                  if np.ptp(x) > 0 and _n_modes(x) > 1]
+    z = (free - free.mean(axis=0)) / np.where(free.std(axis=0) > 0, free.std(axis=0), 1.0)
+    if ndim > 1:
+        _, _, Vt = np.linalg.svd(z, full_matrices=False)
+        for k in range(min(2, ndim)):
+            if _n_modes(z @ Vt[k]) > 1:
+                multimodal.append(f"principal axis {k + 1}")
+    tau_full = np.full(len(names), np.nan)
+    tau_full[act] = tau_int
+    pc = PosteriorCheck(names, samples, s.theta.copy(), np.sqrt(np.clip(np.diag(s.cov), 0, None)),
+                        tau_full, nw, int(sampler.iteration), burn, thin, bool(done),
+                        float(np.mean(sampler.acceptance_fraction)), map_params,
+                        not multimodal, multimodal, 0.0)
+    reasons = []
+    if not pc.tau_ok:
+        reasons.append(f"posterior chain too short: {pc.n_steps} steps <= {TAU_FACTOR} x tau "
+                       f"({tmax:.3g}); increase max_steps")
+    if multimodal:
+        reasons.append("posterior is not unimodal along " + ", ".join(multimodal))
+    fa = np.asarray(act)
+    off = [n for n, c, a in zip(names, pc.centred, fa, strict=True) if a and not c]
+    if off:
+        reasons.append("posterior median more than 1 SD from the estimate for " + ", ".join(off))
+    ratio = pc.sd_ratio
+    bad = [f"{n} ({r:.2g})" for n, r, a in zip(names, ratio, fa, strict=True)
+           if a and not 0.5 <= r <= 2]
+    if bad:
+        reasons.append("posterior SD / sandwich SE outside [0.5, 2] for " + ", ".join(bad))
+    far_map = [n for n, m, e, sdv, a in zip(names, map_params, s.theta, pc.sd, fa, strict=True)
+               if a and abs(m - e) > sdv]
+    if far_map:
+        reasons.append("posterior mode more than 1 SD from the estimate for " + ", ".join(far_map))
+    pc.reasons = reasons
+    pc.seconds = time.perf_counter() - t0
+    return pc
+
+
+def _zero_fixed(TH: np.ndarray, fixed_comps: list) -> np.ndarray:
+    """Set the scale parameter of held-fixed components to zero (their WV is in the offset)."""
+    if not fixed_comps:
+        return TH
+    TH = TH.copy()
+    for c in fixed_comps:
+        name = c.process.name
+        if name in ("AR1", "GM"):
+            TH[:, c.start] = 0.5 if name == "AR1" else 1.0
+            TH[:, c.start + 1] = 0.0
+        elif name == "SIN":
+            TH[:, c.start] = 0.0
+            TH[:, c.start + 1] = 1.0
+        else:
+            TH[:, c.start] = 0.0
+    return TH
+
+
+# -- corner plot ------------------------------------------------------------------------------------
+def corner_plot(samples: np.ndarray, names: list[str], truths: np.ndarray | None = None,
+                fig=None, bins: int = 30):
+    """Pairwise marginals of ``samples`` (n, p): histograms on the diagonal, 2-D histograms
+    below it, optional ``truths`` (p,) as lines. Returns the matplotlib Figure."""
+    import matplotlib.pyplot as plt
+
+    X = np.asarray(samples, dtype=float)
+    if X.ndim != 2 or X.shape[1] != len(names):
+        raise InputError(f"samples must be (n, {len(names)}), got {X.shape}")
+    p = X.shape[1]
+    if fig is None:
+        fig = plt.figure(figsize=(1.9 * p + 1, 1.9 * p + 1))
+    axes = fig.subplots(p, p, squeeze=False)
+    for i in range(p):
+        for j in range(p):
+            ax = axes[i, j]
+            if j > i:
+                ax.set_visible(False)
+                continue
+            if i == j:
+                ax.hist(X[:, i], bins=bins, color="0.35", histtype="stepfilled", alpha=0.8)
+                ax.set_yticks([])
+                if truths is not None:
+                    ax.axvline(truths[i], color="C3", lw=1)
+            else:
+                ax.hist2d(X[:, j], X[:, i], bins=bins, cmap="Greys")
+                if truths is not None:
+                    ax.axvline(truths[j], color="C3", lw=0.8)
+                    ax.axhline(truths[i], color="C3", lw=0.8)
+            if i == p - 1:
+                ax.set_xlabel(names[j], fontsize=8)
+            else:
+                ax.set_xticklabels([])
+            if j == 0 and i > 0:
+                ax.set_ylabel(names[i], fontsize=8)
+            elif j > 0:
+                ax.set_yticklabels([])
+            ax.tick_params(labelsize=6)
+            for lab in ax.get_xticklabels():
+                lab.set_rotation(45)
+    fig.subplots_adjust(hspace=0.08, wspace=0.08)
+    return fig
+
+
+# -- combined ---------------------------------------------------------------------------------------
+@dataclass
+class IdentifiabilityReport:
+    """Local + global (+ posterior) checks; ``status`` is 'pass' or 'warn' (with ``reasons``)."""
+
+    model: str
+    local: LocalCheck
+    global_: GlobalCheck | None
+    posterior: PosteriorCheck | None = None
+    seconds: float = 0.0
+
+    @property
+    def reasons(self) -> list[str]:
+        out = [f"local: {r}" for r in self.local.reasons]
+        if self.global_ is not None:
+            out += [f"global: {r}" for r in self.global_.reasons]
+        if self.posterior is not None:
+            out += [f"posterior: {r}" for r in self.posterior.reasons]
+        return out
+
+    @property
+    def status(self) -> str:
+        return "warn" if self.reasons else "pass"
+
+    def summary(self) -> str:
+        """Text for the CLI: status, the checks run, each reason on its own line."""
+        loc = self.local
+        parts = [f"identifiability ({self.model}): {self.status.upper()}",
+                 (f"  local: rank {loc.rank}/{len(loc.active)}, condition number "
+                 f"{loc.condition_number:.3g}")]
+        if self.global_ is not None:
+            g = self.global_
+            parts.append(f"  global: {g.n_starts} starts, {len(g.optima)} distinct optima, "
+                         f"{len(g.alternatives)} near-equal to the best")
+        if self.posterior is not None:
+            pc = self.posterior
+            parts.append(f"  posterior: {pc.n_walkers} walkers x {pc.n_steps} steps, tau max "
+                         f"{np.nanmax(pc.tau):.3g} ({'ok' if pc.tau_ok else 'too short'}), "
+                         f"{'unimodal' if pc.unimodal else 'multimodal'}, SD/SE "
+                         + ", ".join(f"{r:.2g}" for r in pc.sd_ratio))
+        parts += [f"  - {r}" for r in self.reasons]
+        return "\n".join(parts)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def to_json_dict(self) -> dict[str, Any]:
+        return {"model": self.model, "status": self.status, "reasons": self.reasons,
+                "local": self.local.to_json_dict(),
+                "global": None if self.global_ is None else self.global_.to_json_dict(),
+                "posterior": None if self.posterior is None else self.posterior.to_json_dict(),
+                "seconds": self.seconds}
+
+
+def check(result: GMWMResult, *, posterior: bool = False, seed: int = 0, n_starts: int = 12,
+          cov: np.ndarray | None = None, **posterior_kwargs: Any) -> IdentifiabilityReport:
+    """Local and global identifiability checks (plus the emcee posterior check when
+    ``posterior``) of a GMWM/ARMAV fit; ``cov`` is an optional covariance of nu_hat (bootstrap)."""
+    if not isinstance(result, GMWMResult):
+        raise InputError("identifiability checks apply to GMWM/ARMAV fits "
+                         f"(got {type(result).__name__})")
+    t0 = time.perf_counter()
+    loc = local_check(result, cov=cov)
+    try:
+        glob = global_check(result, n_starts=n_starts, seed=seed, cov=cov)
+    except GMWMError:
+        glob = None
+    post = posterior_check(result, seed=seed, cov=cov, **posterior_kwargs) if posterior else None
+    return IdentifiabilityReport(result.model.spec, loc, glob, post, time.perf_counter() - t0)
