@@ -37,6 +37,7 @@ __all__ = ["BootstrapResult", "Coverage", "bootstrap_cov", "coverage", "covers",
            "infer_weights", "parametric_bootstrap", "simulate_draw", "wv_bootstrap"]
 
 Progress = Callable[[int, int], None]
+_FIT_N_STARTS = int(inspect.signature(fit).parameters["n_starts"].default)
 SeedLike = int | np.random.SeedSequence
 
 
@@ -383,7 +384,7 @@ def parametric_bootstrap(result: GMWMResult, B: int = 100, *, seed: SeedLike = 0
         reweight = rw_inf if reweight is None else reweight
     reweight = 0 if reweight is None else int(reweight)
     if n_starts is None:  # the estimator's own default (the estimate's value is not recorded)
-        n_starts = int(inspect.signature(fit).parameters["n_starts"].default)
+        n_starts = _FIT_N_STARTS
     kind = weights if isinstance(weights, str) else "covariance"
     settings = {"refit": bool(refit), "weights": kind, "reweight": reweight, "n_starts": n_starts,
                 "method": result.method, "levels": J, "n_samples": T, "freq": wv0.freq}
