@@ -241,8 +241,8 @@ def _sin_columns(beta: np.ndarray, tau: np.ndarray) -> np.ndarray:
 
 def _shape_grid(name: str, tau: np.ndarray, n_grid: int) -> np.ndarray | None:
     """Log-spaced shape grid covering the observed scales (None: no shape parameter)."""
-    if name in ("AR1", "GM"):  # correlation times from half a sample to ~5x the longest scale
-        return np.geomspace(0.2 / tau[-1], 2.0, n_grid)
+    if name in ("AR1", "GM"):  # phi from 1e-3 (white-noise like) to a correlation time ~5x
+        return np.geomspace(0.2 / tau[-1], 7.0, n_grid)  # the longest scale
     if name == "SIN":  # bump locations from below the first to beyond the last scale
         return np.geomspace(1.0 / tau[-1], 0.999 * np.pi, n_grid)
     return None
@@ -317,6 +317,23 @@ def _theta_from_vp(model: Model, shapes: list[float], coef: np.ndarray, nu_hat: 
     return theta
 
 
+def _shapes_of(model: Model, theta: np.ndarray) -> list[float]:
+    """Shape coordinates (AR1/GM: a = -ln phi; SIN: beta; others 0.1) of a parameter vector."""
+    out = []
+    for c in model.components:
+        p = theta[c.slice]
+        name = c.process.name
+        if name == "AR1":
+            out.append(float(-np.log(p[0])) if p[0] > 0 else 2.0)
+        elif name == "GM":
+            out.append(float(p[0] / model.freq))
+        elif name == "SIN":
+            out.append(float(p[1]))
+        else:
+            out.append(0.1)
+    return out
+
+
 def _vp_starts(model: Model, tau: np.ndarray, nu_hat: np.ndarray, chol: np.ndarray,
                n_starts: int, rng: np.random.Generator, drift_sign: float,
                n_grid: int = 40) -> tuple[list[np.ndarray], list[float]]:
@@ -352,9 +369,10 @@ def _vp_starts(model: Model, tau: np.ndarray, nu_hat: np.ndarray, chol: np.ndarr
         full[keep] = coef
         return c, full
 
-    def profile_gain(G: np.ndarray, others: list[int]) -> np.ndarray:
+    def profile_gain(G: np.ndarray, others: list[int], with_resid: bool = False):
         """Drop in LS cost from adding each column of G to the others (Frisch-Waugh), in one
-        shot; only columns with a positive coefficient count."""
+        shot; only columns with a positive coefficient count. Returns (gain, coefficient)
+        and, if asked, the LS cost of the others alone."""
         if others:
             Q, _ = np.linalg.qr(cols[:, others])
             y_perp = yw - Q @ (Q.T @ yw)
@@ -365,7 +383,8 @@ def _vp_starts(model: Model, tau: np.ndarray, nu_hat: np.ndarray, chol: np.ndarr
         den = np.einsum("jg,jg->g", G_perp, G_perp)
         with np.errstate(divide="ignore", invalid="ignore"):
             ok = (num > 0) & (den > 0)
-            return np.where(ok, num**2 / den, 0.0), np.where(ok, num / den, 0.0)
+            out = np.where(ok, num**2 / den, 0.0), np.where(ok, num / den, 0.0)
+        return (*out, float(y_perp @ y_perp)) if with_resid else out
 
     def best_along(shapes: list[float], k: int, refine: bool,
                    active: list[int] | None = None) -> float:
@@ -443,6 +462,44 @@ def _vp_starts(model: Model, tau: np.ndarray, nu_hat: np.ndarray, chol: np.ndarr
             found.append((c, theta, coef))
     found.sort(key=lambda item: item[0])
     kept = found[: max(n_starts, 1)]
+    # pair moves: a SIN bump hidden under another component (e.g. a slow SIN under a slow AR1)
+    # is invisible to one-at-a-time moves. Scan (SIN shape, other shape) jointly on the coarse
+    # grids (for each grid value of the other, the SIN's whole profile is one projection), then
+    # descend from the best pair. The best such start is always refined.
+    sins = [k for k in shaped if names[k] == "SIN"]
+    if sins and len(shaped) > 1 and found:
+        base = _shapes_of(model, found[0][1])
+        moved: list[tuple[float, np.ndarray]] = []
+        # exact SIN columns here (the envelope is crude for a bump at the last scales, which is
+        # the case these moves are for), 4x denser than the coarse grid
+        sin_grid = np.geomspace(grids[sins[0]][0], grids[sins[0]][-1], 4 * n_grid)
+        sin_cols = Lt @ _sin_columns(sin_grid, tau)
+        for k in sins:
+            for j in shaped:
+                if j == k:
+                    continue
+                shapes = list(base)
+                set_shapes(shapes)
+                others = [i for i in range(ncomp) if i != k]
+                best_pair, best_cost = None, np.inf
+                for gj in range(grids[j].size):
+                    cols[:, j] = gcols[j][:, gj] if names[j] != "SIN" else \
+                        Lt @ _sin_columns(grids[j][gj:gj + 1], tau)[:, 0]
+                    gain, _, resid = profile_gain(sin_cols, others, with_resid=True)
+                    gk = int(np.argmax(gain))
+                    if resid - gain[gk] < best_cost:
+                        best_cost, best_pair = resid - gain[gk], (gj, gk)
+                shapes[j] = float(grids[j][best_pair[0]])
+                shapes[k] = float(sin_grid[best_pair[1]])
+                set_shapes(shapes)
+                best_along(shapes, k, True)
+                best_along(shapes, j, True)
+                shapes, c, coef = descend(shapes, refine=True)
+                moved.append((c, model.canonical(
+                    _theta_from_vp(model, shapes, coef, nu_hat, tau, drift_sign))))
+        c, theta = min(moved, key=lambda item: item[0])
+        if not any(np.allclose(theta, t, rtol=1e-3) for _, t, _ in kept):
+            kept.append((c, theta, None))
     return [t for _, t, _ in kept], [c for c, _, _ in kept]
 
 
@@ -464,7 +521,7 @@ def _prepare(data, levels: int | None, freq: float | None,
 def fit(data: np.ndarray | WaveletVariance, model: str | Model, *, levels: int | None = None,
         freq: float | None = None, weights: str | np.ndarray = "ci", method: str = "gmwm",
         n_starts: int = 4, seed: int = 0, reweight: int = 0, alpha: float = 0.05,
-        max_nfev: int = 400) -> GMWMResult:
+        max_nfev: int = 1000) -> GMWMResult:
     """Estimate ``model`` by GMWM (or ARMAV) from a signal or a precomputed wavelet variance.
 
     Parameters
@@ -527,7 +584,11 @@ def fit(data: np.ndarray | WaveletVariance, model: str | Model, *, levels: int |
                         "some parameters are weakly identified")
     if isinstance(data, WaveletVariance) and model.count("DR"):
         warnings.append("drift sign is not identified from a WV; reported positive")
-    diagnostics = dict(result["diagnostics"], warnings=warnings, condition_number=cond)
+    settings = {"weights": weights if isinstance(weights, str) else "covariance",
+                "method": method, "n_starts": n_starts, "reweight": reweight, "seed": seed,
+                "levels": int(wv.n_levels), "max_nfev": max_nfev}
+    diagnostics = dict(result["diagnostics"], warnings=warnings, condition_number=cond,
+                       settings=settings)
     return GMWMResult(model=model, params=theta, se=se, cov=cov, objective=result["objective"],
                       weights=omega, converged=result["converged"], message=result["message"],
                       wv=wv, method=method, diagnostics=diagnostics, seconds_wv=seconds_wv,
