@@ -1,0 +1,190 @@
+# Simulation 1 of the vibration-noise paper (kind: mle_comparison): GMWM against the Kalman-filter
+# MLE on WN + RW + AR1 + SIN signals. Per chunk of replicates: simulate, fit GMWM (always) and the
+# MLE (only replicates below the study's MLE cap at that T) -> gather per T -> tables -> figures.
+# The statistics live in gmwm.mle_comparison; raw signals are never stored.
+
+
+def sim1_mle_caps(name):
+    """{T: number of replicates with an MLE fit}; `mle.replicates` is one int or one per T."""
+    s = STUDIES[name]
+    cap = s.get("mle", {}).get("replicates", s["replicates"])
+    caps = cap if isinstance(cap, list) else [cap] * len(s["n_samples"])
+    if len(caps) != len(s["n_samples"]):
+        raise WorkflowError(
+            f"config: study {name!r}: mle.replicates has {len(caps)} entries for "
+            f"{len(s['n_samples'])} sample sizes"
+        )
+    return {int(T): min(int(c), s["replicates"]) for T, c in zip(s["n_samples"], caps)}
+
+
+def sim1_mle_settings(name):
+    return {k: v for k, v in STUDIES[name].get("mle", {}).items() if k != "replicates"}
+
+
+def sim1_gmwm_settings(name):
+    return config["estimators"][STUDIES[name]["estimators"][0]]
+
+
+def sim1_estimates(name):
+    return [f"results/{name}/gmwm_mle/all_T{T}.nc" for T in STUDIES[name]["n_samples"]]
+
+
+SIM1_FIGURES = ("fig1_rmse", "fig2_runtime", "fig9_boxplot")
+
+
+def sim1_targets(name):
+    # the first CSV/MD are what the index shows: the per-T speed-up and RMSE ratios
+    return [
+        f"reports/{name}/comparison.csv",
+        f"reports/{name}/comparison.md",
+        f"reports/{name}/rmse_bias_time.csv",
+        f"reports/{name}/rmse_bias_time.md",
+        f"reports/{name}/counts.rst",
+        *[f"reports/{name}/{fig}.{fmt}" for fig in SIM1_FIGURES for fmt in FIG_FORMATS],
+    ]
+
+
+def sim1_benchmarks(name):
+    s = STUDIES[name]
+    return [
+        *[
+            f"{BENCH}/sim1_chunk/{name}/T{T}_c{c}.tsv"
+            for T in s["n_samples"]
+            for c in range(n_chunks(name))
+        ],
+        *[f"{BENCH}/sim1_gather/{name}/T{T}.tsv" for T in s["n_samples"]],
+        f"{BENCH}/sim1_table/{name}/table.tsv",
+        f"{BENCH}/sim1_figures/{name}/figures.tsv",
+    ]
+
+
+register_targets("mle_comparison", sim1_targets, sim1_benchmarks)
+
+
+def sim1_chunk_n_mle(w):
+    return sim1_mle_caps(w.study)[int(w.T)]
+
+
+def sim1_chunk_runtime(w):
+    # measured (2 cores, shared): MLE ~5 s per fit at T = 1.6e5 (2 starts), GMWM ~0.1 s; x4 margin
+    reps = chunk_reps(w.study, w.chunk)
+    n_mle = sum(r < sim1_chunk_n_mle(w) for r in reps)
+    return max(10, int((n_mle * 1.2e-4 * int(w.T) + len(reps) * 1.0) / 60) + 5)
+
+
+rule sim1_chunk:
+    output:
+        "results/{study}/gmwm_mle/T{T}_c{chunk}.nc",
+    params:
+        model=lambda w: study(w)["model"],
+        truth=lambda w: study(w)["truth"],
+        n_samples=lambda w: int(w.T),
+        replicates=lambda w: chunk_reps(w.study, w.chunk),
+        seed=lambda w: study(w)["seed"],
+        gmwm=lambda w: sim1_gmwm_settings(w.study),
+        mle=lambda w: sim1_mle_settings(w.study),
+        # only the cap's effect on this chunk, so raising the cap at one T reruns only the chunks
+        # it reaches
+        mle_replicates=lambda w: [r for r in chunk_reps(w.study, w.chunk) if r < sim1_chunk_n_mle(w)],
+    log:
+        "logs/{study}/sim1_chunk/T{T}_c{chunk}.log",
+    benchmark:
+        f"{BENCH}/sim1_chunk/{{study}}/T{{T}}_c{{chunk}}.tsv"
+    threads: 1
+    resources:
+        runtime=sim1_chunk_runtime,
+        mem_mb=1000,
+    script:
+        "../scripts/sim1_chunk.py"
+
+
+rule sim1_gather:
+    input:
+        lambda w: [
+            f"results/{w.study}/gmwm_mle/T{w.T}_c{c}.nc" for c in range(n_chunks(w.study))
+        ],
+    output:
+        "results/{study}/gmwm_mle/all_T{T}.nc",
+    log:
+        "logs/{study}/sim1_gather/T{T}.log",
+    benchmark:
+        f"{BENCH}/sim1_gather/{{study}}/T{{T}}.tsv"
+    resources:
+        runtime=10,
+        mem_mb=1000,
+    script:
+        "../scripts/sim1_gather.py"
+
+
+rule sim1_table:
+    input:
+        lambda w: sim1_estimates(w.study),
+    output:
+        comparison=report(
+            "reports/{study}/comparison.csv",
+            caption="../report/sim1_comparison.rst",
+            category="{study}",
+            labels={"study": "{study}", "type": "table: speed-up and RMSE ratios"},
+        ),
+        comparison_md="reports/{study}/comparison.md",
+        table=report(
+            "reports/{study}/rmse_bias_time.csv",
+            caption="../report/sim1_table.rst",
+            category="{study}",
+            labels={"study": "{study}", "type": "table: RMSE, bias, time"},
+        ),
+        table_md="reports/{study}/rmse_bias_time.md",
+        counts="reports/{study}/counts.rst",
+    params:
+        mle_caps=lambda w: sim1_mle_caps(w.study),
+        mle=lambda w: sim1_mle_settings(w.study),
+        gmwm=lambda w: sim1_gmwm_settings(w.study),
+    log:
+        "logs/{study}/sim1_table.log",
+    benchmark:
+        f"{BENCH}/sim1_table/{{study}}/table.tsv"
+    resources:
+        runtime=10,
+        mem_mb=1000,
+    script:
+        "../scripts/sim1_table.py"
+
+
+def _sim1_figure_outputs(fig, caption, label):
+    # (a line starting with `report(` would be read as the `report:` keyword)
+    png = report(
+        f"reports/{{study}}/{fig}.png",
+        caption=f"../report/{caption}",
+        category="{study}",
+        labels={"study": "{study}", "type": label},
+    )
+    return [png, *[f"reports/{{study}}/{fig}.{fmt}" for fmt in FIG_FORMATS if fmt != "png"]]
+
+
+rule sim1_figures:
+    input:
+        estimates=lambda w: sim1_estimates(w.study),
+        table="reports/{study}/rmse_bias_time.csv",
+        comparison="reports/{study}/comparison.csv",
+    output:
+        *_sim1_figure_outputs("fig1_rmse", "sim1_fig1.rst", "figure 1: RMSE vs T"),
+        *_sim1_figure_outputs("fig2_runtime", "sim1_fig2.rst", "figure 2: run time vs T"),
+        *_sim1_figure_outputs("fig9_boxplot", "sim1_fig9.rst", "figure 9: standardized errors"),
+    params:
+        formats=FIG_FORMATS,
+        mle_caps=lambda w: sim1_mle_caps(w.study),
+    log:
+        "logs/{study}/sim1_figures.log",
+    benchmark:
+        f"{BENCH}/sim1_figures/{{study}}/figures.tsv"
+    resources:
+        runtime=10,
+        mem_mb=2000,
+    script:
+        "../scripts/sim1_figures.py"
+
+
+localrules:
+    sim1_gather,
+    sim1_table,
+    sim1_figures,

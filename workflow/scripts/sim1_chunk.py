@@ -1,0 +1,22 @@
+"""Rule sim1_chunk: simulate one chunk of Simulation 1 replicates, fit GMWM and (under the cap) MLE."""
+
+from wflog import get_logger
+
+from gmwm.mle_comparison import run_chunk
+from gmwm.store import write_dataset
+
+snakemake = globals()["snakemake"]  # injected by Snakemake
+log = get_logger(snakemake)
+p = snakemake.params
+reps = p.replicates
+# replicates with an MLE fit are the lowest ids (the cap keeps ids < n_mle), contiguous in a chunk
+n_mle = max(p.mle_replicates) + 1 if p.mle_replicates else 0
+log.info("study %s, model %s, T=%d, replicates %d..%d (MLE on %d of them), seed %d, GMWM %s, MLE %s",
+         snakemake.wildcards.study, p.model, p.n_samples, reps[0], reps[-1], len(p.mle_replicates),
+         p.seed, p.gmwm, p.mle)
+ds = run_chunk(p.model, p.truth, p.n_samples, reps, study=snakemake.wildcards.study,
+               base_seed=p.seed, gmwm_settings=p.gmwm, mle_settings=p.mle, n_mle=n_mle,
+               progress=log.info)
+write_dataset(ds, snakemake.output[0])
+log.info("wrote %s; MLE converged %d/%d", snakemake.output[0],
+         int((ds["converged"].sel(estimator="mle") & ds["mle_ran"]).sum()), int(ds["mle_ran"].sum()))

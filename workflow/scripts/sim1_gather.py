@@ -1,0 +1,13 @@
+"""Rule sim1_gather: join the chunks of Simulation 1 at one sample size."""
+
+from wflog import get_logger
+
+from gmwm.store import read_dataset, write_dataset
+from gmwm.studies import gather
+
+snakemake = globals()["snakemake"]  # injected by Snakemake
+log = get_logger(snakemake)
+ds = gather(read_dataset(f) for f in snakemake.input)
+write_dataset(ds, snakemake.output[0])
+log.info("gathered %d chunks, %d replicates -> %s", len(snakemake.input), ds.sizes["replicate"],
+         snakemake.output[0])

@@ -1,0 +1,24 @@
+"""Rule sim1_table: RMSE, bias and run time per method and T; speed-up and RMSE ratios per T."""
+
+from wflog import get_logger
+
+from gmwm.io import write_text_atomic
+from gmwm.mle_comparison import counts_text, study_tables
+from gmwm.store import read_dataset
+from gmwm.studies import write_table
+
+snakemake = globals()["snakemake"]  # injected by Snakemake
+log = get_logger(snakemake)
+out = snakemake.output
+name = snakemake.wildcards.study
+long, comp = study_tables([read_dataset(f) for f in snakemake.input])
+counts = counts_text(comp, snakemake.params.mle)
+write_text_atomic(out.counts, counts)
+write_table(comp, out.comparison, out.comparison_md,
+            title=(f"{name}: GMWM vs MLE, speed-up (mean MLE time / mean GMWM time, same signals) "
+                   f"and RMSE ratio MLE / GMWM per parameter\n\n{counts}"))
+write_table(long, out.table, out.table_md,
+            title=(f"{name}: RMSE, bias, SD and mean run time per method, sample size and "
+                   f"parameter (set 'paired': replicates with a converged MLE, both methods; "
+                   f"set 'all': GMWM on every replicate whose MLE did not fail)\n\n{counts}"))
+log.info("speed-up and RMSE ratios:\n%s", comp.to_string())
