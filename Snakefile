@@ -20,6 +20,7 @@ report: "workflow/report/workflow.rst"
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/montecarlo.smk"
+include: "workflow/rules/sim1.smk"
 include: "workflow/rules/report.smk"
 
 
