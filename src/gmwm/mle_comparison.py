@@ -97,6 +97,8 @@ def run_replicate(
     model = Model(model_spec)
     theta = check_truth(model_spec, truth)
     beta = _check_model(model, truth)
+    gmwm_kwargs = fit_settings_kwargs(gmwm_settings)
+    mle_kwargs = None if mle_settings is None else _mle_kwargs(mle_settings)
     names = list(model.param_names)
     x = model.simulate(theta, int(n_samples), replicate_rng(study, n_samples, replicate, base_seed))
     out: dict[str, Any] = {
@@ -108,7 +110,7 @@ def run_replicate(
     seed = replicate_seed(study, n_samples, replicate, base_seed, stream=1)
     t0 = time.perf_counter()
     try:
-        res = fit(x, model, seed=seed, **fit_settings_kwargs(gmwm_settings))
+        res = fit(x, model, seed=seed, **gmwm_kwargs)
         gmwm_theta = model.canonical(np.asarray(res.params, dtype=float))
         out.update(gmwm_estimate=gmwm_theta, gmwm_converged=bool(res.converged),
                    gmwm_message=str(res.message))
@@ -117,12 +119,12 @@ def run_replicate(
         out["gmwm_message"] = f"{type(exc).__name__}: {exc}"
     out["gmwm_seconds"] = time.perf_counter() - t0
 
-    if mle_settings is None:
+    if mle_kwargs is None:
         return out
     start = None if gmwm_theta is None else model.as_dict(gmwm_theta)
     t0 = time.perf_counter()
     try:
-        mres = fit_mle(x, beta, start, **_mle_kwargs(mle_settings))
+        mres = fit_mle(x, beta, start, **mle_kwargs)
         est = np.array([mres.params.get(n, np.nan) for n in names])
         out.update(mle_estimate=est, mle_converged=bool(mres.converged), mle_start=mres.start,
                    mle_loglike=float(mres.loglike), mle_message=mres.message)
@@ -176,6 +178,7 @@ def run_chunk(
         raise InputError("a chunk needs at least one replicate")
     if n_mle < 0:
         raise InputError(f"the MLE replicate cap must be >= 0, got {n_mle}")
+    _mle_kwargs(mle_settings)
     model = Model(model_spec)
     names = list(model.param_names)
     _warm_up(model_spec)
