@@ -607,6 +607,10 @@ def _fit_once(wv: WaveletVariance, model: Model, omega: np.ndarray, V: np.ndarra
     else:
         gchol = chol
     starts, vp_costs = _vp_starts(model, tau, nu_hat, gchol, n_starts, rng, drift_sign)
+    # the projected cost is already the optimum over the linear parameters and the refinement
+    # only polishes shapes: a start far above the best one never wins, so it is not refined
+    best_vp = min(vp_costs)
+    starts = [t for t, c in zip(starts, vp_costs, strict=True) if c <= best_vp + max(25.0, best_vp)]
     target = np.log10(nu_hat) if method == "armav" else nu_hat
     scale0 = np.linalg.norm(chol.T @ target) or 1.0
     prob = _Problem(model, tau, target, chol, method, scale0)
