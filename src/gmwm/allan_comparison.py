@@ -1,0 +1,406 @@
+"""STIM-300 Monte Carlo of paper 004 (SPEC 4.2): GMWM against the Allan-variance methods.
+
+Per replicate the pipeline simulates the signal once, computes ONE wavelet variance (cached by
+:func:`gmwm.studies.simulate_wv_chunk`) and fits it with three cheap estimators, each named in the
+config (``estimators.<name>.method``):
+
+* ``gmwm``: GMWM, closed form (non-negative weighted least squares, SPEC 5.2) for these linear
+  models, optionally re-weighted with the fitted model's WV (``reweight``, SPEC 5.1);
+* ``armav``: the GMWFM estimator with ``f = log10`` on the Allan variance (SPEC 5.3);
+* ``avsm``: the automated Allan-variance slope method (:mod:`gmwm.avsm`, SPEC 5.4).
+
+Estimates are per-sample parameters (signal in deg/s for the gyroscope, m/s^2 for the
+accelerometer); summaries and figures convert them to the paper's Table I units with
+:func:`gmwm.units.to_table_units` (Q [deg | m/s], N [./sqrt(h)], K [./h/sqrt(h)], R [./h/h]).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from gmwm import units
+from gmwm.errors import GMWMError, InputError
+from gmwm.seeds import replicate_seed
+from gmwm.store import WVChunk
+from gmwm.studies import check_truth, gather, summarize
+
+__all__ = [
+    "ESTIMATOR_METHODS",
+    "LABELS",
+    "cost_summary",
+    "figure_boxplots",
+    "figure_rmse",
+    "fit_chunk",
+    "fit_chunk_all",
+    "fit_wv",
+    "group_datasets",
+    "read_estimates",
+    "summarize_table_units",
+    "to_table_units",
+    "write_estimates",
+]
+
+Progress = Callable[[str], None]
+ESTIMATOR_METHODS = ("gmwm", "armav", "avsm")
+#: Display names of the estimator methods (figures, tables).
+LABELS = {"gmwm": "GMWM", "armav": "ARMAV", "avsm": "AVSM"}
+_GMWM_KEYS = ("method", "weights", "n_starts", "reweight")
+_AVSM_KEYS = ("method", "min_edof", "slope_tol")
+
+
+def _noop(_: str) -> None:
+    return None
+
+
+def _method(settings: Mapping[str, Any]) -> str:
+    method = str(settings.get("method", "gmwm"))
+    if method not in ESTIMATOR_METHODS:
+        raise InputError(f"unknown estimator method {method!r}; use one of {ESTIMATOR_METHODS}")
+    allowed = _AVSM_KEYS if method == "avsm" else _GMWM_KEYS
+    unknown = sorted(set(settings) - set(allowed))
+    if unknown:
+        raise InputError(f"setting(s) {unknown} do not apply to method {method!r}; "
+                         f"allowed: {list(allowed)}")
+    return method
+
+
+def fit_wv(wv: Any, model: Any, settings: Mapping[str, Any], seed: int = 0
+           ) -> tuple[np.ndarray, np.ndarray, bool, float, str]:
+    """Fit ``model`` to one WaveletVariance with one estimator.
+
+    Returns (params, se, converged, objective, message); AVSM has no SE or objective (NaN).
+    """
+    from gmwm.avsm import fit_avsm
+    from gmwm.fit import fit
+
+    method = _method(settings)
+    if method == "avsm":
+        kw = {k: float(v) for k, v in settings.items() if k != "method"}
+        res = fit_avsm(wv, model, **kw)
+        nan = np.full(len(res.params), np.nan)
+        return np.asarray(res.params, float), nan, bool(res.converged), np.nan, res.message
+    kw = {k: v for k, v in settings.items() if k != "method"}
+    res = fit(wv, model, method=method, seed=seed, **kw)
+    return (np.asarray(res.params, float), np.asarray(res.se, float), bool(res.converged),
+            float(res.objective), str(res.message))
+
+
+def fit_chunk(chunk: WVChunk, settings: Mapping[str, Any], estimator: str, freq: float,
+              progress: Progress | None = None) -> xr.Dataset:
+    """Fit every replicate's cached WV of ``chunk`` with one estimator; one row per replicate.
+
+    Same layout as :func:`gmwm.studies.fit_chunk` (so :func:`gmwm.studies.gather` and
+    :func:`gmwm.studies.summarize` apply), plus the ``method`` and ``freq`` attributes. A fit that
+    raises a library error keeps its row (NaN, ``converged = False``, the error in ``message``).
+    ``freq`` [Hz] matters for AVSM only (it reads the AD at cluster times in seconds).
+    """
+    from gmwm.model import Model
+    from gmwm.wv import WaveletVariance
+
+    progress = progress or _noop
+    method = _method(settings)
+    model = Model(chunk.model, freq=freq)
+    theta0 = check_truth(chunk.model, chunk.truth)
+    r, p = len(chunk.replicates), model.n_params
+    est = np.full((r, p), np.nan)
+    se = np.full((r, p), np.nan)
+    converged = np.zeros(r, dtype=bool)
+    objective = np.full(r, np.nan)
+    seconds_fit = np.full(r, np.nan)
+    messages: list[str] = []
+    for i, rep in enumerate(chunk.replicates):
+        wv = WaveletVariance.from_table(chunk.scales, chunk.variances[i],
+                                        n_samples=chunk.n_samples, freq=freq)
+        seed = replicate_seed(chunk.study, chunk.n_samples, int(rep), chunk.base_seed, stream=1)
+        t0 = time.perf_counter()
+        try:
+            est[i], se[i], converged[i], objective[i], msg = fit_wv(wv, model, settings, seed)
+        except (GMWMError, np.linalg.LinAlgError, FloatingPointError) as exc:
+            msg = f"{type(exc).__name__}: {exc}"
+        seconds_fit[i] = time.perf_counter() - t0
+        messages.append(msg)
+        if (i + 1) % 50 == 0 or i + 1 == r:
+            progress(f"{chunk.study} T={chunk.n_samples} {estimator}: {i + 1}/{r} replicates, "
+                     f"{int(converged[: i + 1].sum())} converged")
+
+    def timing(name: str) -> np.ndarray:
+        value = getattr(chunk, name)
+        return np.full(r, np.nan) if value is None else np.asarray(value, dtype=np.float64)
+
+    return xr.Dataset(
+        {
+            "estimate": (("replicate", "parameter"), est),
+            "se": (("replicate", "parameter"), se),
+            "converged": ("replicate", converged),
+            "objective": ("replicate", objective),
+            "message": ("replicate", np.asarray(messages, dtype=object)),
+            "seconds_simulate": ("replicate", timing("seconds_simulate")),
+            "seconds_wv": ("replicate", timing("seconds_wv")),
+            "seconds_fit": ("replicate", seconds_fit),
+        },
+        coords={
+            "replicate": np.asarray(chunk.replicates, dtype=np.int64),
+            "parameter": np.asarray(model.param_names, dtype=object),
+            "truth": ("parameter", theta0),
+        },
+        attrs={
+            "study": chunk.study, "model": chunk.model, "n_samples": int(chunk.n_samples),
+            "n_levels": len(chunk.scales), "base_seed": int(chunk.base_seed),
+            "estimator": estimator, "method": method, "freq": float(freq),
+            "fit_settings": json.dumps(dict(settings), sort_keys=True),
+        },
+    )
+
+
+def fit_chunk_all(chunk: WVChunk, estimators: Mapping[str, Mapping[str, Any]], freq: float,
+                  progress: Progress | None = None) -> dict[str, xr.Dataset]:
+    """:func:`fit_chunk` for every named estimator on the same cached WVs: {name: Dataset}."""
+    return {name: fit_chunk(chunk, settings, name, freq, progress)
+            for name, settings in estimators.items()}
+
+
+def write_estimates(path: str | os.PathLike, datasets: Mapping[str, xr.Dataset]) -> None:
+    """Write several estimators' Datasets to one NetCDF-4 file, one group per estimator (atomic)."""
+    from gmwm.io import atomic_path
+
+    if not datasets:
+        raise InputError("no estimates to write")
+    with atomic_path(path) as tmp:
+        for i, (name, ds) in enumerate(datasets.items()):
+            ds.to_netcdf(tmp, group=name, mode="w" if i == 0 else "a", engine="netcdf4")
+
+
+def read_estimates(path: str | os.PathLike) -> dict[str, xr.Dataset]:
+    """Read a file written by :func:`write_estimates`: {estimator: Dataset} (loaded, closed)."""
+    import netCDF4
+
+    if not os.path.isfile(path):
+        raise InputError(f"estimates file not found: {path}")
+    with netCDF4.Dataset(path) as nc:
+        names = list(nc.groups)
+    out = {}
+    for name in names:
+        with xr.open_dataset(path, group=name, engine="netcdf4") as ds:
+            out[name] = ds.load()
+    return out
+
+
+def group_datasets(datasets: Iterable[xr.Dataset]) -> dict[tuple[str, int], xr.Dataset]:
+    """Chunk Datasets -> one Dataset per (estimator, T), replicates joined and sorted; groups in
+    the order GMWM, ARMAV, AVSM (then estimator name), then by T."""
+    groups: dict[tuple[str, int], list[xr.Dataset]] = {}
+    methods: dict[str, int] = {}
+    for ds in datasets:
+        est = str(ds.attrs["estimator"])
+        method = str(ds.attrs.get("method", ""))
+        methods[est] = ESTIMATOR_METHODS.index(method) if method in ESTIMATOR_METHODS else 99
+        groups.setdefault((est, int(ds.attrs["n_samples"])), []).append(ds)
+    if not groups:
+        raise InputError("no estimates given")
+    order = sorted(groups, key=lambda k: (methods[k[0]], k[0], k[1]))
+    return {key: gather(groups[key]) for key in order}
+
+
+def to_table_units(ds: xr.Dataset, sensor: str, freq: float) -> xr.Dataset:
+    """Copy of ``ds`` with ``estimate`` and ``truth`` in paper 004 Table I units.
+
+    Adds the ``unit`` (parameter) coordinate and the ``Table I`` symbol (Q, N, K, R) coordinate.
+    """
+    names = [str(n) for n in ds["parameter"].values]
+    est = ds["estimate"].values.copy()
+    truth = ds["truth"].values.astype(float).copy()
+    for k, name in enumerate(names):
+        est[:, k] = units.to_table_units(name, np.abs(est[:, k]), sensor, freq)
+        truth[k] = units.to_table_units(name, abs(truth[k]), sensor, freq)
+    out = ds.copy()
+    out["estimate"] = (("replicate", "parameter"), est)
+    return out.assign_coords(
+        truth=("parameter", truth),
+        unit=("parameter", [units.table_unit(n, sensor) for n in names]),
+        symbol=("parameter", [_symbol(n) for n in names]),
+    )
+
+
+def _symbol(name: str) -> str:
+    return {"QN": "Q", "WN": "N", "RW": "K", "DR": "R"}.get(name.split("[", 1)[0], name)
+
+
+def summarize_table_units(groups: Mapping[tuple[str, int], xr.Dataset], sensor: str,
+                          freq: float) -> pd.DataFrame:
+    """Bias, SD, RMSE (and relative versions) in Table I units per estimator, T and parameter.
+
+    Non-converged fits are excluded from the statistics and counted (``share_not_converged``).
+    """
+    frames = []
+    for ds in groups.values():
+        conv = to_table_units(ds, sensor, freq)
+        df = summarize(conv)
+        df.insert(1, "sensor", units.canonical_sensor(sensor))
+        df.insert(3, "method", LABELS.get(str(ds.attrs.get("method", "")), ""))
+        pos = df.columns.get_loc("parameter") + 1
+        df.insert(pos, "symbol", [str(s) for s in conv["symbol"].values])
+        df.insert(pos + 1, "unit", [str(u) for u in conv["unit"].values])
+        frames.append(df)
+    return pd.concat(frames, ignore_index=True)
+
+
+def cost_summary(groups: Mapping[tuple[str, int], xr.Dataset], replicates: int,
+                 cores: int = 2) -> pd.DataFrame:
+    """Mean per-replicate cost [s] per T: simulation, WV and each estimator's fit, and the
+    projected wall time [min] of ``replicates`` replicates on ``cores`` cores (compute only, no
+    job start-up)."""
+    rows: dict[int, dict[str, float]] = {}
+    for (estimator, T), ds in groups.items():
+        row = rows.setdefault(T, {"n_samples": T,
+                                  "simulate_s": float(np.nanmean(ds["seconds_simulate"])),
+                                  "wv_s": float(np.nanmean(ds["seconds_wv"]))})
+        row[f"fit_{estimator}_s"] = float(np.nanmean(ds["seconds_fit"]))
+    df = pd.DataFrame(list(rows.values())).sort_values("n_samples").reset_index(drop=True)
+    per_rep = df.filter(regex=r"_s$").sum(axis=1)
+    df["total_s"] = per_rep
+    df["projected_min"] = per_rep * replicates / cores / 60.0
+    return df
+
+
+# ---------------------------------------------------------------------------------------------
+# figures
+# ---------------------------------------------------------------------------------------------
+
+
+def _length_label(T: int, freq: float) -> str:
+    return f"T = {T:.2g}\n({T / freq / 3600:.2g} h)"
+
+
+def _param_title(ds: xr.Dataset, k: int) -> str:
+    return f"{ds['symbol'].values[k]} [{ds['unit'].values[k]}]"
+
+
+def figure_boxplots(groups: Mapping[tuple[str, int], xr.Dataset], sensor: str, freq: float,
+                    title: str = "") -> Any:
+    """Figure 1 of paper 004: per parameter one panel, boxes of the estimates (Table I units) per
+    sample size and estimator (converged fits), the true value as a dashed line. A panel whose
+    values span more than a factor 20 (none below truth / 1000) uses a log axis."""
+    from gmwm.plots import PALETTE, boxplot_grouped, subplots
+
+    conv = {key: to_table_units(ds, sensor, freq) for key, ds in groups.items()}
+    estimators = list(dict.fromkeys(e for e, _ in conv))
+    lengths = lengths_of(conv)
+    first = next(iter(conv.values()))
+    n_par = first.sizes["parameter"]
+    ncols = min(n_par, 2)
+    nrows = -(-n_par // ncols)
+    fig, axes = subplots(nrows, ncols, figsize=(3.6 * ncols, 2.9 * nrows), squeeze=False)
+    for k, ax in enumerate(axes.ravel()):
+        if k >= n_par:
+            ax.set_visible(False)
+            continue
+        values: dict[str, dict[str, np.ndarray]] = {}
+        for est in estimators:
+            label = LABELS.get(str(conv[(est, lengths[0])].attrs.get("method")), est)
+            values[label] = {}
+            for T in lengths:
+                ds = conv[(est, T)]
+                x = ds["estimate"].where(ds["converged"]).values[:, k]
+                values[label][_length_label(T, freq)] = x[np.isfinite(x)]
+        boxplot_grouped(values, ax=ax, zero_line=False, ylabel=_param_title(first, k),
+                        title=f"{first['symbol'].values[k]}")
+        truth = float(first["truth"].values[k])
+        ax.axhline(truth, color=PALETTE[0], lw=0.9, ls="--", zorder=0, label="truth")
+        allv = np.concatenate([v for d in values.values() for v in d.values()] + [[truth]])
+        # log axis for a wide spread (AVSM's Q), not for estimates collapsing to the boundary 0
+        if allv.min() > 1e-3 * truth and allv.max() / allv.min() > 20:
+            ax.set_yscale("log")
+        if k == 0:
+            ax.legend(loc="best", fontsize=7)
+        elif ax.get_legend() is not None:
+            ax.get_legend().remove()
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def figure_rmse(table: pd.DataFrame, title: str = "") -> Any:
+    """Figure 2 of paper 004: RMSE (Table I units) against T, one panel per parameter, one line
+    per estimator (log-log)."""
+    from matplotlib.ticker import NullFormatter
+
+    from gmwm.plots import plot_rmse_curves
+
+    lengths = sorted(table["n_samples"].unique())
+    rmse: dict[str, dict[str, np.ndarray]] = {}
+    labels: dict[str, str] = {}
+    for (est, method), sub in table.groupby(["estimator", "method"], sort=False):
+        name = method or est
+        rmse[name] = {}
+        for par, rows in sub.groupby("parameter", sort=False):
+            rows = rows.set_index("n_samples").reindex(lengths)
+            rmse[name][par] = rows["rmse"].to_numpy(float)
+            labels[par] = f"RMSE of {rows['symbol'].iloc[0]} [{rows['unit'].iloc[0]}]"
+    ncols = min(len(labels), 2)
+    fig = plot_rmse_curves(lengths, rmse, ncols=ncols, param_labels=labels, ylabel="RMSE")
+    for ax in fig.axes:
+        if ax.get_visible():
+            ax.set_xticks(lengths, [f"{T:.2g}" for T in lengths])
+            ax.xaxis.set_minor_formatter(NullFormatter())
+    if title:
+        fig.suptitle(title)
+    return fig
+
+
+def check_table_i_truth(model_spec: str, truth: Mapping[str, float], sensor: str,
+                        freq: float) -> dict[str, float]:
+    """Relative difference of a study's truth from Table I (:func:`gmwm.units.stim300_truth`),
+    per parameter (0 = the paper's values; the quick profile rescales RW and DR on purpose)."""
+    ref = units.stim300_truth(sensor, freq)
+    check_truth(model_spec, truth)
+    missing = sorted(set(ref) - set(truth))
+    if missing:
+        raise InputError(f"truth lacks Table I parameter(s) {missing} for the {sensor}")
+    return {k: float(truth[k]) / ref[k] - 1.0 for k in ref}
+
+
+def lengths_of(groups: Mapping[tuple[str, int], xr.Dataset]) -> Sequence[int]:
+    """Sample sizes present in ``groups``, increasing."""
+    return sorted({T for _, T in groups})
+
+
+TABLE_COLUMNS = ["study", "sensor", "estimator", "method", "n_samples", "parameter", "symbol",
+                 "unit", "truth", "mean", "bias", "sd", "rmse", "rel_bias", "rel_sd", "std_bias",
+                 "mc_se_bias", "n_used", "n_replicates", "share_not_converged"]
+
+
+def report_markdown(table: pd.DataFrame, cost: pd.DataFrame, *, title: str, model: str,
+                    estimators: Mapping[str, Mapping[str, Any]],
+                    truth_vs_table_i: Mapping[str, float], cores: int) -> str:
+    """Markdown report: settings, truth vs Table I, bias/SD/RMSE table, per-replicate cost."""
+    from gmwm.studies import format_markdown_table
+
+    lines = [f"# {title}", "", (f"Model `{model}`; values in paper 004 Table I units. "
+             "Statistics over the converged fits (non-converged ones are counted in "
+             "`share_not_converged`); `mc_se_bias` = SD / sqrt(n_used)."), ""]
+    lines += ["Estimators: " + "; ".join(f"`{k}` {json.dumps(dict(v), sort_keys=True)}"
+                                          for k, v in estimators.items()), ""]
+    off = {k: v for k, v in truth_vs_table_i.items() if abs(v) > 1e-9}
+    if off:
+        lines += ["**Truth differs from Table I** (relative difference): "
+                  + ", ".join(f"{k} {v:+.4g}" for k, v in off.items())
+                  + " (quick profile: slow terms raised so that they show at the shorter lengths).",
+                  ""]
+    else:
+        lines += ["Truth = Table I converted to discrete time (`gmwm.units.stim300_truth`).", ""]
+    cols = ["method", "n_samples", "symbol", "unit", "truth", "mean", "bias", "sd", "rmse",
+            "rel_bias", "rel_sd", "share_not_converged"]
+    lines += [format_markdown_table(table[cols], digits=4), ""]
+    lines += [(f"Mean cost per replicate [s] and projected wall time [min] of "
+              f"{int(table['n_replicates'].max()) if len(table) else 0} replicates "
+              f"(this run's count) on {cores} cores, compute only:"), "",
+              format_markdown_table(cost, digits=3)]
+    return "\n".join(lines) + "\n"
