@@ -21,6 +21,8 @@ report: "workflow/report/workflow.rst"
 include: "workflow/rules/common.smk"
 include: "workflow/rules/montecarlo.smk"
 include: "workflow/rules/sim1.smk"
+include: "workflow/rules/stim300.smk"
+include: "workflow/rules/navchip.smk"
 include: "workflow/rules/report.smk"
 
 
@@ -28,3 +30,4 @@ rule all:
     default_target: True
     input:
         all_targets(),
+        navchip_targets(),  # not index/archive inputs: missing data fails only navchip
