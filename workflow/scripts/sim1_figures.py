@@ -12,7 +12,7 @@ from wflog import get_logger
 
 from gmwm.io import save_figure
 from gmwm.mle_comparison import COMPARED, PARAM_LABELS, standardized_by_method
-from gmwm.plots import boxplot_grouped, plot_rmse_curves, plot_runtime
+from gmwm.plots import boxplot_grouped, plot_rmse_curves, plot_runtime, style
 from gmwm.store import read_dataset
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
@@ -50,11 +50,13 @@ fig.suptitle(f"{name}: RMSE against T (replicates with a converged MLE)\n{note}"
 save(fig, "fig1_rmse")
 
 # Figure 2: mean run time against T with the speed-up annotated
-fig, ax = plt.subplots(figsize=(6.0, 4.5), layout="constrained")
-plot_runtime(T, {"GMWM": comp["gmwm_seconds"].to_numpy(), "MLE": comp["mle_seconds"].to_numpy()},
-             ax=ax, ratio=("MLE", "GMWM"), ylabel="Mean run time per replicate [s]")
-ax.set_title(f"{name}: mean run time (GMWM incl. its WV; same signals)\n{note}", fontsize=8)
-save(fig, "fig2_runtime")
+with style():  # the package style for the whole figure, as in Figure 1
+    fig, ax = plt.subplots(figsize=(6.0, 4.5), layout="constrained")
+    plot_runtime(T, {"GMWM": comp["gmwm_seconds"].to_numpy(),
+                     "MLE": comp["mle_seconds"].to_numpy()},
+                 ax=ax, ratio=("MLE", "GMWM"), ylabel="Mean run time per replicate [s]")
+    ax.set_title(f"{name}: mean run time (GMWM incl. its WV; same signals)\n{note}", fontsize=8)
+    save(fig, "fig2_runtime")
 plt.close(fig)
 
 # Figure 9: standardized errors of both estimators at the largest T
@@ -62,10 +64,11 @@ ds = read_dataset(snakemake.input.estimates[-1])
 big = int(ds.attrs["n_samples"])
 std = standardized_by_method(ds)
 std = {m: {PARAM_LABELS[p]: v for p, v in d.items()} for m, d in std.items()}
-fig, ax = plt.subplots(figsize=(7.0, 4.5), layout="constrained")
 n_used = len(next(iter(std["MLE"].values())))
-boxplot_grouped(std, ax=ax, ylabel="(estimate - truth) / SD of the MLE",
-                title=(f"{name}: T = {big:,}, {n_used} replicates with a converged MLE "
-                       f"({int(comp['mle_not_converged'].iloc[-1])} dropped)"))
-save(fig, "fig9_boxplot")
+with style():
+    fig, ax = plt.subplots(figsize=(7.0, 4.5), layout="constrained")
+    boxplot_grouped(std, ax=ax, ylabel="(estimate - truth) / SD of the MLE",
+                    title=(f"{name}: T = {big:,}, {n_used} replicates with a converged MLE "
+                           f"({int(comp['mle_not_converged'].iloc[-1])} dropped)"))
+    save(fig, "fig9_boxplot")
 plt.close(fig)
