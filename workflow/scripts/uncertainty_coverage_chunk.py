@@ -1,0 +1,18 @@
+"""Rule coverage_chunk: for each replicate of one chunk, fit, bootstrap (B refits) and keep the
+percentile, basic and Wald intervals (gmwm.bootstrap.coverage_chunk)."""
+
+from wflog import get_logger
+
+from gmwm.bootstrap import coverage_chunk
+from gmwm.store import write_dataset
+
+snakemake = globals()["snakemake"]  # injected by Snakemake
+log = get_logger(snakemake)
+p = snakemake.params
+log.info("study %s, model %s, T=%d, replicates %d..%d, B=%d, settings %s", snakemake.wildcards.study,
+         p.model, p.n_samples, p.replicates[0], p.replicates[-1], p.B, p.settings)
+ds = coverage_chunk(p.model, p.truth, p.n_samples, p.replicates, study=snakemake.wildcards.study,
+                    base_seed=p.seed, B=p.B, settings=p.settings, levels=p.levels, alpha=p.alpha,
+                    progress=log.info)
+write_dataset(ds, snakemake.output[0])
+log.info("wrote %s", snakemake.output[0])

@@ -1,0 +1,31 @@
+"""Rule coverage_report: coverage per parameter and interval kind with its MC error, bootstrap vs
+sandwich SE ratios (CSV + Markdown), and the coverage figure."""
+
+import xarray as xr
+from wflog import get_logger
+
+from gmwm.bootstrap import coverage_summary, plot_coverage
+from gmwm.io import save_figure
+from gmwm.store import read_dataset
+from gmwm.studies import write_table
+
+snakemake = globals()["snakemake"]  # injected by Snakemake
+log = get_logger(snakemake)
+ds = xr.concat([read_dataset(f) for f in snakemake.input], dim="replicate",
+               combine_attrs="override").sortby("replicate")
+df = coverage_summary(ds)
+a = df.attrs
+name = snakemake.wildcards.study
+n_conv = int(ds["converged"].sum())
+write_table(df, snakemake.output.csv, snakemake.output.md,
+            title=(f"{name}: coverage of {100 * a['level']:g} % intervals over R = {a['R']} "
+                   f"replicates (T = {a['n_samples']}, B = {a['B']} bootstrap refits each; "
+                   f"{n_conv}/{a['R']} replicate fits converged); mc_se = sqrt(c (1 - c) / n); "
+                   "mean/median_se_ratio = bootstrap SE / sandwich SE; sd_over_* = empirical SD "
+                   "of the estimates / mean SE"))
+fig = plot_coverage(df, level=a["level"])
+fig.axes[0].set_title(f"{name}: T = {a['n_samples']}, R = {a['R']}, B = {a['B']}", fontsize=9)
+for path in [snakemake.output.png, *snakemake.output.other]:
+    save_figure(fig, path)
+log.info("coverage:\n%s", df[["parameter", "interval", "coverage", "mc_se", "mean_se_ratio"]]
+         .to_string())
