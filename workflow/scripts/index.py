@@ -8,11 +8,14 @@ from wflog import get_logger
 from gmwm.io import write_text_atomic
 from gmwm.studies import read_benchmarks, render_index, run_summary
 
-KEY_COLUMNS = ["n_samples", "parameter", "truth", "rel_bias", "rel_sd", "std_bias",
+KEY_COLUMNS = ["method",  # STIM-300: GMWM / ARMAV / AVSM rows of one table
+               "n_samples", "parameter", "truth", "rel_bias", "rel_sd", "std_bias",
                "share_not_converged",
                # Simulation 1 (GMWM vs MLE): per T, MLE replicates and failures, speed-up, RMSE ratios
                "n_mle", "mle_not_converged", "speedup", "rmse_ratio_sigma2", "rmse_ratio_phi",
-               "rmse_ratio_ar1_sigma2", "rmse_ratio_gamma2"]
+               "rmse_ratio_ar1_sigma2", "rmse_ratio_gamma2",
+               # uncertainty: identifiability status per fit; coverage study: coverage, MC SE
+               "fit", "status", "interval", "coverage", "mc_se", "mean_se_ratio"]
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)
