@@ -23,6 +23,7 @@ include: "workflow/rules/montecarlo.smk"
 include: "workflow/rules/sim1.smk"
 include: "workflow/rules/stim300.smk"
 include: "workflow/rules/navchip.smk"
+include: "workflow/rules/uncertainty.smk"
 include: "workflow/rules/report.smk"
 
 
@@ -31,3 +32,4 @@ rule all:
     input:
         all_targets(),
         navchip_targets(),  # not index/archive inputs: missing data fails only navchip
+        uncertainty_navchip_targets(),  # likewise (bootstrap/identifiability of Navchip fits)

@@ -9,10 +9,20 @@ localrules:
     index,
     archive,
 
+# Analyses that are not studies (e.g. uncertainty.smk) add {name: {model, description, n_samples,
+# replicates, targets, benchmarks}} to INDEX_SECTIONS; the index and the archive include them.
+try:
+    INDEX_SECTIONS
+except NameError:
+    INDEX_SECTIONS = {}
+SECTION_TARGETS = [t for s in INDEX_SECTIONS.values() for t in s["targets"]]
+SECTION_BENCHMARKS = [b for s in INDEX_SECTIONS.values() for b in s["benchmarks"]]
+
 
 rule index:
     input:
         all_study_targets(),
+        SECTION_TARGETS,
     output:
         report("reports/index.md", caption="../report/index.rst", category="Overview"),
     params:
@@ -25,9 +35,10 @@ rule index:
                 "targets": study_targets(name),
             }
             for name, s in STUDIES.items()
-        },
+        }
+        | {name: {k: v for k, v in s.items() if k != "benchmarks"} for name, s in INDEX_SECTIONS.items()},
         config_id=CONFIG_ID,
-        benchmarks=all_benchmarks(),
+        benchmarks=all_benchmarks() + SECTION_BENCHMARKS,
     log:
         "logs/index.log",
     script:
@@ -39,11 +50,11 @@ rule index:
 # to date outputs: nothing to do; any rerun of a study output or a new config: a new archive.
 rule archive:
     input:
-        files=[*all_study_targets(), "reports/index.md"],
+        files=[*all_study_targets(), *SECTION_TARGETS, "reports/index.md"],
     output:
         f"results/archive/{CONFIG_ID}.json",
     params:
-        benchmarks=all_benchmarks(),
+        benchmarks=all_benchmarks() + SECTION_BENCHMARKS,
         archive_root="reports/archive",
     log:
         "logs/archive.log",
