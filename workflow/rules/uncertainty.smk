@@ -27,7 +27,7 @@ UNC = {
     "navchip_axes": ["X", "Y", "Z"],
     **config.get("uncertainty", {}),
 }
-UNC_ID = {"n_starts": 12, "posterior_studies": True, "max_steps": 10000,
+UNC_ID = {"n_starts": 12, "posterior_studies": True, "max_steps": 10000, "studies": None,
           **UNC.get("identifiability", {})}
 _NAVCHIP_ON = UNC["enabled"] and config.get("navchip", {}).get("enabled", True)
 
@@ -39,7 +39,11 @@ def unc_navchip_fits():
 
 
 def unc_study_fits():
-    return list(STUDIES) if UNC["enabled"] else []
+    """Studies whose replicate-0 fit is checked (identifiability.studies; null = all)."""
+    if not UNC["enabled"]:
+        return []
+    chosen = UNC_ID.get("studies") or list(STUDIES)
+    return [n for n in chosen if n in STUDIES]
 
 
 def unc_table_studies():
