@@ -318,6 +318,8 @@ def figure_boxplots(groups: Mapping[tuple[str, int], xr.Dataset], sensor: str, f
         # log axis for a wide spread (AVSM's Q), not for estimates collapsing to the boundary 0
         if allv.min() > 1e-3 * truth and allv.max() / allv.min() > 20:
             ax.set_yscale("log")
+        else:
+            _clip_outliers(ax, allv, truth)
         if k == 0:
             ax.legend(loc="best", fontsize=7)
         elif ax.get_legend() is not None:
@@ -325,6 +327,20 @@ def figure_boxplots(groups: Mapping[tuple[str, int], xr.Dataset], sensor: str, f
     if title:
         fig.suptitle(title)
     return fig
+
+
+def _clip_outliers(ax: Any, values: np.ndarray, truth: float) -> None:
+    """Zoom a linear panel onto the 0.5-99.5 % range of all its values (and the truth) when a few
+    extreme estimates would otherwise squash every box; say how many points are off the axis."""
+    lo, hi = np.percentile(values, [0.5, 99.5])
+    lo, hi = min(lo, truth), max(hi, truth)
+    if hi <= lo or values.max() - values.min() < 3 * (hi - lo):
+        return
+    pad = 0.08 * (hi - lo)
+    ax.set_ylim(lo - pad, hi + pad)
+    off = int(np.sum((values < lo - pad) | (values > hi + pad)))
+    ax.annotate(f"{off} point(s) off the axis", (0.99, 0.01), xycoords="axes fraction",
+                ha="right", va="bottom", fontsize=6, color="#555555")
 
 
 def figure_rmse(table: pd.DataFrame, title: str = "") -> Any:
