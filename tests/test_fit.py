@@ -194,3 +194,17 @@ def test_result_summary_json_and_conf_int():
     assert set(d["params"]) == set(model.param_names) and d["n"] == 2**14
     ci = res.conf_int()
     assert np.all(ci[:, 0] < res.params) and np.all(res.params < ci[:, 1])
+
+
+def test_sandwich_se_survives_parameters_on_very_different_scales():
+    # STIM-300 gyro-like WN + RW: sigma2 ~ 1e-3 and gamma2 ~ 1e-13 (per sample at 250 Hz).
+    # An unscaled pseudo-inverse used to cut the sigma2 direction to a zero standard error.
+    model = Model("WN+RW", freq=250.0)
+    theta = np.array([1.7118e-3, 1.5394e-11])
+    est, se = [], []
+    for r in range(12):
+        res = gmwm.fit(model.simulate(theta, 2**18, np.random.default_rng([5, r])), model)
+        est.append(res.params)
+        se.append(res.se)
+    ratio = np.median(np.array(se), axis=0) / np.std(est, axis=0, ddof=1)
+    assert np.all((ratio > 0.2) & (ratio < 5)), ratio

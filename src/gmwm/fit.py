@@ -578,6 +578,10 @@ def fit(data: np.ndarray | WaveletVariance, model: str | Model, *, levels: int |
     theta = result["theta"]
     prob = result["problem"]
     cov, se, cond = _sandwich(prob, theta, omega, V, method, wv.variance)
+    # no standard error for a component at the boundary: the sandwich needs an interior optimum
+    for c in model.components:
+        if c.name in result["diagnostics"].get("at_boundary", []):
+            se[c.slice] = np.nan
     warnings = list(result["warnings"])
     if not np.isfinite(cond) or cond > 1e12:
         warnings.append(f"Jacobian of the WV is near rank deficient (condition number {cond:.2g}); "
@@ -677,7 +681,8 @@ def _fit_once(wv: WaveletVariance, model: Model, omega: np.ndarray, V: np.ndarra
     near = np.sort(objs[np.isfinite(objs)])
     return dict(theta=theta, objective=obj, converged=bool(converged), message=str(msg),
                 problem=prob, nu=model.wv(theta, tau), warnings=warnings,
-                diagnostics=dict(n_starts=len(candidates), start_objectives=objs.tolist(),
+                diagnostics=dict(at_boundary=vanished, n_starts=len(candidates),
+                                 start_objectives=objs.tolist(),
                                  vp_costs=vp_costs, closed_form=False,
                                  second_best_gap=(float(near[1] - near[0]) if near.size > 1
                                                   else None)))
@@ -708,9 +713,13 @@ def _sandwich(prob: _Problem, theta: np.ndarray, omega: np.ndarray, V: np.ndarra
         Vf = F @ V @ F.T
     with np.errstate(all="ignore"):
         try:
-            B = A.T @ omega @ A
-            Binv = np.linalg.pinv(B, hermitian=True)
-            G = Binv @ A.T @ omega
+            # scale the columns first: parameters live on scales from 1e-12 to 1, and an
+            # unscaled pseudo-inverse would cut the small-scale directions to zero variance
+            d = np.linalg.norm(prob.chol.T @ A, axis=0)
+            d[~np.isfinite(d) | (d == 0)] = 1.0
+            As = A / d
+            Binv = np.linalg.pinv(As.T @ omega @ As, hermitian=True)
+            G = (Binv @ As.T @ omega) / d[:, None]
             cov = G @ Vf @ G.T
         except np.linalg.LinAlgError:
             cov = np.full((theta.size, theta.size), np.nan)
