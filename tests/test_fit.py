@@ -206,5 +206,8 @@ def test_sandwich_se_survives_parameters_on_very_different_scales():
         res = gmwm.fit(model.simulate(theta, 2**18, np.random.default_rng([5, r])), model)
         est.append(res.params)
         se.append(res.se)
-    ratio = np.median(np.array(se), axis=0) / np.std(est, axis=0, ddof=1)
+    se = np.array(se)
+    # replicates where the weak RW sits at the boundary have no SE (NaN) by design
+    assert np.isfinite(se[:, 0]).all() and np.isfinite(se[:, 1]).sum() >= 6
+    ratio = np.nanmedian(se, axis=0) / np.std(est, axis=0, ddof=1)
     assert np.all((ratio > 0.2) & (ratio < 5)), ratio
