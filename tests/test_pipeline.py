@@ -41,8 +41,8 @@ def planned_jobs(output: str) -> dict[str, int]:
     if "Nothing to be done" in output:
         return {}
     stats = output.split("Job stats:")[-1]
-    return {m.group(1): int(m.group(2)) for m in re.finditer(r"^(\w+)\s+(\d+)\s*$", stats, re.MULTILINE)
-            if m.group(1) != "total"}
+    rows = re.finditer(r"^(\w+)\s+(\d+)\s*$", stats, re.MULTILINE)
+    return {m.group(1): int(m.group(2)) for m in rows if m.group(1) != "total"}
 
 
 @pytest.fixture(scope="module")
@@ -78,6 +78,25 @@ def test_outputs_exist_and_are_sensible(run):
     assert sim2.share_not_converged.between(0, 1).all()
 
 
+def test_sim1_and_uncertainty_outputs(run):
+    sim1 = run / "reports" / "sim1"
+    for name in ("comparison.csv", "rmse_bias_time.csv", "fig1_rmse.png", "fig2_runtime.png",
+                 "fig9_boxplot.png"):
+        assert (sim1 / name).stat().st_size > 0, name
+    comp = pd.read_csv(sim1 / "comparison.csv")
+    assert len(comp) == 2 and list(comp.n_mle) == [6, 4]
+    assert (comp.mle_not_converged <= comp.n_mle).all() and (comp.speedup > 0).all()
+
+    cov = pd.read_csv(run / "reports" / "sim3_coverage" / "coverage.csv")
+    assert len(cov) == 18 and cov.coverage.between(0, 1).all()
+    boot = pd.read_csv(run / "reports" / "uncertainty" / "bootstrap_ci.csv")
+    assert len(boot) == 6 and ((boot.n_used + boot.n_failed) == 20).all()
+    assert (boot.pct_low <= boot.pct_high).all() and (boot.basic_low <= boot.basic_high).all()
+    ident = (run / "reports" / "uncertainty" / "identifiability.md").read_text()
+    assert "pass" in ident or "warn" in ident
+    assert (run / "reports" / "uncertainty" / "corner_sim3.png").stat().st_size > 0
+
+
 def test_estimates_are_labelled(run):
     ds = read_dataset(run / "results" / "sim3" / "estimates" / f"gmwm_T{T_QUICK}.nc")
     assert ds.sizes["replicate"] == 16 and list(ds["replicate"].values) == list(range(16))
@@ -103,7 +122,8 @@ def test_estimator_change_reuses_wv_cache(run):
 
 
 def test_study_change_reruns_only_that_study(run):
-    args = _overlay(run, "edit_study.yaml", {"studies": {"sim3": {"truth": {"WN[1].sigma2": 9e-4}}}})
+    edit = {"studies": {"sim3": {"truth": {"WN[1].sigma2": 9e-4}}}}
+    args = _overlay(run, "edit_study.yaml", edit)
     out = snakemake(run, "-n", *args)
     jobs = planned_jobs(out)
     assert jobs["simulate_wv"] == 2 and jobs["fit"] == 2
