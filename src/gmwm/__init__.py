@@ -30,7 +30,9 @@ _EXPORTS = {
     "fit_avsm": "avsm",
 }
 
-__all__ = sorted([*_EXPORTS, "GMWMResult", "fit"])
+__all__ = ["AllanVariance", "DataUnavailableError", "GMWMError", "GMWMResult",
+           "IdentifiabilityError", "InputError", "Model", "ModelError", "WaveletVariance", "avar",
+           "fit", "fit_avsm", "wvar"]
 
 
 def __getattr__(name: str) -> Any:

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import json
 import os
-import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
@@ -27,8 +26,7 @@ import pandas as pd
 import xarray as xr
 
 from gmwm import units
-from gmwm.errors import GMWMError, InputError
-from gmwm.seeds import replicate_seed
+from gmwm.errors import InputError
 from gmwm.store import WVChunk
 from gmwm.studies import check_truth, gather, summarize
 
@@ -97,67 +95,18 @@ def fit_chunk(chunk: WVChunk, settings: Mapping[str, Any], estimator: str, freq:
               progress: Progress | None = None) -> xr.Dataset:
     """Fit every replicate's cached WV of ``chunk`` with one estimator; one row per replicate.
 
-    Same layout as :func:`gmwm.studies.fit_chunk` (so :func:`gmwm.studies.gather` and
-    :func:`gmwm.studies.summarize` apply), plus the ``method`` and ``freq`` attributes. A fit that
-    raises a library error keeps its row (NaN, ``converged = False``, the error in ``message``).
-    ``freq`` [Hz] matters for AVSM only (it reads the AD at cluster times in seconds).
+    :func:`gmwm.studies.fit_chunk` with this module's per-replicate fit (GMWM, ARMAV or AVSM), so
+    :func:`gmwm.studies.gather` and :func:`gmwm.studies.summarize` apply; adds the ``method``
+    and ``freq`` attributes. ``freq`` [Hz] matters for AVSM only (it reads the AD at cluster
+    times in seconds).
     """
-    from gmwm.model import Model
-    from gmwm.wv import WaveletVariance
+    from gmwm.studies import fit_chunk as fit_study_chunk
 
-    progress = progress or _noop
     method = _method(settings)
-    model = Model(chunk.model, freq=freq)
-    theta0 = check_truth(chunk.model, chunk.truth)
-    r, p = len(chunk.replicates), model.n_params
-    est = np.full((r, p), np.nan)
-    se = np.full((r, p), np.nan)
-    converged = np.zeros(r, dtype=bool)
-    objective = np.full(r, np.nan)
-    seconds_fit = np.full(r, np.nan)
-    messages: list[str] = []
-    for i, rep in enumerate(chunk.replicates):
-        wv = WaveletVariance.from_table(chunk.scales, chunk.variances[i],
-                                        n_samples=chunk.n_samples, freq=freq)
-        seed = replicate_seed(chunk.study, chunk.n_samples, int(rep), chunk.base_seed, stream=1)
-        t0 = time.perf_counter()
-        try:
-            est[i], se[i], converged[i], objective[i], msg = fit_wv(wv, model, settings, seed)
-        except (GMWMError, np.linalg.LinAlgError, FloatingPointError) as exc:
-            msg = f"{type(exc).__name__}: {exc}"
-        seconds_fit[i] = time.perf_counter() - t0
-        messages.append(msg)
-        if (i + 1) % 50 == 0 or i + 1 == r:
-            progress(f"{chunk.study} T={chunk.n_samples} {estimator}: {i + 1}/{r} replicates, "
-                     f"{int(converged[: i + 1].sum())} converged")
-
-    def timing(name: str) -> np.ndarray:
-        value = getattr(chunk, name)
-        return np.full(r, np.nan) if value is None else np.asarray(value, dtype=np.float64)
-
-    return xr.Dataset(
-        {
-            "estimate": (("replicate", "parameter"), est),
-            "se": (("replicate", "parameter"), se),
-            "converged": ("replicate", converged),
-            "objective": ("replicate", objective),
-            "message": ("replicate", np.asarray(messages, dtype=object)),
-            "seconds_simulate": ("replicate", timing("seconds_simulate")),
-            "seconds_wv": ("replicate", timing("seconds_wv")),
-            "seconds_fit": ("replicate", seconds_fit),
-        },
-        coords={
-            "replicate": np.asarray(chunk.replicates, dtype=np.int64),
-            "parameter": np.asarray(model.param_names, dtype=object),
-            "truth": ("parameter", theta0),
-        },
-        attrs={
-            "study": chunk.study, "model": chunk.model, "n_samples": int(chunk.n_samples),
-            "n_levels": len(chunk.scales), "base_seed": int(chunk.base_seed),
-            "estimator": estimator, "method": method, "freq": float(freq),
-            "fit_settings": json.dumps(dict(settings), sort_keys=True),
-        },
-    )
+    ds = fit_study_chunk(chunk, settings, estimator, progress, freq=freq,
+                         fit_one=lambda wv, model, seed: fit_wv(wv, model, settings, seed))
+    ds.attrs.update(method=method, freq=float(freq))
+    return ds
 
 
 def fit_chunk_all(chunk: WVChunk, estimators: Mapping[str, Mapping[str, Any]], freq: float,

@@ -89,8 +89,8 @@ class GMWMResult:
 
     def summary(self) -> str:
         """Plain-text table of estimates, standard errors and fit diagnostics."""
-        lines = [f"GMWM fit ({self.method}) of {self.model.spec}  |  T = {self.wv.n_samples}, "
-                 f"J = {self.wv.n_levels}, freq = {self.wv.freq:g} Hz",
+        lines = [(f"GMWM fit ({self.method}) of {self.model.spec}  |  T = {self.wv.n_samples}, "
+                  f"J = {self.wv.n_levels}, freq = {self.wv.freq:g} Hz"),
                  f"objective = {self.objective:.6g}   converged = {self.converged}"
                  + ("" if self.converged else f"   ({self.message})"),
                  f"{'parameter':<16}{'estimate':>14}{'std. error':>14}",
@@ -632,11 +632,12 @@ def _fit_once(wv: WaveletVariance, model: Model, omega: np.ndarray, V: np.ndarra
             for c in model.components:
                 if c.name in at_zero:
                     theta[c.slice] = 0.0
-        return dict(theta=theta, objective=prob.objective(theta), converged=True,
-                    message="closed-form non-negative weighted least squares", problem=prob,
-                    nu=model.wv(theta, tau), warnings=warnings,
-                    diagnostics=dict(n_starts=1, start_objectives=[prob.objective(theta)],
-                                     closed_form=True, at_boundary=at_zero))
+        obj = prob.objective(theta)
+        return {"theta": theta, "objective": obj, "converged": True,
+                "message": "closed-form non-negative weighted least squares", "problem": prob,
+                "nu": model.wv(theta, tau), "warnings": warnings,
+                "diagnostics": {"n_starts": 1, "start_objectives": [obj], "closed_form": True,
+                                "at_boundary": at_zero}}
 
     candidates = list(starts) + list(extra_starts or [])
     runs = []
@@ -679,13 +680,12 @@ def _fit_once(wv: WaveletVariance, model: Model, omega: np.ndarray, V: np.ndarra
         warnings.append("component(s) " + ", ".join(vanished) + " contribute less than 1e-6 of "
                         "the WV at every scale (estimate at the boundary 0)")
     near = np.sort(objs[np.isfinite(objs)])
-    return dict(theta=theta, objective=obj, converged=bool(converged), message=str(msg),
-                problem=prob, nu=model.wv(theta, tau), warnings=warnings,
-                diagnostics=dict(at_boundary=vanished, n_starts=len(candidates),
-                                 start_objectives=objs.tolist(),
-                                 vp_costs=vp_costs, closed_form=False,
-                                 second_best_gap=(float(near[1] - near[0]) if near.size > 1
-                                                  else None)))
+    gap = float(near[1] - near[0]) if near.size > 1 else None
+    return {"theta": theta, "objective": obj, "converged": bool(converged), "message": str(msg),
+            "problem": prob, "nu": model.wv(theta, tau), "warnings": warnings,
+            "diagnostics": {"at_boundary": vanished, "n_starts": len(candidates),
+                            "start_objectives": objs.tolist(), "vp_costs": vp_costs,
+                            "closed_form": False, "second_best_gap": gap}}
 
 
 def _free_bounds(eta0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -179,25 +179,34 @@ def fit_settings_kwargs(fit_settings: Mapping[str, Any]) -> dict[str, Any]:
     return dict(fit_settings)
 
 
+FitOne = Callable[[Any, Any, int], tuple[np.ndarray, np.ndarray, bool, float, str]]
+"""Fit of one replicate: (wv, model, seed) -> (params, se, converged, objective, message)."""
+
+
 def fit_chunk(
     chunk: WVChunk,
     fit_settings: Mapping[str, Any],
     estimator: str = "gmwm",
     progress: Progress | None = None,
+    *,
+    fit_one: FitOne | None = None,
+    freq: float = 1.0,
 ) -> xr.Dataset:
     """Fit the study model to every replicate's WV of ``chunk``; one row per replicate, none dropped.
 
-    A replicate whose fit fails with a library error or does not converge keeps its row, with
-    ``converged = False`` and the failure in ``message`` (estimates NaN if the fit raised).
-    The random starts of the fit use stream 1 of the replicate's seed sequence.
+    ``fit_one`` fits one replicate (default: :func:`gmwm.fit` with ``fit_settings``); other
+    estimators (ARMAV, AVSM in :mod:`gmwm.allan_comparison`) plug in here. ``freq`` [Hz] is the
+    sampling frequency of the WV. A replicate whose fit fails with a library error or does not
+    converge keeps its row, with ``converged = False`` and the failure in ``message`` (estimates
+    NaN if the fit raised). The random starts of the fit use stream 1 of the replicate's seed.
     """
-    from gmwm.fit import fit
     from gmwm.model import Model
     from gmwm.wv import WaveletVariance
 
     progress = progress or _noop
-    kwargs = fit_settings_kwargs(fit_settings)
-    model = Model(chunk.model)
+    if fit_one is None:
+        fit_one = _gmwm_fit_one(fit_settings_kwargs(fit_settings))
+    model = Model(chunk.model, freq=freq)
     theta0 = check_truth(chunk.model, chunk.truth)
     names = list(model.param_names)
     r, p = len(chunk.replicates), len(names)
@@ -207,32 +216,31 @@ def fit_chunk(
     objective = np.full(r, np.nan)
     seconds_fit = np.full(r, np.nan)
     messages: list[str] = []
+    every = max(1, r // 50)  # at most ~50 progress lines per chunk
     for i, rep in enumerate(chunk.replicates):
         wv = WaveletVariance.from_table(
-            chunk.scales, chunk.variances[i], n_samples=chunk.n_samples
+            chunk.scales, chunk.variances[i], n_samples=chunk.n_samples, freq=freq
         )
         seed = replicate_seed(chunk.study, chunk.n_samples, int(rep), chunk.base_seed, stream=1)
         t0 = time.perf_counter()
         try:
-            res = fit(wv, model, seed=seed, **kwargs)
+            params, ses, converged[i], objective[i], msg = fit_one(wv, model, seed)
+            est[i], se[i] = _canonical_with_se(model, np.asarray(params), np.asarray(ses))
         except (GMWMError, np.linalg.LinAlgError, FloatingPointError) as exc:
-            messages.append(f"{type(exc).__name__}: {exc}")
-            seconds_fit[i] = time.perf_counter() - t0
-            progress(f"{chunk.study} T={chunk.n_samples}: replicate {i + 1}/{r} FAILED: {exc}")
-            continue
+            msg = f"{type(exc).__name__}: {exc}"
         seconds_fit[i] = time.perf_counter() - t0
-        est[i], se[i] = _canonical_with_se(model, np.asarray(res.params), np.asarray(res.se))
-        converged[i] = bool(res.converged)
-        objective[i] = float(res.objective)
-        messages.append(str(getattr(res, "message", "")))
-        progress(
-            f"{chunk.study} T={chunk.n_samples}: replicate {i + 1}/{r} (id {rep}) "
-            f"fit {seconds_fit[i]:.2f} s, converged={converged[i]}"
-        )
-    seconds_wv = chunk.seconds_wv if chunk.seconds_wv is not None else np.full(r, np.nan)
-    seconds_sim = (
-        chunk.seconds_simulate if chunk.seconds_simulate is not None else np.full(r, np.nan)
-    )
+        messages.append(msg)
+        if (i + 1) % every == 0 or i + 1 == r:
+            progress(
+                f"{chunk.study} T={chunk.n_samples} {estimator}: replicate {i + 1}/{r} (id {rep}) "
+                f"fit {seconds_fit[i]:.2f} s, converged={converged[i]}; "
+                f"{int(converged[: i + 1].sum())} converged so far"
+            )
+
+    def timing(name: str) -> np.ndarray:
+        value = getattr(chunk, name)
+        return np.full(r, np.nan) if value is None else np.asarray(value, dtype=np.float64)
+
     return xr.Dataset(
         {
             "estimate": (("replicate", "parameter"), est),
@@ -240,8 +248,8 @@ def fit_chunk(
             "converged": ("replicate", converged),
             "objective": ("replicate", objective),
             "message": ("replicate", np.asarray(messages, dtype=object)),
-            "seconds_simulate": ("replicate", np.asarray(seconds_sim, dtype=np.float64)),
-            "seconds_wv": ("replicate", np.asarray(seconds_wv, dtype=np.float64)),
+            "seconds_simulate": ("replicate", timing("seconds_simulate")),
+            "seconds_wv": ("replicate", timing("seconds_wv")),
             "seconds_fit": ("replicate", seconds_fit),
         },
         coords={
@@ -259,6 +267,16 @@ def fit_chunk(
             "fit_settings": json.dumps(dict(fit_settings), sort_keys=True),
         },
     )
+
+
+def _gmwm_fit_one(kwargs: Mapping[str, Any]) -> FitOne:
+    from gmwm.fit import fit
+
+    def fit_one(wv: Any, model: Any, seed: int):
+        res = fit(wv, model, seed=seed, **kwargs)
+        return res.params, res.se, bool(res.converged), float(res.objective), str(res.message)
+
+    return fit_one
 
 
 def _canonical_with_se(model: Any, theta: np.ndarray, se: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
