@@ -649,30 +649,29 @@ def _fit_once(wv: WaveletVariance, model: Model, omega: np.ndarray, V: np.ndarra
                                 jac=prob.free_jac, method="trf", bounds=(lo, hi), x_scale="jac",
                                 xtol=1e-10, ftol=1e-12, gtol=1e-10, max_nfev=max_nfev)
         except (ValueError, FloatingPointError, np.linalg.LinAlgError) as err:
-            runs.append((np.inf, None, f"optimiser failed: {err}", False))
+            runs.append((np.inf, None, f"optimiser failed: {err}", False, []))
             continue
-        theta = model.canonical(model.from_free(sol.x))
-        obj = prob.objective(theta)
-        ok = bool(sol.status > 0 and np.all(np.isfinite(theta)) and np.isfinite(obj))
-        runs.append((obj if np.isfinite(obj) else np.inf, theta,
-                     sol.message if ok else f"stopped: {sol.message}", ok))
+        raw = model.from_free(sol.x)
+        obj = prob.objective(raw)
+        ok = bool(sol.status > 0 and np.all(np.isfinite(raw)) and np.isfinite(obj))
+        # edge of this run's own search box, judged before the canonical relabelling; a variance
+        # drifting to the lower edge is the boundary 0 (warned below), not a failure
+        raw_vanished = {k for k, v in model.component_wv(raw, tau).items()
+                        if np.max(v / nu_hat) < 1e-6}
+        edge = [n for n, e, a, b in zip(model.param_names, sol.x, lo, hi, strict=True)
+                if min(e - a, b - e) < 1e-3
+                and not (n.split(".")[0] in raw_vanished and e - a < 1e-3)]
+        runs.append((obj if np.isfinite(obj) else np.inf, model.canonical(raw),
+                     sol.message if ok else f"stopped: {sol.message}", ok, edge))
     objs = np.array([r[0] for r in runs])
     best = int(np.argmin(objs))
-    obj, theta, msg, ok = runs[best]
+    obj, theta, msg, ok, edge = runs[best]
     converged = theta is not None and ok and np.isfinite(obj)
     if theta is None:
         theta = candidates[0]
         obj = prob.objective(theta)
-    # a shape parameter pinned at the edge of its domain, or a component that explodes, means
-    # the optimum is not interior; a component that vanishes is a boundary estimate (warned)
-    eta = model.to_free(theta)
-    lo, hi = _free_bounds(model.to_free(candidates[0]))
     shares = {k: np.max(v / nu_hat) for k, v in model.component_wv(theta, tau).items()}
     vanished = [k for k, s in shares.items() if s < 1e-6]
-    # a variance drifting to the lower edge of the box is the boundary 0 (warned below), not
-    # a failure; any other parameter at an edge is
-    edge = [n for n, e, a, b in zip(model.param_names, eta, lo, hi, strict=True)
-            if min(e - a, b - e) < 1e-3 and not (n.split(".")[0] in vanished and e - a < 1e-3)]
     if edge:
         converged = False
         msg = "parameter(s) at the edge of the search region: " + ", ".join(edge)
