@@ -113,7 +113,7 @@ rule sim1_gather:
         runtime=10,
         mem_mb=1000,
     script:
-        "../scripts/sim1_gather.py"
+        "../scripts/gather.py"
 
 
 rule sim1_table:

@@ -1,4 +1,4 @@
-"""Rule gather: join the chunk estimates of one study, estimator and sample size."""
+"""Rules gather and sim1_gather: join one study's chunk estimates at one sample size."""
 
 from wflog import get_logger
 
