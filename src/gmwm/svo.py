@@ -1,0 +1,748 @@
+"""Virtual gyroscope by Scale-wise Variance Optimisation (SVO, paper 003; SPEC section 6).
+
+``p`` signals of one axis ``X_t`` (columns of a ``(T, p)`` array) are combined into a virtual
+signal ``S_t = c'X_t`` with ``c'1 = 1``. With ``A_j`` the Haar wavelet cross-covariance (WCCV)
+matrix at level ``j`` (``A_j[i, k] = E[W_{i,j,t} W_{k,j,t}]``, lag 0, same conventions as
+:mod:`gmwm.wv`: scale = filter length ``2**j`` samples, ``M_j = T - 2**j + 1`` boundary-free
+coefficients, mean squares, never demeaned) and scale weights ``omega >= 0`` (renormalised to sum
+to 1), SVO chooses ``c = A^-1 1 / (1' A^-1 1)``, ``A = sum_j omega_j A_j`` (solved, not inverted):
+the ``c`` minimising the omega-weighted wavelet variance ``c' A c`` of the virtual signal.
+
+Uncertainty (SPEC 6.1-6.2): ``Cov(c_hat) = Sigma / T`` with ``Sigma = G V G'`` (delta method,
+plug-in ``G``) and ``V`` from the moving-block bootstrap of the wavelet coefficients (Algorithm 1:
+trim every level to the last ``M_J`` times, resample blocks of ``l = a T^(1/3)`` consecutive times
+with starts shared by all signals and levels, refill level ``j`` with one random original stretch
+of ``D_j = M_j - M_J`` coefficients, centre at the original estimate, scale by ``T``). Because
+``G`` is linear, ``G (gamma*_h - gamma_hat)`` is computed per draw directly from the coefficients
+(``O(p)`` numbers per time instead of ``J p^2``); ``mbb_wccv`` returns the full draws
+``gamma*_h`` for small problems (and tests).
+
+RDVG (SPEC 6.5, Vaccaro & Zaki 2017 as described in paper 003): ``c = Q^-1 1 / (1'Q^-1 1)`` with
+the random-walk innovation covariance ``Q`` estimated, per pair ``(i, k)``, by closed-form
+weighted least squares of ``A_j[i, k]`` on the Haar WN and RW columns ``1/tau_j`` and
+``(tau_j^2 + 2) / (12 tau_j)`` (weights ``eta_j / (A_j[i,i] A_j[k,k] + A_j[i,k]^2)``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numba import njit
+from scipy.linalg import LinAlgError, cho_factor, cho_solve
+from scipy.stats import norm
+
+from gmwm.errors import InputError, ModelError
+from gmwm.wv import WaveletVariance, _check_alpha_freq, _layout, _n_levels, chi2_ci
+
+__all__ = ["PAPER_OMEGA_LONG", "PAPER_OMEGA_SHORT", "SVOResult", "WaveletCrossCovariance",
+           "block_length", "mbb_svo_draws", "mbb_wccv", "rdvg", "svo", "svo_coef",
+           "svo_jacobian", "svo_weights", "wccv"]
+
+#: Paper 003 App. C1 scale weights for J = 19 (printed, sums 0.998 and 1.002; renormalised on use).
+#: omega_1 ("long": random-walk scales) and omega_2 ("short": white-noise scales).
+PAPER_OMEGA_LONG = (0.0,) * 7 + (0.001, 0.003, 0.007, 0.018, 0.041, 0.077, 0.112, 0.135, 0.147,
+                                 0.151, 0.153, 0.153)
+PAPER_OMEGA_SHORT = (0.118, 0.118, 0.117, 0.117, 0.116, 0.112, 0.104, 0.086, 0.059, 0.032, 0.014,
+                     0.006, 0.002, 0.001) + (0.0,) * 5
+
+
+# --------------------------------------------------------------------------------------------------
+# numba kernels: the pyramid of gmwm.wv for p interleaved signals (rows = times, columns = signals)
+
+
+@njit(cache=True)
+def _step_p(src: np.ndarray, dst: np.ndarray, lo: int, hi: int, lag: int, sums: np.ndarray,
+            row: int) -> None:
+    """One level on rows ``[lo, hi)``: ``dst[t] = (src[t] + src[t-lag]) / 2`` and add the packed
+    upper triangle of ``d d'`` (``d = src[t] - src[t-lag] = 2 W_t``) to ``sums[row]``."""
+    p = src.shape[1]
+    d = np.empty(p)
+    acc = np.zeros(sums.shape[1])
+    for t in range(lo, hi):
+        for i in range(p):
+            a = src[t, i]
+            b = src[t - lag, i]
+            d[i] = a - b
+            dst[t, i] = 0.5 * (a + b)
+        q = 0
+        for i in range(p):
+            di = d[i]
+            for k in range(i, p):
+                acc[q] += di * d[k]
+                q += 1
+    for q in range(acc.shape[0]):
+        sums[row, q] += acc[q]
+
+
+@njit(cache=True)
+def _avg_p(src: np.ndarray, dst: np.ndarray, lo: int, hi: int, lag: int) -> None:
+    p = src.shape[1]
+    for t in range(lo, hi):
+        for i in range(p):
+            dst[t, i] = 0.5 * (src[t, i] + src[t - lag, i])
+
+
+@njit(cache=True)
+def _pyramid_p(a: np.ndarray, b: np.ndarray, n: int, n_levels: int, unit: int, acc_from: int,
+               sums: np.ndarray, first: int) -> int:
+    """``gmwm.wv._pyramid`` for p signals: levels ``1..n_levels`` on rows ``[0, n)`` with lags in
+    multiples of ``unit`` rows; products at rows ``>= acc_from`` go to ``sums[first + j - 1]``."""
+    src, dst = a, b
+    which = 0
+    for j in range(1, n_levels + 1):
+        lag = unit << (j - 1)
+        lo = (2 * lag) - unit
+        if lo >= n:
+            break
+        acc_lo = max(lo, acc_from)
+        if acc_lo > lo:
+            _avg_p(src, dst, lo, min(acc_lo, n), lag)
+        if acc_lo < n:
+            _step_p(src, dst, acc_lo, n, lag, sums, first + j - 1)
+        src, dst = dst, src
+        which = 1 - which
+    return which
+
+
+@njit(cache=True)
+def _wccv_sums(x: np.ndarray, n_levels: int, n_block: int, sums: np.ndarray, buf_a: np.ndarray,
+               buf_b: np.ndarray, v_l: np.ndarray, pan_a: np.ndarray, pan_b: np.ndarray) -> None:
+    """Add ``sum_t (2 W_{i,j,t})(2 W_{k,j,t})`` (packed ``i <= k``) to ``sums[j-1]``: the two-phase
+    layout of ``gmwm.wv._wv_sums`` (time blocks with a recomputed halo for levels ``1..L``, then
+    interleaved sub-series of ``V_L`` for the levels above), every row holding the p signals."""
+    T = x.shape[0]
+    p = x.shape[1]
+    L = n_block
+    halo = (1 << L) - 1
+    block = buf_a.shape[0] - halo
+    x0 = x[0].copy()
+    b0 = 0
+    while b0 < T:
+        b1 = min(T, b0 + block)
+        s0 = max(0, b0 - halo)
+        n = b1 - s0
+        for r in range(n):
+            for i in range(p):
+                buf_a[r, i] = x[s0 + r, i] - x0[i]
+        which = _pyramid_p(buf_a, buf_b, n, L, 1, b0 - s0, sums, 0)
+        if n_levels > L:
+            src = buf_a if which == 0 else buf_b
+            for t in range(max(b0, halo), b1):
+                for i in range(p):
+                    v_l[t - halo, i] = src[t - s0, i]
+        b0 = b1
+    if n_levels <= L:
+        return
+    P = halo + 1
+    n_out = T - halo
+    rows = (n_out + P - 1) // P
+    width = min(pan_a.shape[0] // rows, P)
+    r0 = 0
+    while r0 < P:
+        c = min(width, P - r0)
+        last = min(max(n_out - (rows - 1) * P - r0, 0), c)
+        for k in range(rows - 1):
+            base = k * P + r0
+            for ci in range(c):
+                for i in range(p):
+                    pan_a[k * c + ci, i] = v_l[base + ci, i]
+        base = (rows - 1) * P + r0
+        for ci in range(last):
+            for i in range(p):
+                pan_a[(rows - 1) * c + ci, i] = v_l[base + ci, i]
+        _pyramid_p(pan_a, pan_b, (rows - 1) * c + last, n_levels - L, c, 0, sums, L)
+        r0 += c
+
+
+def _wccv_raw(x: np.ndarray, J: int) -> np.ndarray:
+    """Packed sums ``(J, p(p+1)/2)`` of ``4 W_i W_k`` over the boundary-free coefficients."""
+    T, p = x.shape
+    n_block, blen, panel = _layout(T, J)
+    n_block = min(n_block, J)
+    halo = (1 << n_block) - 1
+    blen = min(T, blen)
+    buf_a = np.empty((blen + halo, p))
+    buf_b = np.empty((blen + halo, p))
+    if J > n_block:
+        n_out = T - halo
+        rows = -(-n_out // (halo + 1))
+        v_l = np.empty((n_out, p))
+        pan_a = np.empty((rows * panel, p))
+        pan_b = np.empty((rows * panel, p))
+    else:
+        v_l = pan_a = pan_b = np.empty((0, p))
+    sums = np.zeros((J, p * (p + 1) // 2))
+    _wccv_sums(x, J, n_block, sums, buf_a, buf_b, v_l, pan_a, pan_b)
+    return sums
+
+
+@njit(cache=True)
+def _mbb_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
+                starts: np.ndarray, block: int, last: int, refill: np.ndarray,
+                out: np.ndarray) -> None:
+    """Moving-block bootstrap sums (SPEC 6.2) for every draw ``h``, level by level on whole arrays.
+
+    Feature of a time ``t`` at level ``j``: ``wf[j] * w (w'y)`` (``full=False``, p numbers) or
+    ``wf[j] * w_i w_k`` packed (``full=True``, stored at columns ``j * npair``). ``out[h]`` gets the
+    sum of the features over the resampled coefficients: the blocks ``starts[h, b] .. + block``
+    (the last one ``last`` long) of the trimmed times (the last ``M_J`` of every level) plus the
+    refill stretch ``refill[h, j] .. + D_j`` of level ``j``'s own coefficients.
+    """
+    T, p = x.shape
+    H = out.shape[0]
+    npair = p * (p + 1) // 2
+    qj = npair if full else p
+    MJ = T - (1 << J) + 1
+    trimmed = np.zeros((MJ + 1, out.shape[1]))
+    cur = np.empty((T, p))
+    for t in range(T):
+        for i in range(p):
+            cur[t, i] = x[t, i] - x[0, i]
+    nxt = np.empty((T, p))
+    cum = np.empty((T + 1, qj))
+    w = np.empty(p)
+    f = np.empty(qj)
+    for j in range(1, J + 1):
+        lag = 1 << (j - 1)
+        tau = 2 * lag
+        Mj = T - tau + 1
+        Dj = Mj - MJ
+        off = (j - 1) * npair if full else 0
+        for q in range(qj):
+            cum[0, q] = 0.0
+        for m in range(Mj):
+            t = m + tau - 1
+            for i in range(p):
+                a = cur[t, i]
+                b = cur[t - lag, i]
+                w[i] = 0.5 * (a - b)
+                nxt[t, i] = 0.5 * (a + b)
+            if full:
+                q = 0
+                for i in range(p):
+                    for k in range(i, p):
+                        f[q] = wf[j - 1] * w[i] * w[k]
+                        q += 1
+            else:
+                s = 0.0
+                for i in range(p):
+                    s += w[i] * y[i]
+                for i in range(p):
+                    f[i] = wf[j - 1] * s * w[i]
+            for q in range(qj):
+                cum[m + 1, q] = cum[m, q] + f[q]
+            if m >= Dj:
+                r = m - Dj + 1
+                for q in range(qj):
+                    trimmed[r, off + q] += f[q]
+        if Dj > 0:
+            for h in range(H):
+                s0 = refill[h, j - 1]
+                for q in range(qj):
+                    out[h, off + q] += cum[s0 + Dj, q] - cum[s0, q]
+        cur, nxt = nxt, cur
+    for r in range(1, MJ + 1):
+        for q in range(out.shape[1]):
+            trimmed[r, q] += trimmed[r - 1, q]
+    nb = starts.shape[1]
+    for h in range(H):
+        for bi in range(nb):
+            u = starts[h, bi]
+            length = last if bi == nb - 1 else block
+            for q in range(out.shape[1]):
+                out[h, q] += trimmed[u + length, q] - trimmed[u, q]
+
+
+# --------------------------------------------------------------------------------------------------
+# validation helpers
+
+
+def _as_array(X: Any, name: str = "X") -> np.ndarray:
+    """``X`` as a C-contiguous float64 ``(T, p)`` array with ``p >= 2`` finite columns."""
+    if np.iscomplexobj(X):
+        raise InputError(f"{name} is complex; real-valued signals are required")
+    try:
+        arr = np.ascontiguousarray(X, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name} is not numeric: {exc}") from None
+    if arr.ndim != 2:
+        raise InputError(f"{name} must be 2-D (T samples, p signals), got shape {arr.shape}")
+    if arr.shape[1] < 2:
+        raise InputError(f"{name} has {arr.shape[1]} signal column(s); at least 2 are needed")
+    if arr.shape[1] > arr.shape[0]:
+        raise InputError(f"{name} has shape {arr.shape}: more signals than samples "
+                         "(pass one signal per column)")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        t, i = np.argwhere(bad)[0]
+        raise InputError(f"{name} contains {int(bad.sum())} NaN/infinite values "
+                         f"(first at sample {t}, column {i})")
+    return arr
+
+
+def _names(names: Sequence[str] | None, p: int) -> tuple[str, ...]:
+    if names is None:
+        return tuple(f"x{i + 1}" for i in range(p))
+    out = tuple(str(n) for n in names)
+    if len(out) != p:
+        raise InputError(f"names has {len(out)} entries for {p} signals")
+    return out
+
+
+def _unpack(packed: np.ndarray, p: int) -> np.ndarray:
+    """``(..., p(p+1)/2)`` packed upper triangles -> symmetric ``(..., p, p)``."""
+    iu = np.triu_indices(p)
+    out = np.zeros(packed.shape[:-1] + (p, p))
+    out[..., iu[0], iu[1]] = packed
+    out[..., iu[1], iu[0]] = packed
+    return out
+
+
+# --------------------------------------------------------------------------------------------------
+# wavelet cross-covariance
+
+
+@dataclass(frozen=True, eq=False)
+class WaveletCrossCovariance:
+    """Haar WCCV of ``p`` signals per level: ``cov[j-1]`` is the ``p x p`` matrix ``A_j`` in
+    (signal unit)**2, ``scales`` filter lengths in samples, ``n`` the ``M_j`` coefficients.
+
+    CIs: the diagonal (each signal's WV) uses the eta_3 chi-square interval of :func:`gmwm.wvar`;
+    off-diagonal entries a Gaussian interval with variance ``(A_ii A_kk + A_ik^2) / eta_j`` (the
+    analogue of ``2 nu^2 / eta_j``, conservative like eta_3)."""
+
+    levels: np.ndarray
+    scales: np.ndarray
+    cov: np.ndarray
+    n: np.ndarray
+    n_samples: int
+    names: tuple[str, ...]
+    freq: float = 1.0
+    alpha: float = 0.05
+
+    def __post_init__(self) -> None:
+        for name, dtype in (("levels", np.int64), ("scales", np.float64), ("cov", np.float64),
+                            ("n", np.int64)):
+            arr = np.array(getattr(self, name), dtype=dtype, copy=True)
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        object.__setattr__(self, "names", tuple(self.names))
+
+    @property
+    def n_levels(self) -> int:
+        return int(self.levels.size)
+
+    @property
+    def n_signals(self) -> int:
+        return int(self.cov.shape[1])
+
+    @property
+    def edof(self) -> np.ndarray:
+        """``eta_j = max(M_j / 2**j, 1)``."""
+        return np.maximum(self.n / self.scales, 1.0)
+
+    @property
+    def correlation(self) -> np.ndarray:
+        """Wavelet correlation ``A_ik / sqrt(A_ii A_kk)`` per level, ``(J, p, p)``."""
+        d = np.sqrt(np.einsum("jii->ji", self.cov))
+        return self.cov / (d[:, :, None] * d[:, None, :])
+
+    def conf_int(self, alpha: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper CI bounds, each ``(J, p, p)``, at level ``1 - alpha``."""
+        alpha = self.alpha if alpha is None else float(alpha)
+        _check_alpha_freq(alpha, self.freq)
+        eta = self.edof[:, None, None]
+        var = np.einsum("jii->ji", self.cov)
+        sd = np.sqrt((var[:, :, None] * var[:, None, :] + self.cov**2) / eta)
+        z = norm.ppf(1.0 - alpha / 2.0)
+        low, high = self.cov - z * sd, self.cov + z * sd
+        dlow, dhigh = chi2_ci(var, np.broadcast_to(self.edof[:, None], var.shape), alpha)
+        idx = np.arange(self.n_signals)
+        low[:, idx, idx] = dlow
+        high[:, idx, idx] = dhigh
+        return low, high
+
+    def variance(self, i: int | str) -> WaveletVariance:
+        """WV of signal ``i`` (index or name), identical to :func:`gmwm.wvar` of that column."""
+        k = self.names.index(i) if isinstance(i, str) else int(i)
+        return self.combine(np.eye(self.n_signals)[k])
+
+    def combine(self, c: Any, alpha: float | None = None) -> WaveletVariance:
+        """WV of the virtual signal ``c'X``: ``nu_j = c' A_j c`` (the WV of the combined
+        coefficients, so equal to ``wvar(X @ c)`` up to rounding), eta_3 chi-square CI."""
+        c = np.asarray(c, dtype=np.float64).reshape(-1)
+        if c.size != self.n_signals or not np.all(np.isfinite(c)):
+            raise InputError(f"coefficients must be {self.n_signals} finite numbers")
+        alpha = self.alpha if alpha is None else float(alpha)
+        nu = np.einsum("i,jik,k->j", c, self.cov, c)
+        if np.any(nu <= 0):
+            raise InputError("the virtual signal has a zero wavelet variance at some level")
+        low, high = chi2_ci(nu, self.edof, alpha)
+        return WaveletVariance(self.levels, self.scales, nu, low, high, self.n, self.n_samples,
+                               self.freq, alpha)
+
+    def subset(self, levels: int) -> WaveletCrossCovariance:
+        """Keep levels ``1..levels``."""
+        if not 1 <= int(levels) <= self.n_levels:
+            raise InputError(f"subset needs 1 <= levels <= {self.n_levels}, got {levels}")
+        k = int(levels)
+        return WaveletCrossCovariance(self.levels[:k], self.scales[:k], self.cov[:k], self.n[:k],
+                                      self.n_samples, self.names, self.freq, self.alpha)
+
+
+def wccv(X: Any, levels: int | None = None, alpha: float = 0.05, freq: float = 1.0,
+         names: Sequence[str] | None = None) -> WaveletCrossCovariance:
+    """Haar wavelet cross-covariance of the columns of ``X`` ``(T, p)`` at levels ``1..J`` (default
+    ``J = floor(log2 T) - 1``) in one fused pass; each column's first sample is subtracted first
+    (the filter annihilates constants), so large offsets cost no digits. ``freq`` in Hz."""
+    arr = _as_array(X)
+    T, p = arr.shape
+    J = _n_levels(T, levels)
+    _check_alpha_freq(alpha, freq)
+    sums = _wccv_raw(arr, J)
+    if not np.all(np.isfinite(sums)):
+        raise InputError("X is too large in magnitude: products of differences overflow float64")
+    lev = np.arange(1, J + 1)
+    n = T - (1 << lev) + 1
+    cov = _unpack(0.25 * sums / n[:, None], p)
+    return WaveletCrossCovariance(lev, 2.0**lev, cov, n, T, _names(names, p), freq, alpha)
+
+
+# --------------------------------------------------------------------------------------------------
+# estimators
+
+
+def svo_weights(weights: Any, n_levels: int) -> np.ndarray:
+    """Scale weights for ``n_levels`` levels, renormalised to sum to 1.
+
+    ``weights``: a sequence of ``n_levels`` non-negative numbers, ``"equal"``, or one of the paper's
+    vectors (App. C1, defined for J = 19): ``"short"`` = omega_2 anchored at level 1 (levels above
+    19 get 0, levels beyond ``n_levels`` are dropped), ``"long"`` = omega_1 anchored at level
+    ``n_levels`` (its last entry on the last level)."""
+    J = int(n_levels)
+    if isinstance(weights, str):
+        key = weights.strip().lower()
+        if key == "equal":
+            w = np.ones(J)
+        elif key == "short":
+            base = np.asarray(PAPER_OMEGA_SHORT)
+            w = np.zeros(J)
+            k = min(J, base.size)
+            w[:k] = base[:k]
+        elif key == "long":
+            base = np.asarray(PAPER_OMEGA_LONG)
+            w = np.zeros(J)
+            k = min(J, base.size)
+            w[J - k:] = base[base.size - k:]
+        else:
+            raise InputError(f"unknown weights {weights!r}: use 'short', 'long', 'equal' or "
+                             f"{J} numbers")
+    else:
+        try:
+            w = np.asarray(weights, dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError):
+            raise InputError(f"weights must be numbers, got {weights!r}") from None
+        if w.size != J:
+            raise InputError(f"weights has {w.size} entries but there are {J} levels")
+    if not np.all(np.isfinite(w)) or np.any(w < 0):
+        raise InputError("weights must be finite and non-negative")
+    total = float(w.sum())
+    if total <= 0:
+        raise InputError(f"weights put no mass on the {J} levels (all zero)")
+    return w / total
+
+
+def _weighted(cov: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    return np.einsum("j,jik->ik", omega, cov)
+
+
+def _cho(A: np.ndarray) -> tuple[Any, float]:
+    """Cholesky factor of ``A / s`` (``s`` = mean diagonal, for conditioning) and ``s``."""
+    s = float(np.mean(np.diag(A)))
+    if not np.isfinite(s) or s <= 0:
+        raise ModelError("weighted WCCV matrix has a non-positive diagonal")
+    try:
+        return cho_factor(A / s), s
+    except LinAlgError:
+        raise ModelError("weighted WCCV matrix is singular: signals are collinear (e.g. a "
+                         "duplicated column) on the weighted levels") from None
+
+
+def svo_coef(cov: Any, omega: Any) -> np.ndarray:
+    """SVO coefficients ``c = A^-1 1 / (1'A^-1 1)``, ``A = sum_j omega_j A_j``, for a WCCV array
+    ``cov`` ``(J, p, p)`` and scale weights ``omega`` (``J`` numbers or a preset name)."""
+    cov = np.asarray(cov, dtype=np.float64)
+    w = svo_weights(omega, cov.shape[0])
+    fac, _ = _cho(_weighted(cov, w))
+    y = cho_solve(fac, np.ones(cov.shape[1]))
+    return y / y.sum()
+
+
+def svo_jacobian(cov: Any, omega: Any) -> np.ndarray:
+    """``G`` (SPEC 6.1): ``d c / d gamma``, shape ``(p, J, p, p)`` (element ``[:, j, i, k]`` is the
+    column of ``gamma_{ik,j}``; ``gamma_{ik}`` and ``gamma_{ki}`` are separate elements)."""
+    cov = np.asarray(cov, dtype=np.float64)
+    J, p, _ = cov.shape
+    w = svo_weights(omega, J)
+    A = _weighted(cov, w)
+    fac, s = _cho(A)
+    y = cho_solve(fac, np.ones(p)) / s
+    sy = y.sum()
+    K = np.eye(p) / sy - np.outer(y, np.ones(p)) / sy**2
+    Ainv = cho_solve(fac, np.eye(p)) / s
+    # column (j, i, k) = K (-A^-1 w_j e_i e_k' y) = -w_j y_k (K A^-1)[:, i]
+    KA = K @ Ainv
+    return -np.einsum("j,ai,k->ajik", w, KA, y)
+
+
+def block_length(T: int, const: float = 1.0) -> int:
+    """MBB block length ``l = max(1, round(const * T^(1/3)))`` (SPEC 6.2)."""
+    if not (np.isfinite(const) and const > 0):
+        raise InputError(f"block constant must be positive, got {const}")
+    return max(1, int(round(const * T ** (1.0 / 3.0))))
+
+
+def _mbb_draws(T: int, J: int, H: int, block: int, rng: np.random.Generator
+               ) -> tuple[np.ndarray, int, np.ndarray]:
+    """Block starts ``(H, B)`` (0-based, uniform on ``0..M_J - l``), the last block's length and
+    the refill starts ``(H, J)`` (uniform on ``0..M_J``; unused at level J)."""
+    MJ = T - (1 << J) + 1
+    if block > MJ:
+        raise InputError(f"block length {block} exceeds the {MJ} coefficients of level {J}")
+    B = -(-MJ // block)
+    last = MJ - (B - 1) * block
+    starts = rng.integers(0, MJ - block + 1, size=(H, B))
+    refill = rng.integers(0, MJ + 1, size=(H, J))
+    return starts, last, refill
+
+
+def _run_mbb(arr: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray, H: int,
+             block: int, rng: np.random.Generator) -> np.ndarray:
+    T, p = arr.shape
+    starts, last, refill = _mbb_draws(T, J, H, block, rng)
+    q = J * p * (p + 1) // 2 if full else p
+    out = np.zeros((H, q))
+    _mbb_kernel(arr, J, full, np.ascontiguousarray(y, dtype=np.float64),
+                np.ascontiguousarray(wf, dtype=np.float64), starts, block, last, refill, out)
+    return out
+
+
+def mbb_wccv(X: Any, levels: int | None = None, n_boot: int = 200, block: int | None = None,
+             block_const: float = 1.0, rng: Any = 0) -> np.ndarray:
+    """Moving-block bootstrap draws ``gamma*_h`` of the WCCV (SPEC 6.2), ``(n_boot, J, p, p)``.
+    Memory ``~ 8 J p^2 T / 2`` bytes: meant for small problems; :func:`svo` uses the projected
+    draws (:func:`mbb_svo_draws`)."""
+    arr = _as_array(X)
+    T, p = arr.shape
+    J = _n_levels(T, levels)
+    block = block_length(T, block_const) if block is None else int(block)
+    n = T - (1 << np.arange(1, J + 1)) + 1
+    out = _run_mbb(arr, J, True, np.zeros(p), 1.0 / n, _n_boot(n_boot), block,
+                   np.random.default_rng(rng))
+    return _unpack(out.reshape(out.shape[0], J, -1), p)
+
+
+def _n_boot(n_boot: Any) -> int:
+    if isinstance(n_boot, bool) or int(n_boot) != n_boot or n_boot < 2:
+        raise InputError(f"n_boot must be an integer >= 2, got {n_boot!r}")
+    return int(n_boot)
+
+
+def mbb_svo_draws(X: Any, cov: np.ndarray, omega: np.ndarray, n_boot: int, block: int,
+                  rng: np.random.Generator) -> np.ndarray:
+    """Linearised bootstrap coefficient deviations ``G (gamma*_h - gamma_hat)``, ``(n_boot, p)``,
+    for the data ``X``, its WCCV ``cov`` and renormalised weights ``omega``."""
+    arr = _as_array(X)
+    T, p = arr.shape
+    J = cov.shape[0]
+    A = _weighted(cov, omega)
+    fac, s = _cho(A)
+    y = cho_solve(fac, np.ones(p)) / s
+    n = T - (1 << np.arange(1, J + 1)) + 1
+    u = _run_mbb(arr, J, False, y, omega / n, _n_boot(n_boot), block, rng)
+    # A*_w y - A_w y per draw; dc = -K A^-1 (that)
+    du = u - A @ y
+    sy = y.sum()
+    z = cho_solve(fac, du.T) / s                       # (p, H)
+    dc = -(z / sy - np.outer(y, z.sum(axis=0)) / sy**2)
+    return dc.T
+
+
+def _rdvg_q(cov: np.ndarray, scales: np.ndarray, edof: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pair WLS of ``A_j[i,k]`` on ``[1/tau, (tau^2+2)/(12 tau)]``: (R, Q) estimates."""
+    tau = scales
+    Xd = np.column_stack([1.0 / tau, (tau**2 + 2.0) / (12.0 * tau)])
+    p = cov.shape[1]
+    R = np.empty((p, p))
+    Q = np.empty((p, p))
+    var = np.einsum("jii->ji", cov)
+    for i in range(p):
+        for k in range(i, p):
+            w = edof / (var[:, i] * var[:, k] + cov[:, i, k] ** 2)
+            sw = np.sqrt(w)
+            coef, *_ = np.linalg.lstsq(Xd * sw[:, None], cov[:, i, k] * sw, rcond=None)
+            R[i, k] = R[k, i] = coef[0]
+            Q[i, k] = Q[k, i] = coef[1]
+    return R, Q
+
+
+# --------------------------------------------------------------------------------------------------
+# result
+
+
+@dataclass(frozen=True, eq=False)
+class SVOResult:
+    """A virtual gyroscope ``S = c'X``. ``coef`` sums to 1; ``cov`` = estimated ``Cov(c_hat)``
+    (``Sigma / T``; None without bootstrap), ``weights`` the renormalised scale weights (None for
+    RDVG/equal), ``wccv`` the data's WCCV. ``method``: ``"svo"``, ``"rdvg"`` or ``"equal"``."""
+
+    coef: np.ndarray
+    cov: np.ndarray | None
+    weights: np.ndarray | None
+    wccv: WaveletCrossCovariance
+    method: str = "svo"
+    n_boot: int = 0
+    block: int = 0
+    alpha: float = 0.05
+    extra: dict[str, Any] | None = None
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.wccv.names
+
+    @property
+    def se(self) -> np.ndarray:
+        """Standard errors ``sqrt(diag(cov))`` (NaN without bootstrap)."""
+        if self.cov is None:
+            return np.full(self.coef.size, np.nan)
+        return np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
+
+    def conf_int(self, alpha: float | None = None) -> np.ndarray:
+        """Wald intervals ``c_i -/+ z_{1-alpha/2} se_i`` (SPEC 6.1 eq. 9), shape ``(p, 2)``."""
+        alpha = self.alpha if alpha is None else float(alpha)
+        if not 0.0 < alpha < 1.0:
+            raise InputError(f"alpha must be in (0, 1), got {alpha}")
+        h = norm.ppf(1.0 - alpha / 2.0) * self.se
+        return np.column_stack([self.coef - h, self.coef + h])
+
+    @property
+    def objective(self) -> float:
+        """``c' A c`` with the weighted WCCV (the minimised weighted WV); NaN without weights."""
+        if self.weights is None:
+            return float("nan")
+        return float(self.coef @ _weighted(self.wccv.cov, self.weights) @ self.coef)
+
+    def wv(self, alpha: float | None = None) -> WaveletVariance:
+        """WV of the virtual signal on the same data (in-sample), with its chi-square CI."""
+        return self.wccv.combine(self.coef, alpha)
+
+    def as_dict(self) -> dict[str, float]:
+        return dict(zip(self.names, self.coef.tolist()))
+
+    def summary(self) -> str:
+        ci = self.conf_int()
+        lvl = f"{100 * (1 - self.alpha):g}%"
+        head = {"svo": "Scale-wise Variance Optimisation", "rdvg": "RDVG (min. RW variance)",
+                "equal": "equal weights"}.get(self.method, self.method)
+        lines = [f"Virtual gyroscope: {head}; T = {self.wccv.n_samples}, J = "
+                 f"{self.wccv.n_levels}, p = {self.coef.size}"]
+        if self.cov is not None:
+            lines.append(f"CIs: moving-block bootstrap, {self.n_boot} draws, block length "
+                         f"{self.block} samples")
+        width = max(8, *(len(n) for n in self.names))
+        lines.append(f"{'signal':<{width}} {'coef':>10} {'se':>10} {lvl + ' CI':>24}")
+        for k, name in enumerate(self.names):
+            se = "" if self.cov is None else f"{self.se[k]:10.4f}"
+            cis = "" if self.cov is None else f"[{ci[k, 0]:9.4f}, {ci[k, 1]:9.4f}]"
+            lines.append(f"{name:<{width}} {self.coef[k]:10.4f} {se:>10} {cis:>24}")
+        wv = self.wv()
+        eq = self.wccv.combine(np.full(self.coef.size, 1.0 / self.coef.size))
+        ratio = wv.variance / eq.variance
+        picks = sorted({0, (wv.n_levels - 1) // 2, wv.n_levels - 1})
+        lines.append("WV ratio to equal weights: " + ", ".join(
+            f"j={int(wv.levels[k])}: {ratio[k]:.3g}" for k in picks))
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able dict."""
+        return {
+            "method": self.method,
+            "names": list(self.names),
+            "coef": self.coef.tolist(),
+            "se": [None if not np.isfinite(v) else float(v) for v in self.se],
+            "cov": None if self.cov is None else self.cov.tolist(),
+            "weights": None if self.weights is None else self.weights.tolist(),
+            "n_boot": self.n_boot,
+            "block": self.block,
+            "alpha": self.alpha,
+            "n_samples": self.wccv.n_samples,
+            "levels": self.wccv.n_levels,
+            "freq": self.wccv.freq,
+        }
+
+
+def _wccv_of(X: Any, levels: int | None, alpha: float, freq: float,
+             names: Sequence[str] | None) -> tuple[np.ndarray | None, WaveletCrossCovariance]:
+    if isinstance(X, WaveletCrossCovariance):
+        if levels is not None and levels != X.n_levels:
+            X = X.subset(levels)
+        return None, X
+    arr = _as_array(X)
+    return arr, wccv(arr, levels, alpha, freq, names)
+
+
+def svo(X: Any, weights: Any = "short", *, levels: int | None = None, n_boot: int = 500,
+        block: int | None = None, block_const: float = 10.0, alpha: float = 0.05,
+        freq: float = 1.0, names: Sequence[str] | None = None, seed: Any = 0) -> SVOResult:
+    """Optimal virtual gyroscope by SVO from the signals ``X`` ``(T, p)`` (one per column) or
+    their :class:`WaveletCrossCovariance` (then no bootstrap: ``se`` is NaN).
+
+    ``weights``: ``J`` non-negative numbers, ``"short"``/``"long"``/``"equal"`` (see
+    :func:`svo_weights`); renormalised. ``n_boot`` moving-block bootstrap draws (0 = no CI),
+    block length ``block`` or ``block_const * T^(1/3)``, ``seed`` for the draws (int,
+    SeedSequence or Generator)."""
+    if not 0.0 < alpha < 1.0:
+        raise InputError(f"alpha must be in (0, 1), got {alpha}")
+    arr, W = _wccv_of(X, levels, alpha, freq, names)
+    omega = svo_weights(weights, W.n_levels)
+    c = svo_coef(W.cov, omega)
+    cov = None
+    blk = 0
+    if arr is not None and n_boot:
+        blk = block_length(W.n_samples, block_const) if block is None else int(block)
+        if blk < 1:
+            raise InputError(f"block length must be >= 1, got {block}")
+        dc = mbb_svo_draws(arr, W.cov, omega, n_boot, blk, np.random.default_rng(seed))
+        cov = dc.T @ dc / dc.shape[0]
+    return SVOResult(c, cov, omega, W, "svo", int(n_boot) if cov is not None else 0, blk, alpha)
+
+
+def rdvg(X: Any, *, levels: int | None = None, alpha: float = 0.05, freq: float = 1.0,
+         names: Sequence[str] | None = None) -> SVOResult:
+    """RDVG virtual gyroscope (SPEC 6.5): ``c = Q^-1 1 / (1'Q^-1 1)`` with ``Q`` (random-walk
+    innovation covariance) from per-pair WLS fits of the WCCV; ``extra`` holds ``R`` and ``Q``."""
+    _, W = _wccv_of(X, levels, alpha, freq, names)
+    R, Q = _rdvg_q(W.cov, W.scales, W.edof)
+    try:
+        y = np.linalg.solve(Q / np.mean(np.abs(np.diag(Q))), np.ones(W.n_signals))
+    except np.linalg.LinAlgError:
+        raise ModelError("estimated random-walk covariance Q is singular: RDVG undefined") from None
+    if not np.all(np.isfinite(y)) or y.sum() == 0:
+        raise ModelError("estimated random-walk covariance Q gives no RDVG solution")
+    extra = {"R": R, "Q": Q, "q_positive_definite": bool(np.all(np.linalg.eigvalsh(Q) > 0))}
+    return SVOResult(y / y.sum(), None, None, W, "rdvg", 0, 0, alpha, extra)
+
+
+def equal(X: Any, *, levels: int | None = None, alpha: float = 0.05, freq: float = 1.0,
+          names: Sequence[str] | None = None) -> SVOResult:
+    """Equal-weight virtual gyroscope ``c = 1/p`` (the benchmark)."""
+    _, W = _wccv_of(X, levels, alpha, freq, names)
+    p = W.n_signals
+    return SVOResult(np.full(p, 1.0 / p), None, None, W, "equal", 0, 0, alpha)
