@@ -1,0 +1,338 @@
+"""Model selection for the GMWM: fit candidate models to one WV and rank them.
+
+Criterion (the Wavelet Information Criterion, WIC, derived here as a covariance penalty)
+-----------------------------------------------------------------------------------------
+Write ``nu_hat`` for the estimated WV, ``V`` its covariance, ``Omega`` the GMWM weight matrix,
+``nu(theta)`` the model WV and ``||r||^2 = r' Omega r``. Judge a fitted model by how well it
+predicts the WV of a *new, independent* signal of the same length, ``nu*``:
+
+    PE = E || nu* - nu(theta_hat) ||^2.
+
+The in-sample objective ``|| nu_hat - nu(theta_hat) ||^2`` is optimistic because ``theta_hat``
+was fitted to ``nu_hat``. Writing both residuals around the true WV ``nu_0`` and using the
+independence of ``nu*`` from ``theta_hat`` gives exactly
+
+    PE = E[objective] + 2 E[(nu_hat - nu_0)' Omega (nu(theta_hat) - nu_0)].
+
+Linearising the GMWM estimator, ``nu(theta_hat) - nu_0 ~ A G (nu_hat - nu_0)`` with
+``A = d nu / d theta'`` and ``G = (A' Omega A)^+ A' Omega``, so the optimism is
+``2 tr(Omega A G V)`` and
+
+    WIC = objective + 2 * tr(Omega A (A' Omega A)^+ A' Omega V).
+
+With efficient weights (``Omega = V^-1``) the trace is rank(A) = the number of identified
+parameters (an AIC-type penalty); with the default CI weights it adapts to the weights used. The
+trace is invariant to a rescaling of ``Omega``, so objective and penalty are on one scale.
+``V`` is the covariance the fit used for its standard errors: the Gaussian diagonal
+``2 nu_hat_j^2 / eta_j`` (``eta_j`` includes the efficiency loss of a robust WV), or the caller's
+matrix when ``weights`` is one (e.g. a bootstrap covariance).
+
+Why this criterion: it needs only quantities every GMWM fit already has (Jacobian, weights, WV
+covariance), it costs nothing beyond the fits (cross-validating the WV would need refits on split
+signals, whose halves have a different WV precision), and it is the GMWM analogue of AIC/Mallows'
+Cp, reducing to them in the efficient case.
+
+``criterion="wic"`` (default) estimates the prediction error; like AIC it keeps a fixed
+probability of adding a spurious component. ``criterion="wic-log"`` replaces the factor 2 by
+``log T`` (T = signal length): the penalty then grows without bound while a missing component
+raises the objective proportionally to T, so the selection is consistent (the BIC analogue); use
+it to recover "the" generating model, ``wic`` to predict the WV.
+Ties (a superset whose extra component is estimated at 0) go to the smaller model.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .errors import GMWMError, InputError, ModelError
+from .model import Model, as_model, parse_model
+from .wv import WaveletVariance, wvar
+
+__all__ = ["CRITERIA", "RankedModel", "Ranking", "auto_candidates", "optimism", "rank_models",
+           "select_model"]
+
+CRITERIA = ("wic", "wic-log")
+_LOG10E = np.log10(np.e)
+# caps of the automatic candidate set (issue 11): up to 3 AR1/GM and 2 SIN components
+MAX_AR = 3
+MAX_SIN = 2
+_SINGLE = ("QN", "WN", "RW", "DR")
+
+
+@dataclass(frozen=True)
+class RankedModel:
+    """One candidate: its criterion value, objective, optimism trace ``penalty`` (the criterion is
+    ``objective + k * penalty``), number of parameters and the fit (None if it failed: ``error``)."""
+
+    model: str
+    criterion: float
+    objective: float
+    penalty: float
+    n_params: int
+    converged: bool
+    result: Any = None
+    error: str | None = None
+
+    def to_json_dict(self) -> dict[str, Any]:
+        out = {"model": self.model, "criterion": _num(self.criterion),
+               "objective": _num(self.objective), "n_params": self.n_params,
+               "penalty": _num(self.penalty), "converged": self.converged}
+        if self.error is not None:
+            out["error"] = self.error
+        return out
+
+
+def _num(v: float) -> float | None:
+    return float(v) if np.isfinite(v) else None
+
+
+@dataclass(frozen=True)
+class Ranking:
+    """Candidates ranked best first (fitted ones by criterion, then failed ones)."""
+
+    entries: list[RankedModel]
+    criterion: str
+    factor: float
+    wv: WaveletVariance
+
+    @property
+    def best(self) -> RankedModel:
+        return self.entries[0]
+
+    @property
+    def ranked(self) -> list[RankedModel]:
+        """The candidates that were fitted, best first."""
+        return [e for e in self.entries if e.error is None]
+
+    @property
+    def skipped(self) -> list[RankedModel]:
+        return [e for e in self.entries if e.error is not None]
+
+    def to_json_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"criterion": self.criterion, "penalty_factor": self.factor,
+                               "ranking": [e.to_json_dict() for e in self.ranked]}
+        if self.skipped:
+            out["skipped"] = [{"model": e.model, "error": e.error} for e in self.skipped]
+        return out
+
+    def summary(self) -> str:
+        lines = [f"model ranking by {self.criterion.upper()} = objective + {self.factor:.3g} x "
+                 f"penalty (best first)",
+                 f"{'rank':>4}  {'model':<24}{'criterion':>12}{'objective':>12}{'penalty':>10}"
+                 f"{'params':>7}  converged"]
+        for i, e in enumerate(self.ranked, 1):
+            lines.append(f"{i:>4}  {e.model:<24}{e.criterion:>12.5g}{e.objective:>12.5g}"
+                         f"{e.penalty:>10.4g}{e.n_params:>7}  {'yes' if e.converged else 'NO'}")
+        for e in self.skipped:
+            lines.append(f"   -  {e.model:<24} skipped: {e.error}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+
+# -- criterion ------------------------------------------------------------------------------------
+def optimism(result: Any, cov: np.ndarray | None = None) -> float:
+    """``tr(Omega A (A' Omega A)^+ A' Omega V)`` of a GMWM fit (see the module docstring): the
+    effective number of fitted parameters in units of the objective. ``cov`` = V of ``nu_hat``
+    (default: the Gaussian diagonal ``2 nu_hat^2 / eta`` that the fit's standard errors use)."""
+    wv = result.wv
+    nu_hat = np.asarray(wv.variance, dtype=float)
+    A = result.model.jacobian(result.params, wv.scales)
+    V = np.diag(2.0 * nu_hat**2 / wv.edof) if cov is None else np.asarray(cov, dtype=float)
+    if getattr(result, "method", "gmwm") == "armav":
+        nu_model = np.maximum(result.model.wv(result.params, wv.scales), 1e-300)
+        A = A * (_LOG10E / nu_model)[:, None]
+        F = _LOG10E / nu_hat
+        V = V * np.outer(F, F)
+    omega = np.asarray(result.weights, dtype=float)
+    with np.errstate(all="ignore"):
+        # scale columns (parameters span 1e-12..1) so the pseudo-inverse keeps small directions;
+        # columns that vanish (e.g. an AR1 phi whose variance is 0) carry no fitted direction
+        d = np.sqrt(np.einsum("jp,jk,kp->p", A, omega, A))
+        keep = np.isfinite(d) & (d > 0)
+        if not np.any(keep):
+            return 0.0
+        As = A[:, keep] / d[keep]
+        B = np.linalg.pinv(As.T @ omega @ As, hermitian=True, rtol=1e-10)
+        H = omega @ As @ B @ As.T @ omega
+        trace = float(np.sum(H * V.T))
+    return trace if np.isfinite(trace) else float("nan")
+
+
+def _factor(criterion: str, n_samples: int) -> float:
+    if criterion == "wic":
+        return 2.0
+    if criterion == "wic-log":
+        return float(np.log(max(n_samples, 3)))
+    raise InputError(f"unknown criterion {criterion!r}; use one of {', '.join(CRITERIA)}")
+
+
+# -- candidates -----------------------------------------------------------------------------------
+def _spec(counts: dict[str, int]) -> str:
+    return Model("+".join(f"{n}*{k}" if n > 1 else k for k, n in counts.items() if n > 0)).spec
+
+
+def auto_candidates(base: str | Model, *, max_ar: int = MAX_AR, max_sin: int = MAX_SIN
+                    ) -> list[str]:
+    """Candidate set around a base model: the base, every model with one or two of its components
+    removed, and every model with one component added (QN, WN, RW, DR if absent; one more AR1 -
+    or GM if the base uses GM - while AR1 + GM < ``max_ar``; one more SIN while SIN < ``max_sin``).
+
+    Size: at most 1 + 6 + 17 + 6 = 30 (six component types), so a search costs a bounded number of
+    fits. The base itself comes first; the order of the rest is fixed (removals, then additions).
+    """
+    spec = base.spec if isinstance(base, Model) else base
+    counts = parse_model(spec)
+    if counts.get("AR1", 0) + counts.get("GM", 0) > max_ar or counts.get("SIN", 0) > max_sin:
+        raise ModelError(f"base model {spec!r} exceeds the automatic caps ({max_ar} AR1/GM, "
+                         f"{max_sin} SIN)")
+    order = ["QN", "WN", "AR1", "GM", "SIN", "RW", "DR"]
+    base_c = {k: counts.get(k, 0) for k in order}
+    out: list[str] = [_spec(base_c)]
+
+    def add(c: dict[str, int]) -> None:
+        if sum(c.values()) == 0:
+            return
+        s = _spec(c)
+        if s not in out:
+            out.append(s)
+
+    present = [k for k in order if base_c[k] > 0]
+    # one removal, then two (two of one repeated type, or one each of two types)
+    for k in present:
+        add({**base_c, k: base_c[k] - 1})
+    for a, b in itertools.combinations_with_replacement(present, 2):
+        c = dict(base_c)
+        c[a] -= 1
+        c[b] -= 1
+        if min(c.values()) >= 0:
+            add(c)
+    for k in _SINGLE:
+        if base_c[k] == 0:
+            add({**base_c, k: 1})
+    if base_c["AR1"] + base_c["GM"] < max_ar:
+        slow = "GM" if base_c["GM"] and not base_c["AR1"] else "AR1"
+        add({**base_c, slow: base_c[slow] + 1})
+    if base_c["SIN"] < max_sin:
+        add({**base_c, "SIN": base_c["SIN"] + 1})
+    return out
+
+
+# -- ranking --------------------------------------------------------------------------------------
+def _prepare_wv(data: Any, levels: int | None, freq: float | None, alpha: float, robust: bool,
+                eff: float) -> tuple[WaveletVariance, float | None]:
+    """The WV to rank on and, for a signal, the sign of its mean slope (for DR)."""
+    if isinstance(data, WaveletVariance):
+        if robust:
+            raise InputError("robust=True needs the signal, not a precomputed wavelet variance")
+        wv = data if levels is None else data.subset(np.arange(1, levels + 1))
+        if freq is not None and freq != wv.freq:
+            wv = dataclasses.replace(wv, freq=float(freq))
+        return wv, None
+    x = np.asarray(data, dtype=float)
+    wv = wvar(x, levels=levels, alpha=alpha, freq=1.0 if freq is None else freq, robust=robust,
+              eff=eff)
+    drift = (x[-1] - x[0]) / max(x.size - 1, 1)
+    return wv, (1.0 if drift >= 0 else -1.0)
+
+
+def _fix_drift_sign(res: Any, sign: float | None) -> Any:
+    """The WV does not see the sign of a drift; take it from the signal (as ``fit`` does)."""
+    if sign is None or not res.model.count("DR"):
+        return res
+    params = np.array(res.params, dtype=float)
+    for c in res.model.components:
+        if c.process.name == "DR":
+            params[c.slice] = sign * np.abs(params[c.slice])
+    warnings = [w for w in res.diagnostics.get("warnings", []) if "drift sign" not in w]
+    return dataclasses.replace(res, params=params,
+                               diagnostics=dict(res.diagnostics, warnings=warnings))
+
+
+def _default_fit_kwargs(fit: Callable[..., Any]) -> dict[str, Any]:
+    import inspect
+
+    try:
+        params = inspect.signature(fit).parameters
+    except (TypeError, ValueError):
+        return {}
+    return {"se_cov": "gaussian"} if "se_cov" in params else {}
+
+
+def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = "wic",
+                levels: int | None = None, freq: float | None = None,
+                weights: str | np.ndarray = "ci", robust: bool = False, eff: float = 0.6,
+                alpha: float = 0.05, n_starts: int | None = None, seed: int = 0,
+                progress: Callable[[int, int, str], None] | None = None,
+                fit_kwargs: dict[str, Any] | None = None) -> Ranking:
+    """Fit every candidate model to the WV of ``data`` and rank them, best first.
+
+    Parameters
+    ----------
+    data : 1-D signal (per-sample units) or a :class:`~gmwm.wv.WaveletVariance`.
+    models : model strings or Models (duplicates are fitted once). See :func:`auto_candidates`.
+    criterion : ``"wic"`` (objective + 2 x optimism, estimated WV prediction error) or
+        ``"wic-log"`` (factor log T, consistent selection); see the module docstring.
+    levels, freq, alpha : as in :func:`gmwm.fit` (the WV is computed once and shared).
+    weights : as in :func:`gmwm.fit`; a (J, J) covariance also becomes V of the penalty.
+    robust, eff : rank on the robust WV (``wvar(x, robust=True, eff=eff)``; needs a signal).
+    n_starts, seed : passed to :func:`gmwm.fit`.
+    progress : called as ``progress(i, n, model)`` before fitting candidate ``i`` of ``n``.
+    fit_kwargs : further keywords for :func:`gmwm.fit` (default: skip the fit's own model-based
+        WV covariance when it offers ``se_cov``: the penalty computes its V itself).
+
+    Candidates that cannot be fitted (e.g. more parameters than scales) are listed as skipped.
+    """
+    from . import fit  # the public estimator function (its module may move)
+
+    wv, drift_sign = _prepare_wv(data, levels, freq, alpha, robust, eff)
+    factor = _factor(criterion, wv.n_samples)
+    specs: list[str] = []
+    for m in models:
+        spec = as_model(m, wv.freq).spec
+        if spec not in specs:
+            specs.append(spec)
+    if not specs:
+        raise InputError("no candidate models to rank")
+    cov = None if isinstance(weights, str) else np.asarray(weights, dtype=float)
+    options = _default_fit_kwargs(fit) if fit_kwargs is None else dict(fit_kwargs)
+    if n_starts is not None:
+        options["n_starts"] = n_starts
+    entries: list[RankedModel] = []
+    for i, spec in enumerate(specs, 1):
+        if progress is not None:
+            progress(i, len(specs), spec)
+        model = Model(spec, wv.freq)
+        try:
+            res = fit(wv, model, weights=weights, seed=seed, **options)
+        except GMWMError as exc:
+            entries.append(RankedModel(spec, np.inf, np.inf, np.nan, model.n_params, False,
+                                       error=str(exc).splitlines()[0]))
+            continue
+        res = _fix_drift_sign(res, drift_sign)
+        pen = optimism(res, cov)
+        crit = float(res.objective) + factor * pen
+        entries.append(RankedModel(spec, crit if np.isfinite(crit) else np.inf,
+                                   float(res.objective), pen, model.n_params,
+                                   bool(res.converged), res))
+    ok = sorted((e for e in entries if e.error is None), key=lambda e: (e.criterion, e.n_params))
+    bad = [e for e in entries if e.error is not None]
+    if not ok:
+        raise GMWMError("no candidate model could be fitted: " + "; ".join(
+            f"{e.model}: {e.error}" for e in bad))
+    return Ranking(ok + bad, criterion, factor, wv)
+
+
+def select_model(data: Any, models: Sequence[str | Model] | str | Model, **kwargs: Any) -> Any:
+    """The fit (:class:`~gmwm.fit.GMWMResult`) of the best candidate by :func:`rank_models`.
+    A single model string or Model is expanded with :func:`auto_candidates`."""
+    if isinstance(models, (str, Model)):
+        models = auto_candidates(models)
+    return rank_models(data, models, **kwargs).best.result
