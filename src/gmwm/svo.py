@@ -465,11 +465,16 @@ def _cho(A: np.ndarray) -> tuple[Any, float]:
     s = float(np.mean(np.diag(A)))
     if not np.isfinite(s) or s <= 0:
         raise ModelError("weighted WCCV matrix has a non-positive diagonal")
+    msg = ("weighted WCCV matrix is singular: signals are collinear (e.g. a duplicated column) "
+           "on the weighted levels")
     try:
-        return cho_factor(A / s), s
+        fac = cho_factor(A / s)
     except LinAlgError:
-        raise ModelError("weighted WCCV matrix is singular: signals are collinear (e.g. a "
-                         "duplicated column) on the weighted levels") from None
+        raise ModelError(msg) from None
+    pivots = np.diag(fac[0]) ** 2
+    if pivots.min() < 1e-12 * pivots.max():
+        raise ModelError(msg)
+    return fac, s
 
 
 def svo_coef(cov: Any, omega: Any) -> np.ndarray:

@@ -1,0 +1,283 @@
+"""Virtual gyroscope (gmwm.svo): WCCV, SVO estimator, MBB covariance, RDVG; SPEC 6.4 values."""
+
+import json
+
+import numpy as np
+import pytest
+
+import gmwm
+from gmwm.errors import InputError, ModelError
+from gmwm.svo import (PAPER_OMEGA_LONG, PAPER_OMEGA_SHORT, _mbb_kernel, _unpack, equal,
+                      mbb_svo_draws, mbb_wccv, rdvg, svo, svo_coef, svo_jacobian, svo_weights,
+                      wccv)
+from gmwm_studies.svo_study import case, true_coefs
+
+
+def _naive_wccv(X: np.ndarray, J: int) -> np.ndarray:
+    """Partial-sum form of SPEC 1.1 on demeaned data (fine for short, offset-free signals)."""
+    T, p = X.shape
+    S = np.vstack([np.zeros(p), np.cumsum(X - X.mean(axis=0), axis=0)])
+    out = []
+    for j in range(1, J + 1):
+        tau, m = 2**j, 2 ** (j - 1)
+        W = (S[tau:] - 2 * S[tau - m:T + 1 - m] + S[:T + 1 - tau]) / tau
+        out.append(W.T @ W / W.shape[0])
+    return np.array(out)
+
+
+def _array(T: int, p: int, rng: np.random.Generator) -> np.ndarray:
+    mix = np.eye(p) + 0.3 * rng.standard_normal((p, p))
+    return rng.standard_normal((T, p)) @ mix + np.cumsum(0.05 * rng.standard_normal((T, p)), axis=0)
+
+
+# --- wavelet cross-covariance ---------------------------------------------------------------------
+@pytest.mark.parametrize("T,J", [(4, 1), (5, 2), (17, 4), (1000, 8), (4097, 12), (10001, 12),
+                                 (20000, 13)])
+def test_wccv_matches_partial_sums(T, J):
+    # T >= 2**13 with J >= 12 exercises phase 2 (interleaved sub-series) of the fused kernel
+    X = _array(T, 3, np.random.default_rng(T))
+    got = wccv(X, J).cov
+    ref = _naive_wccv(X, J)
+    scale = np.abs(ref).max(axis=(1, 2))[:, None, None]
+    assert np.max(np.abs(got - ref) / scale) < 1e-10
+
+
+def test_wccv_diagonal_is_wvar_and_combine_is_wvar_of_virtual_signal():
+    rng = np.random.default_rng(3)
+    X = _array(30000, 4, rng)
+    W = wccv(X)
+    for i in range(4):
+        np.testing.assert_allclose(W.variance(i).variance, gmwm.wvar(X[:, i]).variance,
+                                   rtol=1e-12)
+    c = np.array([0.5, 0.2, 0.4, -0.1])
+    virt = W.combine(c)
+    ref = gmwm.wvar(X @ c)
+    np.testing.assert_allclose(virt.variance, ref.variance, rtol=1e-10)
+    np.testing.assert_allclose(virt.ci_low, ref.ci_low, rtol=1e-10)
+
+
+def test_wccv_exact_under_large_offsets():
+    rng = np.random.default_rng(4)
+    X = _array(50000, 3, rng)
+    ref = wccv(X).cov
+    got = wccv(X + np.array([1e6, -3e6, 5e5])).cov
+    assert np.max(np.abs(got - ref) / np.abs(ref).max(axis=(1, 2))[:, None, None]) < 1e-9
+
+
+def test_wccv_unbiased_and_ci_coverage_against_theory():
+    """Case-1 type array (correlated RW), p = 3: mean over 300 replicates within 4 MC SE of the
+    true A_j at every level and pair; off-diagonal Gaussian CIs cover at least 90 %."""
+    rng = np.random.default_rng(5)
+    R = np.diag([2.0, 1.0, 1.5])
+    Q = np.array([[1.0, 0.5, -0.3], [0.5, 2.0, 0.2], [-0.3, 0.2, 1.0]]) * 1e-3
+    T, J, n = 4096, 9, 300
+    tau = 2.0 ** np.arange(1, J + 1)
+    A = R[None] / tau[:, None, None] + Q[None] * ((tau**2 + 2) / (12 * tau))[:, None, None]
+    LQ = np.linalg.cholesky(Q)
+    est, hit = [], []
+    for _ in range(n):
+        X = rng.standard_normal((T, 3)) * np.sqrt(np.diag(R))
+        X += np.cumsum(rng.standard_normal((T, 3)) @ LQ.T, axis=0)
+        W = wccv(X, J)
+        lo, hi = W.conf_int()
+        est.append(W.cov)
+        hit.append((lo <= A) & (A <= hi))
+    est = np.array(est)
+    z = (est.mean(axis=0) - A) / (est.std(axis=0, ddof=1) / np.sqrt(n))
+    assert np.max(np.abs(z)) < 4.0
+    off = ~np.eye(3, dtype=bool)
+    cover = np.mean(hit, axis=0)[:, off]
+    assert cover.min() >= 0.90, cover.min()
+
+
+def test_wccv_input_errors():
+    with pytest.raises(InputError, match="2-D"):
+        wccv(np.zeros(100))
+    with pytest.raises(InputError, match="at least 2"):
+        wccv(np.zeros((100, 1)))
+    X = np.random.default_rng(0).standard_normal((100, 3))
+    X[7, 2] = np.nan
+    with pytest.raises(InputError, match="sample 7, column 2"):
+        wccv(X)
+    with pytest.raises(InputError, match="more signals than samples"):
+        wccv(np.zeros((3, 6)))
+    with pytest.raises(InputError, match="levels"):
+        wccv(np.ones((100, 2)), levels=9)
+
+
+# --- SPEC 6.4 reference values --------------------------------------------------------------------
+def test_true_coefficients_match_spec_6_4():
+    c1, c2 = true_coefs("case1"), true_coefs("case2")
+    ref = {
+        ("case1", "svo_w1"): [0.5497, 0.1255, -0.0119, -0.0007, 0.3455, -0.0081],
+        ("case1", "svo_w2"): [0.0922, 0.1308, 0.1900, 0.2431, 0.2419, 0.1019],
+        ("case1", "rdvg"): [0.5600, 0.1196, -0.0145, -0.0039, 0.3480, -0.0092],
+        ("case2", "svo_w1"): [0.0437, 0.2669, 0.0786, 0.5103, 0.1114, -0.0108],
+        ("case2", "svo_w2"): [0.0929, 0.1316, 0.1898, 0.2432, 0.2408, 0.1017],
+    }
+    for (name, method), values in ref.items():
+        got = (c1 if name == "case1" else c2)[method]
+        np.testing.assert_array_equal(np.round(got, 4), values, err_msg=f"{name} {method}")
+        assert got.sum() == pytest.approx(1.0, abs=1e-12)
+
+
+def test_true_wv_ratios_match_spec_6_4():
+    A = case("case1").wccv(2.0 ** np.arange(1, 20))
+    c = true_coefs("case1")
+    nu = {k: np.einsum("i,jik,k->j", v, A, v) for k, v in c.items()}
+    r1 = (nu["svo_w1"] / nu["equal"])[[0, 9, 18]]
+    r2 = (nu["svo_w2"] / nu["equal"])[[0, 9, 18]]
+    np.testing.assert_array_equal(np.round(r1, 2), [3.35, 3.14, 0.24])
+    assert round(r1[2], 3) == 0.235
+    np.testing.assert_array_equal(np.round(r2, 2), [0.86, 0.88, 1.15])
+
+
+# --- SVO estimator --------------------------------------------------------------------------------
+def test_svo_weights_presets():
+    np.testing.assert_allclose(svo_weights("long", 19), np.array(PAPER_OMEGA_LONG) / 0.998)
+    np.testing.assert_allclose(svo_weights("short", 19), np.array(PAPER_OMEGA_SHORT) / 1.002)
+    short16 = svo_weights("short", 16)
+    np.testing.assert_allclose(short16 * sum(PAPER_OMEGA_SHORT[:16]), PAPER_OMEGA_SHORT[:16])
+    long21 = svo_weights("long", 21)
+    assert long21[:9].sum() == 0 and long21[-1] == long21.max()
+    assert svo_weights([0, 2, 2], 3).tolist() == [0, 0.5, 0.5]
+    for bad, msg in (([1, 2], "3 levels"), ([1, -1, 1], "non-negative"), ([0, 0, 0], "no mass"),
+                     ("medium", "unknown weights")):
+        with pytest.raises(InputError, match=msg):
+            svo_weights(bad, 3)
+
+
+def test_svo_solution_minimises_weighted_variance():
+    rng = np.random.default_rng(6)
+    W = wccv(_array(8192, 4, rng))
+    om = svo_weights("short", W.n_levels)
+    c = svo_coef(W.cov, om)
+    A = np.einsum("j,jik->ik", om, W.cov)
+    best = c @ A @ c
+    for _ in range(50):
+        d = rng.standard_normal(4)
+        d -= d.mean()                      # stay on c'1 = 1
+        v = c + 0.05 * d
+        assert v @ A @ v > best
+    assert c.sum() == pytest.approx(1.0)
+
+
+def test_svo_recovers_c0_on_case1_arrays():
+    """Case 1 at T = 2**17 (J = 16, omega_2 anchored at level 1): mean of 4 arrays within
+    4 SE (SE from the replicates' spread) of c0 computed from the true WCCV."""
+    cs = case("case1")
+    T, J = 2**17, 16
+    om = svo_weights("short", J)
+    c0 = svo_coef(cs.wccv(2.0 ** np.arange(1, J + 1)), om)
+    est = np.array([svo(cs.simulate(T, np.random.default_rng(100 + r)), om, n_boot=0).coef
+                    for r in range(4)])
+    se = est.std(axis=0, ddof=1) / 2
+    assert np.all(np.abs(est.mean(axis=0) - c0) < 4 * se + 1e-4)
+    assert np.max(np.abs(est - c0)) < 0.01
+
+
+def test_jacobian_matches_finite_differences():
+    W = wccv(_array(4096, 3, np.random.default_rng(7)))
+    om = svo_weights("equal", W.n_levels)
+    G = svo_jacobian(W.cov, om)
+
+    def coef(C):
+        y = np.linalg.solve(np.einsum("j,jik->ik", om, C), np.ones(3))
+        return y / y.sum()
+
+    for j, i, k in [(0, 0, 0), (3, 0, 2), (5, 2, 1)]:
+        C = W.cov.copy()
+        h = 1e-6 * W.cov[j, i, i]
+        C[j, i, k] += h
+        np.testing.assert_allclose((coef(C) - coef(W.cov)) / h, G[:, j, i, k], rtol=1e-4,
+                                   atol=1e-6 * np.abs(G[:, j, i, k]).max())
+
+
+def test_collinear_signals_raise_model_error():
+    x = _array(2048, 2, np.random.default_rng(8))
+    X = np.column_stack([x, x[:, 0]])
+    with pytest.raises(ModelError, match="collinear"):
+        svo(X, "equal", n_boot=0)
+
+
+# --- moving-block bootstrap -----------------------------------------------------------------------
+def test_mbb_identity_draw_reproduces_estimate():
+    """Blocks tiling the trimmed times in order and refill stretches starting at 0 give back
+    exactly the original coefficients, hence gamma_hat."""
+    T, p, J, block = 3001, 3, 10, 7
+    X = _array(T, p, np.random.default_rng(9))
+    MJ = T - 2**J + 1
+    B = -(-MJ // block)
+    starts = (np.arange(B) * block)[None].astype(np.int64)
+    out = np.zeros((1, J * p * (p + 1) // 2))
+    n = T - (1 << np.arange(1, J + 1)) + 1
+    _mbb_kernel(X, J, True, np.zeros(p), 1.0 / n, starts, block, MJ - (B - 1) * block,
+                np.zeros((1, J), np.int64), out)
+    got = _unpack(out.reshape(1, J, -1), p)[0]
+    ref = wccv(X, J).cov
+    assert np.max(np.abs(got - ref)) < 1e-13 * np.abs(ref).max()
+
+
+def test_projected_draws_equal_jacobian_times_full_draws():
+    X = _array(3000, 3, np.random.default_rng(10))
+    W = wccv(X, 10)
+    om = svo_weights("short", 10)
+    full = mbb_wccv(X, 10, n_boot=40, block=20, rng=5)
+    dfull = np.einsum("ajik,hjik->ha", svo_jacobian(W.cov, om), full - W.cov)
+    dproj = mbb_svo_draws(X, W.cov, om, 40, 20, np.random.default_rng(5))
+    assert np.max(np.abs(dfull - dproj)) < 1e-10 * np.abs(dfull).max()
+
+
+def test_mbb_se_close_to_empirical_sd():
+    """p = 3 signals (WN + correlated AR1, phi = 0.9), T = 2**14, J = 8 (refill stretches are
+    short, D_j <= 256), blocks of 20 T^(1/3) = 508 samples (~2 x the largest scale): mean MBB SE
+    within [0.8, 1.25] x the SD of c_hat over 150 arrays (measured 0.91-1.00; blocks of 76 give
+    0.75-0.83: blocks must be long against the weighted scales)."""
+    rng = np.random.default_rng(11)
+    T, J, n = 2**14, 8, 150
+    L = np.linalg.cholesky(np.array([[1.0, 0.4, 0.1], [0.4, 1.0, -0.2], [0.1, -0.2, 1.0]]))
+    from scipy.signal import lfilter
+    coefs, ses = [], []
+    for r in range(n):
+        X = rng.standard_normal((T, 3)) * np.array([1.0, 2.0, 1.5])
+        X += lfilter([1.0], [1.0, -0.9], rng.standard_normal((T, 3)) @ L.T, axis=0)
+        res = svo(X, "equal", levels=J, n_boot=200, block_const=20.0, seed=r)
+        coefs.append(res.coef)
+        ses.append(res.se)
+    ratio = np.mean(ses, axis=0) / np.std(coefs, axis=0, ddof=1)
+    assert np.all((ratio > 0.8) & (ratio < 1.25)), ratio
+
+
+# --- result object and RDVG -----------------------------------------------------------------------
+def test_result_api():
+    X = _array(5000, 3, np.random.default_rng(12))
+    res = gmwm.svo(X, weights="short", n_boot=50, names=["a", "b", "c"], freq=10.0)
+    assert res.coef.shape == (3,) and res.se.shape == (3,) and np.all(res.se > 0)
+    ci = res.conf_int(0.1)
+    assert ci.shape == (3, 2) and np.all(ci[:, 0] < res.coef) and np.all(res.coef < ci[:, 1])
+    assert np.all(res.conf_int(0.01)[:, 1] > ci[:, 1])
+    wv = res.wv()
+    assert wv.freq == 10.0 and wv.n_levels == res.wccv.n_levels
+    s = res.summary()
+    assert "a" in s and "95% CI" in s and "WV ratio" in s
+    json.dumps(res.to_dict())
+    again = gmwm.svo(X, weights="short", n_boot=50, names=["a", "b", "c"], freq=10.0)
+    np.testing.assert_array_equal(again.cov, res.cov)   # seeded
+    no_ci = svo(res.wccv, "short")
+    np.testing.assert_allclose(no_ci.coef, res.coef)
+    assert np.all(np.isnan(no_ci.se))
+    eq = equal(X)
+    np.testing.assert_allclose(eq.coef, 1 / 3)
+
+
+def test_rdvg_recovers_q_based_coefficients():
+    """RW-dominated Case 1 (Q x 1e4) at T = 2**16: RDVG within 0.03 of Q^-1 1 / (1'Q^-1 1)."""
+    cs = case("case1")
+    Q = cs.rw * 1e4
+    rng = np.random.default_rng(13)
+    X = rng.standard_normal((2**16, 6)) * np.sqrt(np.diag(cs.R))
+    X += np.cumsum(rng.standard_normal((2**16, 6)) @ np.linalg.cholesky(Q).T, axis=0)
+    res = rdvg(X)
+    y = np.linalg.solve(Q, np.ones(6))
+    assert np.max(np.abs(res.coef - y / y.sum())) < 0.03
+    assert res.extra["q_positive_definite"]
