@@ -1,9 +1,17 @@
-"""The ``gmwm`` command line tool: simulate, wv, av, fit, model-wv.
+"""The ``gmwm`` command line tool: simulate, wv, av, fit, model-wv, report.
 
 Exit status: 0 success; 1 a problem with the input, model or files (one line
 ``gmwm: error: ...`` on stderr, never a traceback); 2 a usage error (bad options, malformed
 ``--param``); 3 ``gmwm fit`` ran but the optimizer did not report convergence (the estimate is
 still printed, with a warning on stderr); 130 interrupted.
+
+Every fit's diagnostics (boundary estimates, weak identification, ...) are printed as one
+``gmwm: warning: ...`` line each on stderr and listed under ``"warnings"`` in ``--json``; Python and
+NumPy warning text never reaches the user (numerical transients are dropped, anything else becomes
+one ``gmwm: warning:`` line; ``--debug`` shows them all).
+
+Start-up: this module imports only NumPy and the error classes; every subcommand imports what it
+needs when it runs, so ``gmwm --help`` does not load SciPy, Numba or matplotlib.
 """
 
 from __future__ import annotations
@@ -15,6 +23,7 @@ import os
 import re
 import sys
 import time
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn, TextIO
@@ -33,6 +42,12 @@ _EXIT_STATUS_HELP = """exit status:
   3  (fit only) the optimizer did not converge: the estimate is printed with a warning"""
 
 _PARAM = re.compile(r"^\s*([A-Za-z][A-Za-z0-9]*\[\d+\]\.[A-Za-z][A-Za-z0-9_]*)\s*=\s*(\S+)\s*$")
+#: a model typed with a negative count ('-1*WN') that argparse would take for an option
+_NEGATIVE_COUNT = re.compile(r"^-\d+(\.\d*)?\s*\*\s*[A-Za-z]")
+#: levels beyond this give scales 2^J that overflow the model formulas (and no signal has them)
+MAX_MODEL_LEVELS = 60
+#: samples of the warm-up call that loads the compiled WV kernel (reported as the first-call cost)
+_WARMUP_SAMPLES = 1024
 
 
 class UsageError(Exception):
@@ -56,6 +71,28 @@ class _Formatter(argparse.RawDescriptionHelpFormatter):
                 or "%(default)" in text):
             text += " (default: %(default)s)"
         return text
+
+
+class _Progress:
+    """Per-stage lines on stderr (``gmwm: [  1.2 s] fitting ...``) when stderr is a terminal and
+    ``--quiet`` is not given; a no-op otherwise."""
+
+    def __init__(self, err: TextIO, quiet: bool) -> None:
+        self.err = err
+        self.on = not quiet and _isatty(err)
+        self.t0 = time.perf_counter()
+
+    def __call__(self, message: str) -> None:
+        if self.on:
+            self.err.write(f"gmwm: [{time.perf_counter() - self.t0:6.1f} s] {message}\n")
+            self.err.flush()
+
+
+def _isatty(stream: Any) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False
 
 
 # --------------------------------------------------------------------------------------------------
@@ -101,6 +138,16 @@ def _positive_int(text: str) -> int:
     return v
 
 
+def _nonneg_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text!r}")
+    return v
+
+
 def _alpha(text: str) -> float:
     v = _positive_float(text)
     if not v < 1:
@@ -112,23 +159,45 @@ def _column(text: str) -> str | int:
     return int(text) if re.fullmatch(r"\d+", text.strip()) else text
 
 
+def _columns(text: str) -> str | list[str | int]:
+    """``gx,gy,gz`` / ``1,2,3`` / ``all``."""
+    if text.strip().lower() == "all":
+        return "all"
+    items = [t.strip() for t in text.split(",")]
+    if not all(items):
+        raise argparse.ArgumentTypeError(f"malformed --columns {text!r}: write names or indices "
+                                         "separated by commas, or 'all'")
+    return [_column(t) for t in items]
+
+
 def _add_input(p: argparse.ArgumentParser, what: str = "signal") -> None:
     p.add_argument("input", metavar="FILE", help=f"{what}: .npy, .csv/.tsv/.txt or HDF5 (.h5/.hdf5)")
     p.add_argument("--column", type=_column, default=None,
-                   help="CSV column (header name or 0-based index); needed when the file has several")
+                   help="CSV column (header name or 0-based index); needed when the file has several "
+                        "data columns (a time column aside)")
+    p.add_argument("--columns", type=_columns, default=None, metavar="C1,C2,...|all",
+                   help="several columns (names or 0-based indices; HDF5: dataset paths), each "
+                        "processed on its own; 'all' = every numeric column except a time column")
     p.add_argument("--dataset", default=None,
                    help="HDF5 dataset path (default: the only 1-D dataset in the file)")
 
 
+def _add_units(p: argparse.ArgumentParser, what: str) -> None:
+    p.add_argument("--units", action="append", default=[], metavar="[COLS=]UNIT",
+                   help=f"signal unit ({what}): deg/s, rad/s, m/s^2, g (datasheet units) or any "
+                        "label; repeatable, 'gx,gy,gz=deg/s' sets it for some columns")
+
+
 def _add_common(p: argparse.ArgumentParser, levels_help: str) -> None:
-    p.add_argument("--freq", type=_positive_float, default=1.0,
-                   help="sampling frequency in Hz (scales are then also reported in seconds)")
+    p.add_argument("--freq", type=_positive_float, default=None,
+                   help="sampling frequency in Hz (default: from the file's time column or HDF5 "
+                        "attribute, else 1; a contradiction with the file is an error)")
     p.add_argument("--levels", "-J", type=_positive_int, default=None, metavar="J", help=levels_help)
     p.add_argument("--json", action="store_true", help="print machine-readable JSON on stdout")
     p.add_argument("--plot", metavar="FILE.png", default=None,
                    help="draw a log-log figure to this file (.png, .pdf or .svg)")
-    p.add_argument("--units", default="",
-                   help="unit of the signal for the plot axis labels, e.g. 'deg/s'")
+    p.add_argument("--quiet", "-q", action="store_true",
+                   help="no progress lines on stderr (they are shown only on a terminal anyway)")
 
 
 def _add_params(p: argparse.ArgumentParser) -> None:
@@ -141,30 +210,37 @@ def _add_params(p: argparse.ArgumentParser) -> None:
 
 
 _DEFAULT_LEVELS = "number of dyadic scales tau_j = 2^j, j = 1..J (default floor(log2 T) - 1)"
+_MODEL_HELP = ("model string, e.g. 'WN+RW+AR1+SIN'; with --columns one model for all or "
+               "COL=MODEL pairs separated by commas ('gx=WN+RW,ax=QN+WN+RW'; a bare model is the "
+               "default for the other columns)")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The ``gmwm`` argument parser with its five subcommands."""
+    """The ``gmwm`` argument parser and its subcommands."""
     parser = _Parser(
         prog="gmwm",
         formatter_class=_Formatter,
         description=(
             "Stochastic calibration of inertial sensors with the Generalized Method of Wavelet\n"
             "Moments (GMWM): simulate error models, compute Haar wavelet and Allan variances,\n"
-            "fit composite models (WN, QN, RW, DR, AR1, GM, SIN) and evaluate model WVs.\n"
-            "Parameters are discrete-time, per sample; scales are filter lengths tau_j = 2^j samples."
+            "fit composite models (WN, QN, RW, DR, AR1, GM, SIN), read datasheet coefficients and\n"
+            "write calibration reports. Parameters are discrete-time, per sample; scales are\n"
+            "filter lengths tau_j = 2^j samples."
         ),
         epilog=(
             "examples:\n"
             "  gmwm simulate 'WN+AR1' -p 'WN[1].sigma2=1' -p 'AR1[1].phi=0.9' -p 'AR1[1].sigma2=0.1' \\\n"
             "       -n 100000 --seed 1 -o x.npy\n"
             "  gmwm wv x.npy --plot wv.png\n"
-            "  gmwm fit x.npy 'WN+AR1' --json\n\n" + _EXIT_STATUS_HELP
+            "  gmwm fit x.npy 'WN+AR1' --json\n"
+            "  gmwm fit imu.csv 'WN+GM+RW' --columns gx,gy,gz --units deg/s\n"
+            "  gmwm report imu.csv --columns all --units gx,gy,gz=deg/s --units ax,ay,az=m/s^2 -o rep\n\n"
+            + _EXIT_STATUS_HELP
         ),
     )
     parser.add_argument("--version", action="version", version=f"gmwm {__version__}")
     parser.add_argument("--debug", action="store_true",
-                        help="show the Python traceback of unexpected errors")
+                        help="show the Python traceback of unexpected errors and every Python warning")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
@@ -187,15 +263,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--freq", type=_positive_float, default=1.0,
                    help="sampling frequency in Hz (used by GM parameters)")
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    p.add_argument("--quiet", "-q", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=cmd_simulate)
 
-    for name, what, quantity in (
-        ("wv", "Haar wavelet variance", "WV"),
-        ("av", "Allan variance", "AV"),
-    ):
+    for name, what in (("wv", "Haar wavelet variance"), ("av", "Allan variance")):
         extra = (
             "AV at cluster length m = 2^(j-1) samples equals 2 x the Haar WV at level j\n"
-            "(maximal-overlap estimator, same coefficients)."
+            "(maximal-overlap estimator, same coefficients). Also prints the IEEE 952 readings:\n"
+            "N on the slope -1/2 line at tau = 1 s, K on the slope +1/2 line at tau = 3 s and the\n"
+            "bias instability B = AD minimum / 0.664, with 95% CIs, in datasheet units (--units)."
             if name == "av" else
             "Mean square of the boundary-free maximal-overlap Haar coefficients at\n"
             "tau_j = 2^j samples, with chi-square confidence intervals (Percival's eta_3 edof)."
@@ -203,17 +279,25 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(
             name, formatter_class=_Formatter, help=f"empirical {what} with confidence intervals",
             description=f"Empirical {what} of a signal at dyadic scales, with {100 * 0.95:g}% CIs.\n"
-                        f"{extra}",
+                        f"{extra}\nWith --columns: one table with a column per channel.",
             epilog=f"examples:\n  gmwm {name} imu.csv --column gyro_z --freq 200 --plot {name}.png\n"
-                   f"  gmwm {name} imu.h5 --dataset /imu/gyro_z --freq 200 --json > {name}.json\n\n"
+                   f"  gmwm {name} imu.h5 --dataset /imu/gyro_z --freq 200 --json > {name}.json\n"
+                   f"  gmwm {name} imu.csv --columns gx,gy,gz -o {name}_table.csv\n\n"
                    + _EXIT_STATUS_HELP,
         )
         _add_input(p)
         _add_common(p, _DEFAULT_LEVELS)
+        _add_units(p, "axis labels" + (" and the readings" if name == "av" else ""))
         p.add_argument("--alpha", type=_alpha, default=0.05, help="CI level is 1 - alpha")
         p.add_argument("-o", "--output", metavar="TABLE.csv", default=None,
                        help="also write the table as CSV (readable by 'gmwm fit' as a WV table)")
-        p.set_defaults(func=cmd_wv if name == "wv" else cmd_av, quantity=quantity)
+        if name == "av":
+            p.add_argument("--adev", action="store_true",
+                           help="plot the Allan deviation with the reading lines (N, K, B) instead "
+                                "of the Allan variance")
+        if name == "wv":
+            _add_robust(p)
+        p.set_defaults(func=cmd_wv if name == "wv" else cmd_av)
 
     p = sub.add_parser(
         "fit", formatter_class=_Formatter, help="fit a composite model to a signal or a WV table",
@@ -222,33 +306,28 @@ def build_parser() -> argparse.ArgumentParser:
             "FILE is a signal (.npy, .csv, .h5) or a precomputed wavelet-variance table: a CSV with\n"
             "a header holding 'scale' (tau_j = 2^j samples; or 'scale_s' in seconds, or 'level'),\n"
             "'variance' and optionally 'ci_low', 'ci_high' and 'n' (coefficients per level; without\n"
-            "it give the signal length with --n-samples). 'gmwm wv -o' writes such a table.\n"
-            "Estimates are per-sample (discrete-time) parameters; standard errors come from the\n"
-            "asymptotic sandwich covariance."
+            "it give the signal length with --n-samples). 'gmwm wv -o' writes such a table (its\n"
+            "'scale_s' column records the frequency), 'gmwm av -o' an Allan-variance table that is\n"
+            "read the same way (WV = AV / 2). Estimates are per-sample (discrete-time) parameters\n"
+            "with sandwich standard errors, followed by the datasheet coefficients in --units."
         ),
         epilog=(
             "examples:\n"
             "  gmwm fit sim1.npy 'WN+RW+AR1+SIN' --plot fit.png\n"
             "  gmwm fit imu.csv 'AR1+RW' --column gyro_z --freq 200 --json\n"
+            "  gmwm fit imu.csv 'gx=WN+GM+RW,ax=QN+WN+RW' --columns gx,ax --units gx=deg/s \\\n"
+            "       --units ax=m/s^2\n"
             "  gmwm fit wv_table.csv 'WN+RW' --n-samples 2500000 --freq 250\n\n" + _EXIT_STATUS_HELP
         ),
     )
     _add_input(p, what="signal or WV table")
-    p.add_argument("model", metavar="MODEL", help="model string, e.g. 'WN+RW+AR1+SIN'")
+    p.add_argument("model", metavar="MODEL", help=_MODEL_HELP)
     _add_common(p, _DEFAULT_LEVELS + "; with a WV table: use its first J scales")
-    p.add_argument("--weights", choices=("ci", "gaussian", "identity"), default="ci",
-                   help="weight matrix: inverse squared CI width, Gaussian approximation, identity")
-    p.add_argument("--method", choices=("gmwm", "armav", "avsm"), default="gmwm",
-                   help="gmwm: WV moments; armav: log10 Allan variance; avsm: Allan-variance slopes")
-    p.add_argument("--n-samples", type=_positive_int, default=None, metavar="T",
-                   help="signal length T, for a WV table without an 'n' column")
-    p.add_argument("--n-starts", type=_positive_int, default=None, metavar="K",
-                   help="number of optimizer starts (default: the library's)")
-    p.add_argument("--seed", type=int, default=0, help="seed for the random starting values")
-    p.add_argument("--reweight", type=int, default=0, metavar="K",
-                   help="refit K times with weights from the fitted model WV (reduces bias)")
+    _add_units(p, "datasheet coefficients and plot labels")
+    _add_fit_options(p)
     p.add_argument("--check", action="store_true",
                    help="also run identifiability checks on the estimate (module gmwm.identify)")
+    _add_robust(p)
     p.set_defaults(func=cmd_fit)
 
     p = sub.add_parser(
@@ -263,14 +342,60 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_params(p)
     p.add_argument("--levels", "-J", type=_positive_int, required=True, metavar="J",
-                   help="number of dyadic scales tau_j = 2^j, j = 1..J")
+                   help=f"number of dyadic scales tau_j = 2^j, j = 1..J (at most {MAX_MODEL_LEVELS})")
     p.add_argument("--freq", type=_positive_float, default=1.0,
                    help="sampling frequency in Hz (GM parameters; scales in seconds)")
     p.add_argument("--json", action="store_true", help="print machine-readable JSON on stdout")
     p.add_argument("--plot", metavar="FILE.png", default=None, help="draw the model WV to this file")
-    p.add_argument("--units", default="", help="signal unit for the plot, e.g. 'deg/s'")
+    p.add_argument("--units", action="append", default=[], metavar="UNIT",
+                   help="signal unit for the plot, e.g. 'deg/s'")
     p.set_defaults(func=cmd_model_wv)
+
+    p = sub.add_parser(
+        "report", formatter_class=_Formatter,
+        help="calibration report of an IMU: plots, datasheet table, warnings, Kalibr YAML",
+        description=(
+            "Fit every axis of an IMU recording and write one Markdown page and one HTML page:\n"
+            "per axis the WV with the fitted model and its components, the datasheet coefficients\n"
+            "with 95% CIs and the fit's warnings, then a YAML block of noise densities in SI units\n"
+            "as Kalibr-style tools expect (gyroscope_noise_density, gyroscope_random_walk,\n"
+            "accelerometer_noise_density, accelerometer_random_walk, update_rate). Gyroscope and\n"
+            "accelerometer axes are told apart by their --units."
+        ),
+        epilog=(
+            "example:\n"
+            "  gmwm report imu.csv 'WN+RW' --columns gx,gy,gz,ax,ay,az \\\n"
+            "       --units gx,gy,gz=deg/s --units ax,ay,az=m/s^2 -o imu_report\n\n" + _EXIT_STATUS_HELP
+        ),
+    )
+    _add_input(p)
+    p.add_argument("model", metavar="MODEL", nargs="?", default="WN+RW",
+                   help=_MODEL_HELP + " (default: WN+RW, the two terms Kalibr needs)")
+    _add_common(p, _DEFAULT_LEVELS)
+    _add_units(p, "datasheet coefficients; deg/s or rad/s marks a gyroscope, m/s^2 or g an "
+                  "accelerometer")
+    _add_fit_options(p)
+    p.add_argument("-o", "--output", required=True, metavar="DIR",
+                   help="directory for report.md, report.html, imu.yaml and the figures")
+    p.add_argument("--title", default=None, help="page title (default: the input file name)")
+    p.set_defaults(func=cmd_report)
+    _add_select_parser(sub)
     return parser
+
+
+def _add_fit_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--weights", choices=("ci", "gaussian", "identity", "efficient"), default="ci",
+                   help="weight matrix: inverse squared CI width, Gaussian approximation, identity, "
+                        "efficient (two-step, inverse model covariance of the WV)")
+    p.add_argument("--method", choices=("gmwm", "armav", "avsm"), default="gmwm",
+                   help="gmwm: WV moments; armav: log10 Allan variance; avsm: Allan-variance slopes")
+    p.add_argument("--n-samples", type=_positive_int, default=None, metavar="T",
+                   help="signal length T, for a WV table without an 'n' column")
+    p.add_argument("--n-starts", type=_positive_int, default=None, metavar="K",
+                   help="number of optimizer starts (default: the library's)")
+    p.add_argument("--seed", type=int, default=0, help="seed for the random starting values")
+    p.add_argument("--reweight", type=_nonneg_int, default=0, metavar="K",
+                   help="refit K >= 0 times with weights from the fitted model WV (reduces bias)")
 
 
 # --------------------------------------------------------------------------------------------------
@@ -293,10 +418,79 @@ def _model_theta(spec: str, params: Sequence[tuple[str, float]], freq: float):
     return model, model.theta(values)
 
 
-def _read_signal(args: argparse.Namespace) -> np.ndarray:
-    from gmwm.io import read_signal
+def _resolve_freq(given: float | None, found: float | None, source: str | None, where: str) -> float:
+    """--freq, else the file's frequency, else 1 Hz; both given and different (> 1 %) is an error."""
+    if found is None:
+        return 1.0 if given is None else float(given)
+    if given is None:
+        return float(found)
+    if abs(given / found - 1.0) > 0.01:
+        raise InputError(f"--freq {given:g} contradicts the sampling frequency {found:g} Hz given by "
+                         f"the {source} of {where}; drop --freq or fix the file")
+    return float(given)
 
-    return read_signal(args.input, column=args.column, dataset=args.dataset)
+
+def _read_input(args: argparse.Namespace) -> dict[str, np.ndarray]:
+    """The requested signals (name -> array); sets ``args.freq_hz`` (see :func:`_resolve_freq`)."""
+    from gmwm.io import read_channels
+
+    if args.columns is not None and args.column is not None:
+        raise UsageError("give --column (one signal) or --columns (several), not both")
+    cols = args.columns if args.columns is not None else (None if args.column is None else [args.column])
+    args.progress(f"reading {args.input}")
+    ch = read_channels(args.input, cols, dataset=args.dataset)
+    args.freq_hz = _resolve_freq(args.freq, ch.freq, ch.freq_source, args.input)
+    for note in ch.notes:
+        args.err.write(f"gmwm: warning: {note}\n")
+    return ch.signals
+
+
+def _by_column(items: Sequence[str], columns: Sequence[str], what: str, default: str | None
+               ) -> dict[str, str | None]:
+    """Per-column values from 'VALUE' (every other column) and 'C1,C2=VALUE' items."""
+    explicit: dict[str, str] = {}
+    fallback = default
+    for item in items:
+        if "=" in item:
+            cols, value = item.rsplit("=", 1)
+            for c in (t.strip() for t in cols.split(",")):
+                if c not in columns:
+                    raise InputError(f"{what} for column '{c}', which is not among the columns "
+                                     f"used ({', '.join(columns)})")
+                explicit[c] = value.strip()
+        else:
+            fallback = item.strip()
+    return {c: explicit.get(c, fallback) for c in columns}
+
+
+def _units_by_column(args: argparse.Namespace, columns: Sequence[str]) -> dict[str, str]:
+    units = _by_column(getattr(args, "units", []) or [], columns, "--units", None)
+    return {c: (u or "") for c, u in units.items()}
+
+
+def _models_by_column(spec: str, columns: Sequence[str]) -> dict[str, str]:
+    """'WN+RW' for every column, or 'gx=WN+RW,ax=QN+WN+RW[,DEFAULT]' pairs."""
+    if "=" not in spec:
+        return dict.fromkeys(columns, spec)
+    default = None
+    pairs = {}
+    for item in (t.strip() for t in spec.split(",")):
+        if not item:
+            continue
+        if "=" in item:
+            col, model = (t.strip() for t in item.split("=", 1))
+            pairs[col] = model
+        else:
+            default = item
+    unknown = [c for c in pairs if c not in columns]
+    if unknown:
+        raise InputError(f"model given for column(s) {', '.join(unknown)}, not among the columns "
+                         f"used ({', '.join(columns)}); select them with --columns")
+    missing = [c for c in columns if c not in pairs and default is None]
+    if missing:
+        raise InputError(f"no model for column(s) {', '.join(missing)}: add COL=MODEL pairs or a "
+                         "bare default model")
+    return {c: pairs.get(c, default) for c in columns}
 
 
 def _check_levels(n: int, levels: int | None, n_params: int = 0) -> None:
@@ -321,6 +515,8 @@ def _check_levels(n: int, levels: int | None, n_params: int = 0) -> None:
 def _fmt(v: Any) -> str:
     if v is None:
         return "-"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
     if isinstance(v, int | np.integer):
         return str(int(v))
     if isinstance(v, float | np.floating):
@@ -357,6 +553,12 @@ def _check_args(args: argparse.Namespace) -> None:
     plot = getattr(args, "plot", None)
     if plot and Path(plot).suffix.lower() not in _PLOT_SUFFIXES:
         raise UsageError(f"--plot {plot}: use a .png, .pdf or .svg file name")
+    for opt in ("plot", "output"):
+        path = getattr(args, opt, None)
+        if path and Path(path).is_dir() and not (args.command == "report" and opt == "output"):
+            raise InputError(f"--{opt} {path} is a directory: give a file name")
+    if args.command == "report" and Path(args.output).exists() and not Path(args.output).is_dir():
+        raise InputError(f"--output {args.output} exists and is not a directory")
 
 
 def _wv_dict(wv: Any) -> dict[str, Any]:
@@ -374,13 +576,33 @@ def _wv_dict(wv: Any) -> dict[str, Any]:
     }
 
 
-def _wv_table_rows(wv: Any, factor: float = 1.0, halve: bool = False):
-    scales = np.asarray(wv.scales, float) / (2.0 if halve else 1.0)
+def _wv_table_rows(wv: Any):
     return [
-        (int(lv), s, s / wv.freq, factor * v, factor * lo, factor * hi, int(n))
-        for lv, s, v, lo, hi, n in zip(wv.levels, scales, wv.variance, wv.ci_low, wv.ci_high, wv.n,
-                                       strict=True)
+        (int(lv), s, s / wv.freq, v, lo, hi, int(n))
+        for lv, s, v, lo, hi, n in zip(wv.levels, np.asarray(wv.scales, float), wv.variance,
+                                       wv.ci_low, wv.ci_high, wv.n, strict=True)
     ]
+
+
+def _write_csv(args: argparse.Namespace, headers: Sequence[str], rows: Sequence[Sequence]) -> None:
+    if not getattr(args, "output", None):
+        return
+    from gmwm.io import write_text_atomic
+
+    if Path(args.output).suffix.lower() != ".csv":
+        raise UsageError(f"--output {args.output}: the table is written as CSV, use a .csv name")
+    lines = [",".join(headers)] + [",".join(repr(float(v)) if isinstance(v, float | np.floating)
+                                            else str(v) for v in r) for r in rows]
+    write_text_atomic(args.output, "\n".join(lines) + "\n")
+
+
+def _fmt_s(s: float | None) -> str:
+    return "-" if s is None else f"{s:.3f} s"
+
+
+def _warn(err: TextIO, messages: Sequence[str], prefix: str = "") -> None:
+    for m in messages:
+        err.write(f"gmwm: warning: {prefix}{m}\n")
 
 
 # --------------------------------------------------------------------------------------------------
@@ -396,9 +618,11 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         raise InputError(f"unknown output extension '{suffix}' for {args.output}: "
                          f"use one of {', '.join(SIGNAL_SUFFIXES)}")
     model, theta = _model_theta(args.model, args.param, args.freq)
+    args.progress(f"simulating {args.n_samples} samples of {model.spec}")
     t0 = time.perf_counter()
     x = model.simulate(theta, args.n_samples, np.random.default_rng(args.seed))
     seconds = time.perf_counter() - t0
+    args.progress(f"writing {args.output}")
     path = write_signal(args.output, x)
     if args.json:
         _print_json({"command": "simulate", "model": model.spec, "params": model.as_dict(theta),
@@ -410,107 +634,274 @@ def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     return EXIT_OK
 
 
-def _compute_wv(args: argparse.Namespace, x: np.ndarray):
+def _wvar(args: argparse.Namespace, x: np.ndarray):
+    """The WV of one signal with the command's options (the one place a WV is computed)."""
     from gmwm.wv import wvar
 
-    _check_levels(x.size, args.levels)
+    return wvar(x, levels=args.levels, alpha=args.alpha, freq=args.freq_hz, **_robust_kw(args))
+
+
+def _compute_wvs(args: argparse.Namespace, signals: dict[str, np.ndarray]) -> tuple[dict, dict]:
+    """WV per signal and the timings: ``first_call_s`` (loading the compiled kernel, measured on
+    a short warm-up call) apart from the steady-state ``wv_s`` per signal."""
+    for x in signals.values():
+        _check_levels(x.size, args.levels)
+    first = next(iter(signals.values()))
     t0 = time.perf_counter()
-    wv = wvar(x, levels=args.levels, alpha=args.alpha, freq=args.freq)
-    return wv, time.perf_counter() - t0
+    from gmwm.wv import wvar
+
+    wvar(first[:max(4, min(first.size, _WARMUP_SAMPLES))])
+    first_call = time.perf_counter() - t0
+    wvs, seconds = {}, {}
+    for name, x in signals.items():
+        args.progress(f"wavelet variance of {name} ({x.size} samples)")
+        t0 = time.perf_counter()
+        wvs[name] = _wvar(args, x)
+        seconds[name] = time.perf_counter() - t0
+    return wvs, {"first_call_s": first_call, "wv_s": seconds}
+
+
+def _channel_table(wvs: dict[str, Any], fields: Sequence[tuple[str, Any]], what: str
+                   ) -> tuple[list[str], list[list]]:
+    """One CSV table over channels: shared level/scale/n columns, then ``field[channel]``."""
+    ref = next(iter(wvs.values()))
+    for name, wv in wvs.items():
+        if not np.array_equal(wv.n, ref.n):
+            raise InputError(f"channel {name} has a different length or number of levels: write the "
+                             f"{what} tables of such channels separately")
+    headers = ["level", "scale", "scale_s", "n"] + [f"{f}[{c}]" for c in wvs for f, _ in fields]
+    rows = []
+    for i, (lv, s) in enumerate(zip(ref.levels, np.asarray(ref.scales, float), strict=True)):
+        row = [int(lv), s, s / ref.freq, int(ref.n[i])]
+        for wv in wvs.values():
+            row += [float(get(wv)[i]) for _, get in fields]
+        rows.append(row)
+    return headers, rows
+
+
+def _plot_channels(items: dict[str, Any], draw, path: str) -> None:
+    """One panel per channel (``draw(obj, ax, name)``), saved to ``path``."""
+    from gmwm.plots import channel_grid
+
+    fig, axes = channel_grid(len(items))
+    for ax, (name, obj) in zip(axes, items.items(), strict=False):
+        draw(obj, ax, name)
+        if len(items) > 1:
+            ax.set_title(name)
+    _save_plot(fig, path)
 
 
 def cmd_wv(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    x = _read_signal(args)
-    wv, seconds = _compute_wv(args, x)
-    headers = ["level", "scale", "scale_s", "variance", "ci_low", "ci_high", "n"]
-    rows = _wv_table_rows(wv)
-    _write_outputs(args, headers, rows)
+    t0 = time.perf_counter()
+    signals = _read_input(args)
+    read_s = time.perf_counter() - t0
+    wvs, timing = _compute_wvs(args, signals)
+    units = _units_by_column(args, list(wvs))
+    multi = args.columns is not None
     if args.plot:
         from gmwm.plots import plot_wv
 
-        _save_plot(plot_wv(wv, units=args.units), args.plot)
+        _plot_channels(wvs, lambda wv, ax, c: plot_wv(wv, ax=ax, units=units[c]), args.plot)
+    secs = {"seconds_read": read_s, "seconds_first_call": timing["first_call_s"]}
+    if not multi:
+        name, wv = next(iter(wvs.items()))
+        headers = ["level", "scale", "scale_s", "variance", "ci_low", "ci_high", "n"]
+        rows = _wv_table_rows(wv)
+        _write_csv(args, headers, rows)
+        seconds = timing["wv_s"][name]
+        if args.json:
+            _print_json({"command": "wv", "input": args.input, **_wv_dict(wv), "seconds": seconds,
+                         **secs}, out)
+        else:
+            out.write(f"Haar wavelet variance of {args.input}: T = {wv.n_samples} samples, "
+                      f"freq = {wv.freq:g} Hz, {100 * (1 - wv.alpha):g}% CI, {seconds:.3f} s\n")
+            out.write(format_table(headers, rows) + "\n")
+        return EXIT_OK
+    headers, rows = _channel_table(
+        wvs, [("variance", lambda w: w.variance), ("ci_low", lambda w: w.ci_low),
+              ("ci_high", lambda w: w.ci_high)], "WV")
+    _write_csv(args, headers, rows)
     if args.json:
-        _print_json({"command": "wv", "input": args.input, **_wv_dict(wv), "seconds": seconds}, out)
+        _print_json({"command": "wv", "input": args.input, "columns": list(wvs),
+                     "wv": {c: _wv_dict(w) for c, w in wvs.items()}, "seconds": timing["wv_s"],
+                     **secs}, out)
     else:
-        out.write(f"Haar wavelet variance of {args.input}: T = {wv.n_samples} samples, "
-                  f"freq = {wv.freq:g} Hz, {100 * (1 - wv.alpha):g}% CI, {seconds:.3f} s\n")
-        out.write(format_table(headers, rows) + "\n")
+        ref = next(iter(wvs.values()))
+        out.write(f"Haar wavelet variance of {args.input}: {len(wvs)} channels, T = {ref.n_samples} "
+                  f"samples, freq = {ref.freq:g} Hz, {sum(timing['wv_s'].values()):.3f} s\n")
+        _write_channel_text(out, wvs, lambda w: w.variance, "variance")
     return EXIT_OK
+
+
+def _write_channel_text(out: TextIO, items: dict[str, Any], values, what: str) -> None:
+    """Text table: level, scale, scale_s, then one ``what`` column per channel."""
+    longest = max(items.values(), key=lambda w: len(w.levels))
+    headers = ["level", "scale", "scale_s", *items]
+    rows = []
+    for i, lv in enumerate(longest.levels):
+        s = float(np.asarray(longest.scales, float)[i]) if hasattr(longest, "scales") else None
+        row: list[Any] = [int(lv), s, None if s is None else s / longest.freq]
+        for w in items.values():
+            v = values(w)
+            row.append(float(v[i]) if i < len(v) else None)
+        rows.append(row)
+    out.write(f"{what} per channel:\n" + format_table(headers, rows) + "\n")
 
 
 def cmd_av(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from gmwm.wv import avar
+    from gmwm.datasheet import allan_readings
+    from gmwm.wv import AllanVariance
 
-    x = _read_signal(args)
-    _check_levels(x.size, args.levels)
     t0 = time.perf_counter()
-    av = avar(x, levels=args.levels, alpha=args.alpha, freq=args.freq)
-    seconds = time.perf_counter() - t0
-    m = np.asarray(av.clusters, dtype=float)
-    var = np.asarray(av.avar, float)
-    lo, hi = np.asarray(av.ci_low, float), np.asarray(av.ci_high, float)
-    n = np.asarray(av.n)
-    headers = ["cluster_m", "tau_s", "allan_var", "ci_low", "ci_high", "allan_dev", "n"]
-    rows = [(int(mi), mi / args.freq, v, a, b, np.sqrt(v), int(k))
-            for mi, v, a, b, k in zip(m, var, lo, hi, n, strict=True)]
-    _write_outputs(args, headers, rows)
+    signals = _read_input(args)
+    read_s = time.perf_counter() - t0
+    wvs, timing = _compute_wvs(args, signals)
+    avs = {c: AllanVariance.from_wv(w) for c, w in wvs.items()}
+    units = _units_by_column(args, list(avs))
+    readings = {c: allan_readings(av, units[c] or None) for c, av in avs.items()}
     if args.plot:
         from gmwm.plots import plot_av
 
-        _save_plot(plot_av(av, units=args.units), args.plot)
+        _plot_channels(avs, lambda av, ax, c: plot_av(av, ax=ax, units=units[c], deviation=args.adev,
+                                                      readings=readings[c] if args.adev else None),
+                       args.plot)
+    multi = args.columns is not None
+    secs = {"seconds_read": read_s, "seconds_first_call": timing["first_call_s"]}
+    if not multi:
+        name, av = next(iter(avs.items()))
+        m = np.asarray(av.clusters, dtype=float)
+        var = np.asarray(av.avar, float)
+        lo, hi = np.asarray(av.ci_low, float), np.asarray(av.ci_high, float)
+        n = np.asarray(av.n)
+        headers = ["cluster_m", "tau_s", "allan_var", "ci_low", "ci_high", "allan_dev", "n"]
+        rows = [(int(mi), mi / av.freq, v, a, b, np.sqrt(v), int(k))
+                for mi, v, a, b, k in zip(m, var, lo, hi, n, strict=True)]
+        _write_csv(args, headers, rows)
+        seconds = timing["wv_s"][name]
+        if args.json:
+            _print_json({
+                "command": "av", "input": args.input, "levels": np.asarray(av.levels).tolist(),
+                "cluster": m.astype(int).tolist(),
+                "tau_s": (m / av.freq).tolist(), "variance": var.tolist(), "ci_low": lo.tolist(),
+                "ci_high": hi.tolist(), "deviation": np.sqrt(var).tolist(), "n": n.tolist(),
+                "n_samples": int(av.n_samples), "freq": av.freq, "alpha": args.alpha,
+                "units": units[name] or None, "readings": readings[name], "seconds": seconds, **secs,
+            }, out)
+        else:
+            out.write(f"Allan variance (maximal overlap) of {args.input}: T = {av.n_samples} samples, "
+                      f"freq = {av.freq:g} Hz, {100 * (1 - args.alpha):g}% CI, {seconds:.3f} s\n")
+            out.write(format_table(headers, rows) + "\n")
+            out.write(_readings_text({name: readings[name]}, single=True) + "\n")
+        return EXIT_OK
+    headers, rows = _av_channel_table(avs)
+    _write_csv(args, headers, rows)
     if args.json:
-        _print_json({
-            "command": "av", "input": args.input, "levels": np.asarray(av.levels).tolist(),
-            "cluster": m.astype(int).tolist(),
-            "tau_s": (m / args.freq).tolist(), "variance": var.tolist(), "ci_low": lo.tolist(),
-            "ci_high": hi.tolist(), "deviation": np.sqrt(var).tolist(), "n": n.tolist(),
-            "n_samples": int(x.size), "freq": args.freq, "alpha": args.alpha, "seconds": seconds,
-        }, out)
+        _print_json({"command": "av", "input": args.input, "columns": list(avs),
+                     "av": {c: {**av.to_dict(), "units": units[c] or None}
+                            for c, av in avs.items()},
+                     "readings": readings, "seconds": timing["wv_s"], **secs}, out)
     else:
-        out.write(f"Allan variance (maximal overlap) of {args.input}: T = {x.size} samples, "
-                  f"freq = {args.freq:g} Hz, {100 * (1 - args.alpha):g}% CI, {seconds:.3f} s\n")
-        out.write(format_table(headers, rows) + "\n")
+        ref = next(iter(avs.values()))
+        out.write(f"Allan deviation (maximal overlap) of {args.input}: {len(avs)} channels, "
+                  f"T = {ref.n_samples} samples, freq = {ref.freq:g} Hz\n")
+        headers_t = ["cluster_m", "tau_s", *avs]
+        rows_t = [[int(mv), float(tv), *(float(a.adev[i]) if i < a.adev.size else None
+                                         for a in avs.values())]
+                  for i, (mv, tv) in enumerate(zip(ref.clusters, ref.tau, strict=True))]
+        out.write(format_table(headers_t, rows_t) + "\n")
+        out.write(_readings_text(readings, single=False) + "\n")
     return EXIT_OK
 
 
-def _write_outputs(args: argparse.Namespace, headers: Sequence[str], rows: Sequence[Sequence]) -> None:
-    if not getattr(args, "output", None):
-        return
-    from gmwm.io import write_text_atomic
+def _av_channel_table(avs: dict[str, Any]) -> tuple[list[str], list[list]]:
+    ref = next(iter(avs.values()))
+    for name, av in avs.items():
+        if not np.array_equal(av.n, ref.n):
+            raise InputError(f"channel {name} has a different length or number of levels: write the "
+                             "AV tables of such channels separately")
+    headers = ["cluster_m", "tau_s", "n"] + [f"{f}[{c}]" for c in avs
+                                             for f in ("allan_var", "ci_low", "ci_high", "allan_dev")]
+    rows = []
+    for i, m in enumerate(ref.clusters):
+        row: list[Any] = [int(m), float(ref.tau[i]), int(ref.n[i])]
+        for av in avs.values():
+            row += [float(av.avar[i]), float(av.ci_low[i]), float(av.ci_high[i]), float(av.adev[i])]
+        rows.append(row)
+    return headers, rows
 
-    if Path(args.output).suffix.lower() != ".csv":
-        raise UsageError(f"--output {args.output}: the table is written as CSV, use a .csv name")
-    lines = [",".join(headers)] + [",".join(repr(float(v)) if isinstance(v, float | np.floating)
-                                            else str(v) for v in r) for r in rows]
-    write_text_atomic(args.output, "\n".join(lines) + "\n")
+
+def _readings_text(readings: dict[str, dict], single: bool) -> str:
+    headers = ([] if single else ["column"]) + ["reading", "value", "ci95_low", "ci95_high", "unit",
+                                                 "from"]
+    rows = []
+    for col, r in readings.items():
+        for key in ("N", "K", "B"):
+            e = r[key]
+            ci = e.get("ci95") or [None, None]
+            if key == "B":
+                where = f"AD minimum at tau = {e['tau_s']:.4g} s" + (
+                    " (last scale: floor not reached, upper bound)" if e["at_end"] else "")
+            elif e.get("value") is None:
+                where = e.get("note", "")
+            else:
+                lo_t, hi_t = e["tau_range_s"]
+                where = (f"slope {'-' if key == 'N' else '+'}1/2 over tau {lo_t:.4g}-{hi_t:.4g} s, "
+                         f"read at {e['read_at_tau_s']:g} s" + (" (extrapolated)" if e["extrapolated"]
+                                                                 else ""))
+            label = f"{key} ({e['name']})" if key != "B" else "B (bias instability)"
+            rows.append(([] if single else [col]) + [label, e.get("value"), ci[0], ci[1], e["unit"],
+                                                     where])
+    return "IEEE 952 Allan-deviation readings:\n" + format_table(headers, rows)
 
 
-def _load_fit_data(args: argparse.Namespace, n_params: int):
-    """The signal (ndarray) or a WaveletVariance read from a WV table, plus seconds spent on the WV."""
-    from gmwm.io import is_wv_table, read_wv_table
+# ---- fit -------------------------------------------------------------------------------------
 
-    if is_wv_table(args.input):
-        wv = read_wv_table(args.input, n_samples=args.n_samples, freq=args.freq)
-        if args.levels is not None:
-            if args.levels > wv.n_levels:
-                raise InputError(f"--levels {args.levels} but the table {args.input} has "
-                                 f"{wv.n_levels} scales")
-            wv = wv.subset(np.arange(1, args.levels + 1))
-        if n_params > wv.n_levels:
-            raise IdentifiabilityError(
-                f"model has {n_params} parameters but the table has only {wv.n_levels} scales: "
-                "more parameters than scales cannot be identified")
-        return wv, 0.0
+
+def _fit_data(args: argparse.Namespace) -> tuple[dict[str, Any], bool]:
+    """Per-column data (a signal, or a WaveletVariance from a table) and whether it is a table;
+    sets ``args.freq_hz``."""
+    from gmwm.io import is_wv_table, read_wv_table, table_channels
+
+    p = Path(args.input)
+    if not p.exists():
+        raise InputError(f"file not found: {p}")
+    if is_wv_table(p):
+        channels = table_channels(p)
+        if args.columns is None:
+            wanted: list[Any] = [None] if args.column is None else [str(args.column)]
+        elif args.columns == "all":
+            wanted = channels or [None]
+        else:
+            wanted = [str(c) for c in args.columns]
+        data = {}
+        for c in wanted:
+            wv = read_wv_table(p, n_samples=args.n_samples, freq=args.freq, channel=c)
+            if args.levels is not None:
+                if args.levels > wv.n_levels:
+                    raise InputError(f"--levels {args.levels} but the table {args.input} has "
+                                     f"{wv.n_levels} scales")
+                wv = wv.subset(np.arange(1, args.levels + 1))
+            data[p.stem if c is None else c] = wv
+        args.freq_hz = next(iter(data.values())).freq
+        return data, True
     if args.n_samples is not None:
         raise UsageError("--n-samples applies to a WV table (a CSV with 'scale' and 'variance' columns)")
-    x = _read_signal(args)
-    _check_levels(x.size, args.levels, n_params)
-    return x, None
+    return _read_input(args), False
 
 
 def _run_fit(args: argparse.Namespace, data: Any, model: Any) -> tuple[Any, float | None]:
     """The fit result and the seconds spent computing the WV here (None: the result knows)."""
     levels = args.levels if isinstance(data, np.ndarray) else None  # a table is already subset
+    if getattr(args, "robust", False):  # robust WV here, then the usual fit on it
+        if not isinstance(data, np.ndarray):
+            raise UsageError("--robust needs the signal; a WV table is already an estimate")
+        from gmwm.wv import wvar
+
+        t0 = time.perf_counter()
+        wv = wvar(data, levels=levels, freq=args.freq_hz, **_robust_kw(args))
+        seconds = time.perf_counter() - t0
+        res, _ = _run_fit(argparse.Namespace(**{**vars(args), "robust": False}), wv, model)
+        return res, seconds
     if args.method == "avsm":
         try:
             from gmwm.avsm import fit_avsm
@@ -521,14 +912,14 @@ def _run_fit(args: argparse.Namespace, data: Any, model: Any) -> tuple[Any, floa
             from gmwm.wv import wvar
 
             t0 = time.perf_counter()
-            data = wvar(data, levels=levels, freq=args.freq)
+            data = wvar(data, levels=levels, freq=args.freq_hz)
             seconds_wv = time.perf_counter() - t0
         return fit_avsm(data, model), seconds_wv
-    from gmwm.fit import fit
+    import gmwm
 
     options = {} if args.n_starts is None else {"n_starts": args.n_starts}
-    res = fit(data, model, levels=levels, freq=args.freq, weights=args.weights,
-              method=args.method, seed=args.seed, reweight=args.reweight, **options)
+    res = gmwm.fit(data, model, levels=levels, freq=args.freq_hz, weights=args.weights,
+                   method=args.method, seed=args.seed, reweight=args.reweight, **options)
     return res, None
 
 
@@ -543,70 +934,161 @@ def _identify_module():
     return identify
 
 
-def cmd_fit(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+def _fit_warnings(res: Any) -> list[str]:
+    """The fit's diagnostics warnings (the non-convergence one is reported with exit status 3)."""
+    found = list((getattr(res, "diagnostics", None) or {}).get("warnings", []))
+    if not getattr(res, "converged", True):
+        found = [w for w in found if "converge" not in w.lower()]
+    return [str(w) for w in found]
+
+
+def _fit_columns(args: argparse.Namespace) -> tuple[dict[str, dict[str, Any]], bool]:
+    """Fit every requested column; per column the result, timings, check, warnings, unit."""
     from gmwm.model import Model
 
-    identify = _identify_module() if args.check else None
-    model = Model(args.model, freq=args.freq)
-    data, seconds_wv = _load_fit_data(args, model.n_params)
-    t0 = time.perf_counter()
-    res, seconds_wv_here = _run_fit(args, data, model)
-    elapsed = time.perf_counter() - t0
-    if seconds_wv is None:  # a signal: the WV was computed by the fit (or just above for AVSM)
-        seconds_wv = seconds_wv_here if seconds_wv_here is not None else getattr(res, "seconds_wv", None)
-    seconds_fit = getattr(res, "seconds_fit", None)
-    if seconds_fit is None:
-        seconds_fit = elapsed - (seconds_wv or 0.0)
-    check = None
-    if identify is not None:
-        if not hasattr(identify, "check"):
-            raise GMWMError("--check: gmwm.identify does not provide check(result) yet")
-        check = identify.check(res)
-    converged = bool(getattr(res, "converged", True))
+    identify = _identify_module() if getattr(args, "check", False) else None
+    data, is_table = _fit_data(args)
+    models = _models_by_column(args.model, list(data))
+    units = _units_by_column(args, list(data))
+    built = {}
+    for name, d in data.items():
+        model = Model(models[name], freq=args.freq_hz)
+        if is_table:
+            if model.n_params > d.n_levels:
+                raise IdentifiabilityError(
+                    f"model has {model.n_params} parameters but the table has only {d.n_levels} "
+                    "scales: more parameters than scales cannot be identified")
+        else:
+            _check_levels(d.size, args.levels, model.n_params)
+        built[name] = model
+    fits: dict[str, dict[str, Any]] = {}
+    for name, d in data.items():
+        model = built[name]
+        args.progress(f"fitting {model.spec} to {name}")
+        t0 = time.perf_counter()
+        res, seconds_wv = _run_fit(args, d, model)
+        elapsed = time.perf_counter() - t0
+        if is_table:
+            seconds_wv = 0.0
+        elif seconds_wv is None:
+            seconds_wv = getattr(res, "seconds_wv", None)
+        seconds_fit = getattr(res, "seconds_fit", None)
+        if seconds_fit is None:
+            seconds_fit = elapsed - (seconds_wv or 0.0)
+        check = None
+        if identify is not None:
+            if not hasattr(identify, "check"):
+                raise GMWMError("--check: gmwm.identify does not provide check(result) yet")
+            args.progress(f"identifiability check of {name}")
+            check = identify.check(res)
+        fits[name] = {"result": res, "seconds_wv": seconds_wv, "seconds_fit": seconds_fit,
+                      "check": check, "warnings": _fit_warnings(res), "units": units[name]}
+    return fits, is_table
 
-    if args.plot:
-        from gmwm.plots import plot_wv
 
-        _save_plot(plot_wv(res.wv, result=res, units=args.units), args.plot)
+def _datasheet(res: Any, units: str) -> dict[str, Any]:
+    from gmwm.units import datasheet
+
+    return datasheet(res, units or None)
+
+
+def _fit_json(args: argparse.Namespace, name: str, f: dict[str, Any]) -> dict[str, Any]:
+    res = f["result"]
     names = list(res.param_names)
     params = np.asarray(res.params, float)
     se = getattr(res, "se", None)  # AVSM has no standard errors
     se = [None] * len(names) if se is None else [float(s) for s in np.asarray(se, float)]
+    obj = {
+        "command": "fit", "input": args.input, "model": res.model.spec, "method": args.method,
+        "weights": args.weights, "n": int(res.wv.n_samples), "freq": float(res.wv.freq),
+        "params": dict(zip(names, params, strict=True)),
+        "se": dict(zip(names, se, strict=True)),
+        "objective": getattr(res, "objective", None),
+        "converged": bool(getattr(res, "converged", True)),
+        "message": str(getattr(res, "message", "")),
+        "warnings": f["warnings"],
+        "units": f["units"] or None,
+        "datasheet": _datasheet(res, f["units"]),
+        "wv": _wv_dict(res.wv), "seconds_wv": f["seconds_wv"], "seconds_fit": f["seconds_fit"],
+    }
+    if f["check"] is not None:
+        obj["check"] = _check_json(f["check"])
+    return obj
+
+
+def datasheet_rows(ds: dict[str, dict]) -> list[tuple]:
+    """Rows (term, quantity, value, ci95_low, ci95_high, unit) of a datasheet dict."""
+    rows = []
+    for term, e in ds.items():
+        parts = [("", e)] if "value" in e else list(e.items())
+        for what, v in parts:
+            ci = v.get("ci95") or [None, None]
+            rows.append((term, what, v["value"], ci[0], ci[1], v["unit"]))
+    return rows
+
+
+def _fit_text(args: argparse.Namespace, name: str | None, f: dict[str, Any], out: TextIO) -> None:
+    res = f["result"]
+    names = list(res.param_names)
+    params = np.asarray(res.params, float)
+    se = getattr(res, "se", None)
+    se = [None] * len(names) if se is None else [float(s) for s in np.asarray(se, float)]
+    converged = bool(getattr(res, "converged", True))
+    how = "AVSM" if args.method == "avsm" else f"{args.method.upper()} ({args.weights} weights)"
+    what = args.input if name is None else f"{name} of {args.input}"
+    out.write(f"{how} fit of {res.model.spec} to {what}: T = {res.wv.n_samples} samples, "
+              f"J = {res.wv.n_levels} scales, freq = {res.wv.freq:g} Hz\n")
+    z = 1.959963984540054  # normal 97.5% quantile: 95% Wald intervals from the sandwich SE
+    rows = [(n, p, s, None if s is None else p - z * s, None if s is None else p + z * s)
+            for n, p, s in zip(names, params, se, strict=True)]
+    out.write(format_table(["parameter", "estimate", "se", "ci95_low", "ci95_high"], rows) + "\n")
+    ds_rows = datasheet_rows(_datasheet(res, f["units"]))
+    if ds_rows:
+        unit = f["units"] or "signal units"
+        out.write(f"datasheet coefficients (signal in {unit}):\n")
+        out.write(format_table(["term", "quantity", "value", "ci95_low", "ci95_high", "unit"],
+                               ds_rows) + "\n")
+    out.write(f"objective {_fmt(getattr(res, 'objective', None))}, converged {'yes' if converged else 'NO'}; "
+              f"WV {_fmt_s(f['seconds_wv'])}, fit {_fmt_s(f['seconds_fit'])}\n")
+    if f["check"] is not None:
+        out.write(_check_text(f["check"]) + "\n")
+
+
+def _fit_status(fits: dict[str, dict[str, Any]], err: TextIO, multi: bool) -> int:
+    """Warning lines on stderr; exit status 3 when a fit did not converge."""
+    status = EXIT_OK
+    for name, f in fits.items():
+        prefix = f"{name}: " if multi else ""
+        _warn(err, f["warnings"], prefix)
+        res = f["result"]
+        if not getattr(res, "converged", True):
+            msg = str(getattr(res, "message", "")).strip().splitlines()
+            err.write(f"gmwm: warning: {prefix}the optimizer did not converge"
+                      + (f" ({msg[0]})" if msg else "") + "; treat the estimate with care (exit status 3)\n")
+            status = EXIT_NOT_CONVERGED
+    return status
+
+
+def cmd_fit(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    fits, _ = _fit_columns(args)
+    multi = args.columns is not None
+    if args.plot:
+        from gmwm.plots import plot_wv
+
+        _plot_channels(fits, lambda f, ax, c: plot_wv(f["result"].wv, result=f["result"], ax=ax,
+                                                      units=f["units"]), args.plot)
     if args.json:
-        obj = {
-            "command": "fit", "input": args.input, "model": res.model.spec, "method": args.method,
-            "weights": args.weights, "n": int(res.wv.n_samples), "freq": args.freq,
-            "params": dict(zip(names, params, strict=True)),
-            "se": dict(zip(names, se, strict=True)),
-            "objective": getattr(res, "objective", None), "converged": converged,
-            "message": str(getattr(res, "message", "")),
-            "wv": _wv_dict(res.wv), "seconds_wv": seconds_wv, "seconds_fit": seconds_fit,
-        }
-        if check is not None:
-            obj["check"] = _check_json(check)
-        _print_json(obj, out)
+        objs = {c: _fit_json(args, c, f) for c, f in fits.items()}
+        if multi:
+            _print_json({"command": "fit", "input": args.input, "fits": objs}, out)
+        else:
+            _print_json(next(iter(objs.values())), out)
     else:
-        how = "AVSM" if args.method == "avsm" else f"{args.method.upper()} ({args.weights} weights)"
-        out.write(f"{how} fit of {res.model.spec} to {args.input}: T = {res.wv.n_samples} samples, "
-                  f"J = {res.wv.n_levels} scales, freq = {args.freq:g} Hz\n")
-        z = 1.959963984540054  # normal 97.5% quantile: 95% Wald intervals from the sandwich SE
-        rows = [(n, p, s, None if s is None else p - z * s, None if s is None else p + z * s)
-                for n, p, s in zip(names, params, se, strict=True)]
-        out.write(format_table(["parameter", "estimate", "se", "ci95_low", "ci95_high"], rows) + "\n")
-        out.write(f"objective {_fmt(getattr(res, 'objective', None))}, converged {'yes' if converged else 'NO'}; "
-                  f"WV {_fmt_s(seconds_wv)}, fit {_fmt_s(seconds_fit)}\n")
-        if check is not None:
-            out.write(_check_text(check) + "\n")
-    if not converged:
-        msg = str(getattr(res, "message", "")).strip().splitlines()
-        err.write("gmwm: warning: the optimizer did not converge"
-                  + (f" ({msg[0]})" if msg else "") + "; treat the estimate with care (exit status 3)\n")
-        return EXIT_NOT_CONVERGED
-    return EXIT_OK
-
-
-def _fmt_s(s: float | None) -> str:
-    return "-" if s is None else f"{s:.3f} s"
+        for i, (c, f) in enumerate(fits.items()):
+            if i:
+                out.write("\n")
+            _fit_text(args, c if multi else None, f, out)
+    return _fit_status(fits, err, multi)
 
 
 def _check_json(check: Any) -> Any:
@@ -623,6 +1105,9 @@ def _check_text(check: Any) -> str:
 
 
 def cmd_model_wv(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    if args.levels > MAX_MODEL_LEVELS:
+        raise InputError(f"--levels {args.levels} is too large: scales 2^j beyond 2^{MAX_MODEL_LEVELS} "
+                         f"samples exceed any recording (at most J = {MAX_MODEL_LEVELS})")
     model, theta = _model_theta(args.model, args.param, args.freq)
     if model.n_params > args.levels:
         # not an error (a theoretical WV is defined anyway) but worth a note for fitting
@@ -630,12 +1115,18 @@ def cmd_model_wv(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                   "identified from this WV\n")
     levels = np.arange(1, args.levels + 1)
     scales = 2.0 ** levels
-    total = model.wv(theta, scales)
-    comps = model.component_wv(theta, scales)
+    with np.errstate(all="ignore"):
+        total = model.wv(theta, scales)
+        comps = model.component_wv(theta, scales)
+    if not np.all(np.isfinite(total)):
+        j = int(levels[np.argmax(~np.isfinite(total))])
+        raise InputError(f"the model WV is not finite from level {j} on (scale 2^{j} samples): "
+                         "use fewer --levels")
+    units = (args.units or [""])[-1]
     if args.plot:
         from gmwm.plots import plot_model_wv
 
-        _save_plot(plot_model_wv(model, theta, scales, freq=args.freq, units=args.units), args.plot)
+        _save_plot(plot_model_wv(model, theta, scales, freq=args.freq, units=units), args.plot)
     if args.json:
         _print_json({"command": "model-wv", "model": model.spec, "params": model.as_dict(theta),
                      "freq": args.freq, "levels": levels.tolist(), "scales": scales.tolist(),
@@ -647,6 +1138,158 @@ def cmd_model_wv(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         rows = [(int(j), s, s / args.freq, t, *(c[i] for c in comps.values()))
                 for i, (j, s, t) in enumerate(zip(levels, scales, total, strict=True))]
         out.write(format_table(headers, rows) + "\n")
+    return EXIT_OK
+
+
+def cmd_report(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from gmwm.report import write_report
+
+    args.check = False
+    fits, _ = _fit_columns(args)
+    args.progress(f"writing the report to {args.output}")
+    per_axis = {c: {"result": f["result"], "units": f["units"], "warnings": f["warnings"],
+                    "datasheet": _datasheet(f["result"], f["units"])} for c, f in fits.items()}
+    files = write_report(args.output, per_axis, source=args.input,
+                         title=args.title or f"Calibration report: {Path(args.input).name}")
+    if args.json:
+        _print_json({"command": "report", "input": args.input, "files": [str(p) for p in files],
+                     "fits": {c: _fit_json(args, c, f) for c, f in fits.items()}}, out)
+    else:
+        out.write(f"report of {len(fits)} axes of {args.input} written to: "
+                  + ", ".join(str(p) for p in files if p.suffix in (".md", ".html", ".yaml")) + "\n")
+    return _fit_status(fits, err, True)
+
+
+# --------------------------------------------------------------------------------------------------
+# robust WV option (wv, fit) and the select command (model selection, gmwm.select)
+# --------------------------------------------------------------------------------------------------
+
+
+def _efficiency(text: str) -> float:
+    v = _positive_float(text)
+    if not 0.05 <= v <= 0.99:
+        raise argparse.ArgumentTypeError(f"must be in [0.05, 0.99], got {text!r}")
+    return v
+
+
+def _add_robust(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--robust", action="store_true",
+                   help="robust WV: Tukey-biweight M-estimate per scale (bounded influence of "
+                        "outliers); the CI uses eff x the chi-square edof")
+    p.add_argument("--eff", type=_efficiency, default=0.6, metavar="E",
+                   help="Gaussian efficiency of the robust WV (lower = more robust)")
+
+
+def _robust_kw(args: argparse.Namespace) -> dict[str, Any]:
+    return {"robust": True, "eff": args.eff} if getattr(args, "robust", False) else {}
+
+
+def _add_select_parser(sub: Any) -> None:
+    p = sub.add_parser(
+        "select", formatter_class=_Formatter, help="rank candidate models (model selection)",
+        description=(
+            "Fit each candidate model by GMWM to the signal's wavelet variance and rank them, best\n"
+            "first, by the Wavelet Information Criterion WIC = objective + k x tr(Omega A G V): an\n"
+            "estimate of how well the fitted model predicts the WV of a new signal (k = 2), or with\n"
+            "k = log T (--criterion wic-log) a consistent choice of the generating model.\n"
+            "--auto adds, for each MODEL given, the models with one or two of its components\n"
+            "removed and with one component added (WN, QN, RW, DR, up to 3 AR1/GM, up to 2 SIN)."
+        ),
+        epilog=(
+            "examples:\n"
+            "  gmwm select imu.csv 'WN+RW' 'WN+AR1' 'WN+AR1+RW' --column gyro_z --freq 200\n"
+            "  gmwm select imu.csv 'WN+AR1+RW' --auto --columns gx,gy,gz --json\n\n"
+            + _EXIT_STATUS_HELP
+        ),
+    )
+    _add_input(p)
+    p.add_argument("models", metavar="MODEL", nargs="+",
+                   help="candidate model strings (with --auto: base models)")
+    p.add_argument("--auto", action="store_true",
+                   help="build the candidate set from the MODEL(s) as base (see above)")
+    p.add_argument("--criterion", choices=("wic", "wic-log"), default="wic",
+                   help="wic: penalty factor 2 (prediction error); wic-log: factor log T "
+                        "(consistent)")
+    p.add_argument("--freq", type=_positive_float, default=None,
+                   help="sampling frequency in Hz (default: from the file, else 1)")
+    p.add_argument("--levels", "-J", type=_positive_int, default=None, metavar="J",
+                   help=_DEFAULT_LEVELS)
+    p.add_argument("--weights", choices=("ci", "gaussian", "identity"), default="ci",
+                   help="GMWM weight matrix of every fit")
+    p.add_argument("--n-starts", type=_positive_int, default=None, metavar="K",
+                   help="optimizer starts per fit (default: the library's)")
+    p.add_argument("--seed", type=int, default=0, help="seed for the random starting values")
+    _add_robust(p)
+    p.add_argument("--json", action="store_true", help="print machine-readable JSON on stdout")
+    p.add_argument("--quiet", "-q", action="store_true",
+                   help="no progress lines on stderr (they are shown only on a terminal anyway)")
+    p.set_defaults(func=cmd_select)
+
+
+def cmd_select(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from gmwm.model import Model
+    from gmwm.select import auto_candidates, rank_models
+
+    if args.auto:
+        models: list[str] = []
+        for base in args.models:
+            models += [m for m in auto_candidates(base) if m not in models]
+    else:
+        models = []
+        for m in args.models:  # model errors before reading the file
+            spec = Model(m).spec
+            models += [] if spec in models else [spec]
+    signals = _read_input(args)
+    options = {} if args.n_starts is None else {"n_starts": args.n_starts}
+    rankings: dict[str, tuple[Any, float]] = {}
+    for col, x in signals.items():
+        _check_levels(x.size, args.levels)
+        where = "" if args.columns is None else f" [{col}]"
+
+        def progress(i: int, n: int, spec: str, where: str = where) -> None:
+            args.progress(f"select{where}: fitting candidate {i}/{n}: {spec}")
+
+        t0 = time.perf_counter()
+        r = rank_models(x, models, criterion=args.criterion, levels=args.levels,
+                        freq=args.freq_hz, weights=args.weights, seed=args.seed,
+                        progress=progress, **_robust_kw(args), **options)
+        rankings[col] = (r, time.perf_counter() - t0)
+
+    def skipped(r: Any) -> list[dict[str, Any]]:
+        return [{"model": e.model, "error": e.error} for e in r.skipped]
+
+    if args.json:
+        obj: dict[str, Any] = {"command": "select", "input": args.input,
+                               "criterion": args.criterion, "robust": bool(args.robust),
+                               "candidates": models}
+        if args.columns is None:
+            r, sec = next(iter(rankings.values()))
+            obj.update(ranking=[e.to_json_dict() for e in r.ranked], penalty_factor=r.factor,
+                       skipped=skipped(r), seconds=sec)
+        else:
+            obj["rankings"] = {c: [e.to_json_dict() for e in r.ranked]
+                               for c, (r, _) in rankings.items()}
+            obj["skipped"] = {c: skipped(r) for c, (r, _) in rankings.items()}
+            obj["seconds"] = {c: sec for c, (_, sec) in rankings.items()}
+        _print_json(obj, out)
+    else:
+        for col, (r, sec) in rankings.items():
+            what = args.input if args.columns is None else f"{args.input} column {col}"
+            out.write(f"model ranking for {what}: T = {r.wv.n_samples}, J = {r.wv.n_levels}, "
+                      f"{args.criterion.upper()} = objective + {r.factor:.3g} x penalty"
+                      f"{', robust WV' if args.robust else ''}; {len(models)} candidates, "
+                      f"{sec:.2f} s\n")
+            rows = [(i, e.model, e.criterion, e.objective, e.penalty, e.n_params,
+                     "yes" if e.converged else "NO") for i, e in enumerate(r.ranked, 1)]
+            out.write(format_table(["rank", "model", "criterion", "objective", "penalty",
+                                    "n_params", "converged"], rows) + "\n")
+            for e in r.skipped:
+                out.write(f"skipped {e.model}: {e.error}\n")
+    for col, (r, _) in rankings.items():
+        if not r.best.converged:
+            where = "" if args.columns is None else f" (column {col})"
+            err.write(f"gmwm: warning: the best model {r.best.model}{where} did not converge; "
+                      "treat the ranking with care\n")
     return EXIT_OK
 
 
@@ -672,14 +1315,59 @@ def _silence_stdout() -> None:
         pass
 
 
+def _negative_count(argv: Sequence[str]) -> str | None:
+    """A model typed with a negative count, e.g. '-1*WN' (argparse would call it an option)."""
+    return next((a for a in argv if _NEGATIVE_COUNT.match(a)), None)
+
+
+def _python_warnings(caught: Sequence[warnings.WarningMessage], err: TextIO, debug: bool) -> None:
+    """Turn Python warnings raised while a command ran into ``gmwm: warning:`` lines.
+
+    Numerical RuntimeWarnings (overflow in a trial step, ...) are transients of the search whose
+    consequences the fit's own diagnostics report; deprecation notices concern us, not the user.
+    Both are shown only with ``--debug``.
+    """
+    seen: set[str] = set()
+    for w in caught:
+        text = (str(w.message).strip().splitlines() or [w.category.__name__])[0]
+        quiet = issubclass(w.category, RuntimeWarning | DeprecationWarning | PendingDeprecationWarning
+                           | FutureWarning) or w.category.__module__.startswith("numba")
+        if debug:
+            line = f"gmwm: debug: {w.category.__name__} at {Path(w.filename).name}:{w.lineno}: {text}"
+        elif quiet:
+            continue
+        else:
+            line = f"gmwm: warning: {text}"
+        if line not in seen:
+            seen.add(line)
+            err.write(line + "\n")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``gmwm`` command line; return the exit status (see the module docstring)."""
     out, err = sys.stdout, sys.stderr
+    argv = list(sys.argv[1:] if argv is None else argv)
+    bad = _negative_count(argv)
+    if bad is not None:
+        err.write(f"gmwm: error: model '{bad}': the number of components must be a positive "
+                  "integer, e.g. '2*AR1'\n")
+        return EXIT_ERROR
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, --version, usage errors
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
+    args.err = err
+    args.progress = _Progress(err, getattr(args, "quiet", False))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            return _run(args, out, err)
+        finally:
+            _python_warnings(caught, err, args.debug)
+
+
+def _run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     try:
         _check_args(args)
         return args.func(args, out, err)

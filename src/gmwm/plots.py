@@ -24,6 +24,7 @@ __all__ = [
     "STYLE",
     "boxplot_grouped",
     "boxplot_standardized",
+    "channel_grid",
     "new_axes",
     "plot_av",
     "plot_model_wv",
@@ -158,6 +159,8 @@ def _draw_model(
     if len(comps) < 2:  # a single component is the model line itself
         return
     for i, (name, y) in enumerate(comps.items()):
+        if not np.any(np.asarray(y, dtype=float) > 0):  # estimated at 0: nothing to draw or name
+            continue
         ax.plot(
             x,
             _positive(y),
@@ -227,23 +230,56 @@ def plot_wv(
     return ax
 
 
-def plot_av(av: Any, *, ax: Axes | None = None, units: str = "", label: str | None = None) -> Axes:
-    """Allan variance with its CI band, log-log against the cluster time m / freq.
+def plot_av(av: Any, *, ax: Axes | None = None, units: str = "", label: str | None = None,
+            deviation: bool = False, readings: Mapping[str, Any] | None = None) -> Axes:
+    """Allan variance (or, with ``deviation``, the Allan deviation) with its CI band, log-log against
+    the cluster time m / freq.
 
     ``av`` is a ``gmwm.wv.AllanVariance`` (``avar``, ``ci_low``, ``ci_high``, ``clusters`` in samples,
     ``freq``); objects with ``variance`` and ``scales`` (halved to cluster lengths) work too.
+    ``readings`` (from :func:`gmwm.datasheet.allan_readings`, deviation plot only) adds the IEEE 952
+    lines: slope -1/2 through N at 1 s, slope +1/2 through K at 3 s, and the bias-instability floor.
     """
     ax = new_axes(ax)
     freq = float(getattr(av, "freq", 1.0))
     m = _clusters(av)
+    values = np.asarray(_av_values(av), float)
+    lo, hi = np.asarray(av.ci_low, float), np.asarray(av.ci_high, float)
+    if deviation:
+        values, lo, hi = np.sqrt(values), np.sqrt(lo), np.sqrt(hi)
+    what = "Allan deviation" if deviation else "Allan variance"
     with style():
         _draw_estimate(
-            ax, m / freq, np.asarray(_av_values(av), float), np.asarray(av.ci_low, float),
-            np.asarray(av.ci_high, float), label or "Allan variance",
+            ax, m / freq, values, lo, hi, label or what,
             f"{100 * (1 - float(getattr(av, 'alpha', 0.05))):g}% CI",
         )
-        _finish_loglog(ax, _scale_label(freq, "Cluster time"), variance_label("Allan variance", units))
+        if deviation and readings:
+            _draw_readings(ax, m / freq, values, readings)
+        ylabel = (f"{what} [{units}]" if units else what) if deviation else variance_label(what, units)
+        _finish_loglog(ax, _scale_label(freq, "Cluster time"), ylabel)
     return ax
+
+
+def _draw_readings(ax: Axes, tau: np.ndarray, adev: np.ndarray, readings: Mapping[str, Any]) -> None:
+    """IEEE 952 lines in signal units: N tau^-1/2, K (tau/3)^1/2, floor 0.6643 B (dotted)."""
+    t = np.geomspace(tau.min(), tau.max(), 50)
+    for key, slope, at, color in (("N", -0.5, 1.0, PALETTE[2]), ("K", 0.5, 3.0, PALETTE[3])):
+        r = readings.get(key) or {}
+        if r.get("value") is None or not r.get("tau_range_s"):
+            continue
+        # the line through the points the reading used, in signal units
+        lo_t, hi_t = r["tau_range_s"]
+        sel = (tau >= lo_t) & (tau <= hi_t)
+        if not sel.any():
+            continue
+        c = float(np.exp(np.mean(np.log(adev[sel]) - slope * np.log(tau[sel]))))
+        ax.plot(t, c * t ** slope, ls=":", lw=1.0, color=color, gid=f"reading_{key}",
+                label=f"{key}: slope {slope:+g} (read at {at:g} s)")
+    b = readings.get("B") or {}
+    if b.get("tau_s") is not None:
+        i = int(np.argmin(np.abs(tau - b["tau_s"])))
+        ax.axhline(adev[i], ls=":", lw=1.0, color=PALETTE[4], gid="reading_B",
+                   label="B: 0.664 B floor (AD minimum)")
 
 
 def _av_values(av: Any) -> np.ndarray:
@@ -255,6 +291,20 @@ def _clusters(av: Any) -> np.ndarray:
         if getattr(av, name, None) is not None:
             return np.asarray(getattr(av, name), dtype=float)
     return np.asarray(av.scales, dtype=float) / 2.0
+
+
+def channel_grid(n: int, ncols: int = 3, panel: tuple[float, float] = (3.6, 2.7)
+                 ) -> tuple[Figure, list[Axes]]:
+    """A styled Figure with ``n`` panels (one per channel of an IMU), row-major, ``ncols`` wide;
+    unused grid cells are hidden. Returns the Figure and the ``n`` Axes."""
+    ncols = max(1, min(ncols, n))
+    nrows = -(-n // ncols)
+    fig, axes = subplots(nrows, ncols, squeeze=False,
+                         figsize=(panel[0] * ncols + 0.3, panel[1] * nrows + 0.2) if n > 1 else None)
+    flat = list(axes.ravel())
+    for ax in flat[n:]:
+        ax.set_visible(False)
+    return fig, flat[:n]
 
 
 def plot_model_wv(

@@ -372,3 +372,14 @@ def datasheet_wv(model: DatasheetModel, scales, bi_form: str = "band-limited") -
     else:
         raise InputError(f"unknown bi_form {bi_form!r}: use 'band-limited' or 'ideal'")
     return {"WN": wn, "BI": bwv, "total": wn + bwv}
+
+
+# --- datasheet coefficients of a fit ----------------------------------------------------------
+
+def datasheet(result, units: str | None = None, alpha: float = 0.05) -> dict[str, dict]:
+    """Continuous datasheet coefficients (ARW/VRW, RRW/AccRW, QN, RR, GM[k], SIN[k]) of a fit in
+    the units datasheets print for a signal in ``units`` ('deg/s', 'rad/s', 'm/s^2', 'g'), with
+    95 % CIs; see :func:`gmwm.datasheet.datasheet`."""
+    from gmwm.datasheet import datasheet as _datasheet
+
+    return _datasheet(result, units, alpha)

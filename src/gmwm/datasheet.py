@@ -1,0 +1,354 @@
+"""Datasheet coefficients of a fitted error model and the IEEE 952 Allan-deviation readings.
+
+:func:`datasheet` turns the discrete, per-sample parameters of a GMWM fit into the continuous
+coefficients a datasheet prints, in the user's units (SPEC section 3):
+
+==========  ==================  ===========================================================
+term        from                value (``u`` = signal unit, ``f_s`` = sampling frequency)
+==========  ==================  ===========================================================
+ARW / VRW   ``WN[k].sigma2``    N = sqrt(sigma2 / f_s) [u sqrt(s) = u/sqrt(Hz)]
+RRW / AccRW ``RW[k].gamma2``    K = sqrt(gamma2 f_s) [u/sqrt(s)]
+QN          ``QN[k].Q2``        Q = sqrt(Q2) / f_s [u s]
+RR          ``DR[k].omega``     R = omega f_s [u/s] (rate ramp)
+GM[k]       ``AR1``/``GM``      correlation time 1/beta = -1/(f_s ln phi) [s], stationary sigma [u]
+SIN[k]      ``SIN``             frequency beta f_s / (2 pi) [Hz], amplitude alpha [u]
+==========  ==================  ===========================================================
+
+then scaled to the datasheet units of :data:`UNIT_SYSTEMS` (e.g. deg/sqrt(h), deg/h/sqrt(h) for a
+gyroscope in deg/s). Confidence intervals come from the fit's covariance by the delta method, formed
+on the log scale so they stay positive. The module imports only NumPy (fast CLI start).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from statistics import NormalDist
+from typing import Any
+
+import numpy as np
+
+from gmwm.errors import InputError
+
+__all__ = ["UNIT_SYSTEMS", "UnitSystem", "allan_readings", "datasheet", "kalibr_yaml",
+           "noise_densities", "unit_system"]
+
+G0 = 9.80665  # standard gravity, m/s^2
+BI_AD_FACTOR = math.sqrt(2.0 * math.log(2.0) / math.pi)  # AD floor of flicker noise = 0.6643 B
+
+
+@dataclass(frozen=True)
+class UnitSystem:
+    """How a datasheet prints the coefficients of a signal in unit ``unit``.
+
+    Each entry is ``(label, factor)``: the datasheet value is ``factor`` times the SI-second
+    coefficient in signal units (white: u sqrt(s); random walk: u/sqrt(s); QN: u s; ramp: u/s;
+    level (GM sigma, SIN amplitude, bias instability): u). ``si`` converts one signal unit to SI
+    (rad/s or m/s^2) for Kalibr-style noise densities; ``sensor`` is 'gyroscope', 'accelerometer'
+    or None.
+    """
+
+    unit: str
+    sensor: str | None
+    white_name: str
+    rw_name: str
+    white: tuple[str, float]
+    rw: tuple[str, float]
+    qn: tuple[str, float]
+    ramp: tuple[str, float]
+    level: tuple[str, float]
+    si: float | None
+
+
+_H, _SQH = 3600.0, 60.0
+UNIT_SYSTEMS: Mapping[str, UnitSystem] = {
+    "deg/s": UnitSystem("deg/s", "gyroscope", "ARW", "RRW", ("deg/sqrt(h)", _SQH),
+                        ("deg/h/sqrt(h)", _H * _SQH), ("deg", 1.0), ("deg/h/h", _H * _H),
+                        ("deg/h", _H), math.pi / 180.0),
+    "rad/s": UnitSystem("rad/s", "gyroscope", "ARW", "RRW", ("rad/s/sqrt(Hz)", 1.0),
+                        ("rad/s^2/sqrt(Hz)", 1.0), ("rad", 1.0), ("rad/s^2", 1.0), ("rad/s", 1.0),
+                        1.0),
+    "m/s^2": UnitSystem("m/s^2", "accelerometer", "VRW", "AccRW", ("m/s/sqrt(h)", _SQH),
+                        ("m/s/h/sqrt(h)", _H * _SQH), ("m/s", 1.0), ("m/s/h/h", _H * _H),
+                        ("mg", 1e3 / G0), 1.0),
+    "g": UnitSystem("g", "accelerometer", "VRW", "AccRW", ("m/s/sqrt(h)", G0 * _SQH),
+                    ("m/s/h/sqrt(h)", G0 * _H * _SQH), ("m/s", G0), ("m/s/h/h", G0 * _H * _H),
+                    ("mg", 1e3), G0),
+}
+_ALIASES = {"deg/sec": "deg/s", "dps": "deg/s", "°/s": "deg/s", "rad/sec": "rad/s",
+            "m/s2": "m/s^2", "m/s**2": "m/s^2", "m/s²": "m/s^2", "mps2": "m/s^2"}
+
+
+def unit_system(units: str | None) -> UnitSystem:
+    """The :class:`UnitSystem` of ``units`` ('deg/s', 'rad/s', 'm/s^2', 'g'); any other text (or
+    None: 'u') gives generic SI-second labels built from it, e.g. 'V/sqrt(Hz)'."""
+    key = (units or "").strip()
+    key = _ALIASES.get(key.lower(), key)
+    if key in UNIT_SYSTEMS:
+        return UNIT_SYSTEMS[key]
+    if key.lower() == "g":
+        return UNIT_SYSTEMS["g"]
+    u = key or "u"
+    wrap = f"({u})" if any(c in u for c in "/*^ ") else u
+    return UnitSystem(u, None, "WN", "RW", (f"{wrap}/sqrt(Hz)", 1.0), (f"{wrap}/sqrt(s)", 1.0),
+                      (f"{wrap}*s", 1.0), (f"{wrap}/s", 1.0), (u, 1.0), None)
+
+
+# --------------------------------------------------------------------------------------------------
+# datasheet coefficients of a fit
+# --------------------------------------------------------------------------------------------------
+
+
+def _split(name: str) -> tuple[str, int, str]:
+    comp, par = name.split(".", 1)
+    ctype, k = comp[:-1].split("[")
+    return ctype, int(k), par
+
+
+def _entry(value: float, unit: str, ci: tuple[float, float] | None, params: Sequence[str]
+           ) -> dict[str, Any]:
+    return {"value": float(value), "unit": unit,
+            "ci95": None if ci is None else [float(ci[0]), float(ci[1])], "parameters": list(params)}
+
+
+def _delta_ci(fn, theta: np.ndarray, cov: np.ndarray | None, z: float) -> tuple[float, float] | None:
+    """CI of the positive quantity ``fn(theta)`` by the delta method on the log scale."""
+    value = fn(theta)
+    if cov is None or not np.all(np.isfinite(cov)) or not (value > 0 and np.isfinite(value)):
+        return None
+    grad = np.empty(theta.size)
+    for i in range(theta.size):
+        h = 1e-6 * max(abs(theta[i]), 1e-300)
+        up, dn = theta.copy(), theta.copy()
+        up[i] += h
+        dn[i] -= h
+        grad[i] = (fn(up) - fn(dn)) / (2 * h)
+    if not np.all(np.isfinite(grad)):
+        return None
+    var = float(grad @ cov @ grad)
+    if not np.isfinite(var) or var < 0:
+        return None
+    half = z * math.sqrt(var) / value
+    return value * math.exp(-half), value * math.exp(half)
+
+
+def _fit_cov(result: Any, idx: list[int]) -> np.ndarray | None:
+    cov = getattr(result, "cov", None)
+    if cov is not None:
+        cov = np.asarray(cov, float)
+        if cov.ndim == 2 and cov.shape[0] > max(idx):
+            return cov[np.ix_(idx, idx)]
+    se = getattr(result, "se", None)
+    if se is None:
+        return None
+    return np.diag(np.asarray(se, float)[idx] ** 2)
+
+
+def datasheet(result: Any, units: str | None = None, alpha: float = 0.05) -> dict[str, dict]:
+    """Continuous datasheet coefficients of a fit (see the module table), keyed by term.
+
+    ``result`` has ``params``, ``param_names``, ``se`` (and ``cov``), ``wv.freq`` [Hz]; ``units`` is
+    the signal unit ('deg/s', 'rad/s', 'm/s^2', 'g' or any label). Returns e.g.
+    ``{"ARW": {"value", "unit", "ci95", "parameters"}, "GM[1]": {"correlation_time": {...},
+    "sigma": {...}}, "SIN[1]": {"frequency": {...}, "amplitude": {...}}}``; ``ci95`` is None when the
+    fit has no usable standard error (e.g. a component at the boundary 0).
+    """
+    us = unit_system(units)
+    freq = float(result.wv.freq)
+    names = list(result.param_names)
+    theta_all = np.asarray(result.params, float)
+    z = NormalDist().inv_cdf(1 - alpha / 2)
+    comps: dict[tuple[str, int], dict[str, int]] = {}
+    for i, name in enumerate(names):
+        ctype, k, par = _split(name)
+        comps.setdefault((ctype, k), {})[par] = i
+    counts: dict[str, int] = {}
+    for ctype, _ in comps:
+        counts[ctype] = counts.get(ctype, 0) + 1
+    out: dict[str, dict] = {}
+
+    def scalar(key: str, par_idx: int, fn, label_factor: tuple[str, float]) -> None:
+        label, factor = label_factor
+        theta = theta_all[[par_idx]]
+        cov = _fit_cov(result, [par_idx])
+        ci = _delta_ci(lambda t: factor * fn(t[0]), theta, cov, z)
+        out[key] = _entry(factor * fn(theta[0]), label, ci, [names[par_idx]])
+
+    def pair(idx: list[int], fns: dict[str, tuple[Any, tuple[str, float]]]) -> dict[str, Any]:
+        theta = theta_all[idx]
+        cov = _fit_cov(result, idx)
+        entry: dict[str, Any] = {}
+        for what, (fn, (label, factor)) in fns.items():
+            ci = _delta_ci(lambda t, fn=fn, f=factor: f * fn(t), theta, cov, z)
+            entry[what] = _entry(factor * fn(theta), label, ci, [names[i] for i in idx])
+        return entry
+
+    gm_k = 0
+    for (ctype, k), pars in comps.items():
+        suffix = f"[{k}]" if counts[ctype] > 1 else ""
+        if ctype == "WN":
+            scalar(us.white_name + suffix, pars["sigma2"], lambda s: math.sqrt(max(s, 0.0) / freq),
+                   us.white)
+        elif ctype == "RW":
+            scalar(us.rw_name + suffix, pars["gamma2"], lambda g: math.sqrt(max(g, 0.0) * freq), us.rw)
+        elif ctype == "QN":
+            scalar("QN" + suffix, pars["Q2"], lambda q: math.sqrt(max(q, 0.0)) / freq, us.qn)
+        elif ctype == "DR":
+            scalar("RR" + suffix, pars["omega"], lambda w: w * freq, us.ramp)
+        elif ctype == "SIN":
+            idx = [pars["alpha"], pars["beta"]]
+            out[f"SIN[{k}]"] = pair(idx, {
+                "frequency": (lambda t: t[1] * freq / (2 * math.pi), ("Hz", 1.0)),
+                "amplitude": (lambda t: abs(t[0]), us.level)})
+        elif ctype == "GM":
+            gm_k += 1
+            idx = [pars["beta"], pars["sigma2"]]
+            out[f"GM[{gm_k}]"] = pair(idx, {
+                "correlation_time": (lambda t: 1.0 / t[0] if t[0] > 0 else math.inf, ("s", 1.0)),
+                "sigma": (lambda t: math.sqrt(max(t[1], 0.0)), us.level)})
+        elif ctype == "AR1":
+            idx = [pars["phi"], pars["sigma2"]]
+            phi = theta_all[idx[0]]
+            sigma = {"sigma": (lambda t: math.sqrt(max(t[1], 0.0) / max(1.0 - t[0] ** 2, 1e-300)),
+                               us.level)}
+            if 0.0 < phi < 1.0:  # a Gauss-Markov process sampled at f_s
+                gm_k += 1
+                out[f"GM[{gm_k}]"] = pair(idx, {
+                    "correlation_time": (lambda t: -1.0 / (freq * math.log(min(max(t[0], 1e-300),
+                                                                             1 - 1e-16))), ("s", 1.0)),
+                    **sigma})
+            else:  # phi <= 0 has no continuous-time counterpart: report the AR1 itself
+                entry = pair(idx, sigma)
+                entry["phi"] = _entry(phi, "", None, [names[idx[0]]])
+                out[f"AR1[{k}]"] = entry
+    return out
+
+
+# --------------------------------------------------------------------------------------------------
+# IEEE 952 Allan-deviation readings
+# --------------------------------------------------------------------------------------------------
+
+
+def _line_reading(tau: np.ndarray, adev: np.ndarray, lo: np.ndarray, hi: np.ndarray, w: np.ndarray,
+                  slope: float, tau_read: float, tol: float) -> dict[str, Any] | None:
+    """Fixed-slope line through the longest-weighted run of points whose local log-log slope is
+    within ``tol`` of ``slope``, read at ``tau_read`` [s]. CI: the same line through the points'
+    CI bounds (edof-weighted), i.e. about one point's uncertainty (conservative)."""
+    lt, ld = np.log10(tau), np.log10(adev)
+    if tau.size < 3:
+        return None
+    local = np.gradient(ld, lt)
+    ok = np.abs(local - slope) <= tol
+    runs, start = [], None
+    for i, flag in enumerate([*ok, False]):
+        if flag and start is None:
+            start = i
+        elif not flag and start is not None:
+            runs.append((start, i))
+            start = None
+    if not runs:
+        return None
+    a, b = max(runs, key=lambda r: float(w[r[0]:r[1]].sum()))
+    ww = w[a:b] / w[a:b].sum()
+
+    def at(y: np.ndarray) -> float:
+        c = float(ww @ (np.log10(y[a:b]) - slope * lt[a:b]))
+        return 10.0 ** (c + slope * math.log10(tau_read))
+
+    return {"value": at(adev), "ci95": [at(lo), at(hi)], "tau_range_s": [float(tau[a]),
+                                                                          float(tau[b - 1])],
+            "n_points": b - a, "extrapolated": not tau[a] <= tau_read <= tau[b - 1]}
+
+
+def allan_readings(av: Any, units: str | None = None, tol: float = 0.15) -> dict[str, dict]:
+    """IEEE 952 readings of a maximal-overlap Allan variance ``av`` (``tau`` [s], ``avar``,
+    ``ci_low``, ``ci_high``, ``clusters``, ``n``):
+
+    * ``N`` (white noise, ARW/VRW): the slope -1/2 line read at tau = 1 s;
+    * ``K`` (random walk, RRW/AccRW): the slope +1/2 line read at tau = 3 s;
+    * ``B`` (bias instability): the AD minimum / 0.6643 (``at_end`` when the minimum is the longest
+      cluster time, so B is then an upper bound of the floor not yet reached).
+
+    Slope lines use the points whose local log-log slope is within ``tol`` of the nominal one.
+    Values in the datasheet units of ``units`` (N, K, B labels as in :func:`datasheet`); a reading
+    with no region of its slope is ``{"value": None, "note": ...}``.
+    """
+    us = unit_system(units)
+    tau = np.asarray(av.tau, float)
+    var = np.asarray(av.avar, float)
+    lo, hi = np.asarray(av.ci_low, float), np.asarray(av.ci_high, float)
+    m = np.asarray(av.clusters, float)
+    n = np.asarray(av.n, float)
+    keep = (var > 0) & (lo > 0) & np.isfinite(hi)
+    if keep.sum() < 3:
+        raise InputError("the Allan variance needs at least 3 positive values for the readings")
+    tau, var, lo, hi, m, n = (a[keep] for a in (tau, var, lo, hi, m, n))
+    adev, dlo, dhi = np.sqrt(var), np.sqrt(lo), np.sqrt(hi)
+    w = np.maximum(n / (2.0 * m), 1.0)  # equivalent degrees of freedom of each point
+    out: dict[str, dict] = {}
+    for key, slope, tau_read, (label, factor), name in (
+            ("N", -0.5, 1.0, us.white, us.white_name), ("K", 0.5, 3.0, us.rw, us.rw_name)):
+        r = _line_reading(tau, adev, dlo, dhi, w, slope, tau_read, tol)
+        if r is None:
+            out[key] = {"value": None, "unit": label, "ci95": None, "name": name,
+                        "note": f"no region of slope {slope:+g} in the Allan deviation"}
+            continue
+        r["value"] *= factor
+        r["ci95"] = [c * factor for c in r["ci95"]]
+        out[key] = {"name": name, "unit": label, **r, "read_at_tau_s": tau_read}
+    i = int(np.argmin(adev))
+    label, factor = us.level
+    out["B"] = {"name": "bias instability", "value": factor * adev[i] / BI_AD_FACTOR, "unit": label,
+                "ci95": [factor * dlo[i] / BI_AD_FACTOR, factor * dhi[i] / BI_AD_FACTOR],
+                "tau_s": float(tau[i]), "at_end": bool(i == adev.size - 1)}
+    return out
+
+
+# --------------------------------------------------------------------------------------------------
+# Kalibr-style noise densities
+# --------------------------------------------------------------------------------------------------
+
+
+def noise_densities(result: Any, units: str) -> dict[str, float | None]:
+    """White-noise density [SI/sqrt(Hz)] and random-walk density [SI/s/sqrt(Hz)] of a fit, in
+    rad/s (gyroscope) or m/s^2 (accelerometer), as Kalibr-style tools expect; None for a term
+    the model lacks. ``units`` must be one of 'deg/s', 'rad/s', 'm/s^2', 'g'."""
+    us = unit_system(units)
+    if us.si is None:
+        raise InputError(f"noise densities need a known unit (deg/s, rad/s, m/s^2, g), got {units!r}")
+    freq = float(result.wv.freq)
+    d = dict(zip(result.param_names, np.asarray(result.params, float), strict=True))
+    wn = d.get("WN[1].sigma2")
+    rw = d.get("RW[1].gamma2")
+    return {"noise_density": None if wn is None else us.si * math.sqrt(max(wn, 0.0) / freq),
+            "random_walk": None if rw is None else us.si * math.sqrt(max(rw, 0.0) * freq)}
+
+
+def kalibr_yaml(per_axis: Mapping[str, tuple[str, Any]], update_rate: float) -> str:
+    """A Kalibr ``imu.yaml`` block from fits: ``per_axis[column] = (units, result)``.
+
+    Each sensor type gets the largest density over its axes (the conservative choice for a filter);
+    the comment lines name the axis each value came from. Keys: gyroscope_noise_density
+    [rad/s/sqrt(Hz)], gyroscope_random_walk [rad/s^2/sqrt(Hz)], accelerometer_noise_density
+    [m/s^2/sqrt(Hz)], accelerometer_random_walk [m/s^3/sqrt(Hz)], update_rate [Hz].
+    """
+    best: dict[str, tuple[float, str]] = {}
+    for col, (units, res) in per_axis.items():
+        sensor = unit_system(units).sensor
+        if sensor is None:
+            continue
+        prefix = "gyroscope" if sensor == "gyroscope" else "accelerometer"
+        for key, v in noise_densities(res, units).items():
+            name = f"{prefix}_{key}"
+            if v is not None and (name not in best or v > best[name][0]):
+                best[name] = (v, col)
+    lines = ["# noise densities of the largest axis per sensor, SI units (Kalibr imu.yaml)"]
+    for name in ("accelerometer_noise_density", "accelerometer_random_walk",
+                 "gyroscope_noise_density", "gyroscope_random_walk"):
+        if name in best:
+            lines.append(f"{name}: {best[name][0]:.6e}  # from {best[name][1]}")
+        else:
+            lines.append(f"# {name}: not estimated (no such axis or term in the model)")
+    lines.append(f"update_rate: {update_rate:g}")
+    return "\n".join(lines)

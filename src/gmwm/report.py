@@ -1,0 +1,134 @@
+"""Calibration report of an IMU: one Markdown page and one HTML page over all its axes.
+
+Per axis: the empirical WV with the fitted model and its components (PNG), the datasheet
+coefficients with 95 % CIs (:func:`gmwm.datasheet.datasheet`) and the fit's warnings; at the end a
+YAML block of noise densities as Kalibr-style tools expect (:func:`gmwm.datasheet.kalibr_yaml`),
+also written alone as ``imu.yaml``. Every file is written atomically.
+"""
+
+from __future__ import annotations
+
+import html
+import os
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from gmwm import __version__
+from gmwm.datasheet import kalibr_yaml
+from gmwm.errors import InputError
+
+__all__ = ["write_report"]
+
+
+def _slug(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_") or "axis"
+
+
+def _num(v: Any) -> str:
+    return "–" if v is None else f"{float(v):.4g}"
+
+
+def _rows(ds: Mapping[str, dict]) -> list[tuple[str, str, str, str, str]]:
+    """(term, quantity, value, 95 % CI, unit) rows of a datasheet dict."""
+    out = []
+    for term, e in ds.items():
+        parts = [("", e)] if "value" in e else list(e.items())
+        for what, v in parts:
+            ci = v.get("ci95")
+            ci_text = "–" if not ci else f"[{_num(ci[0])}, {_num(ci[1])}]"
+            out.append((term, what.replace("_", " "), _num(v["value"]), ci_text, v["unit"] or "–"))
+    return out
+
+
+def _md_table(headers: list[str], rows: list[tuple]) -> list[str]:
+    lines = ["| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
+    lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return lines
+
+
+def _html_table(headers: list[str], rows: list[tuple]) -> str:
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>"
+                   for r in rows)
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]], *, source: str,
+                 title: str) -> list[Path]:
+    """Write ``report.md``, ``report.html``, ``imu.yaml`` and one ``<axis>_wv.png`` per axis to
+    ``outdir``; return the paths.
+
+    ``axes[name]`` holds ``result`` (a GMWM fit), ``units`` (signal unit; deg/s or rad/s mark a
+    gyroscope, m/s^2 or g an accelerometer), ``warnings`` (list of str) and ``datasheet``.
+    """
+    from gmwm.io import save_figure, write_text_atomic
+    from gmwm.plots import plot_wv
+
+    out = Path(outdir)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"report directory {out} exists and is not a directory")
+    out.mkdir(parents=True, exist_ok=True)
+    if not axes:
+        raise InputError("the report needs at least one axis")
+    freq = float(next(iter(axes.values()))["result"].wv.freq)
+    written: list[Path] = []
+    md = [f"# {title}", "",
+          f"Input `{source}`, sampling frequency {freq:g} Hz, {len(axes)} axes; "
+          f"GMWM fits by gmwm {__version__}. Coefficients are continuous-time datasheet values "
+          "with 95 % delta-method intervals; per-sample parameters are in the JSON output.", ""]
+    body: list[str] = [f"<h1>{html.escape(title)}</h1>",
+                       f"<p>Input <code>{html.escape(source)}</code>, sampling frequency {freq:g} Hz, "
+                       f"{len(axes)} axes; GMWM fits by gmwm {html.escape(__version__)}.</p>"]
+    summary = []
+    for name, a in axes.items():
+        res = a["result"]
+        ds = a["datasheet"]
+        white = next((v for k, v in ds.items() if k.split("[")[0] in ("ARW", "VRW", "WN")), None)
+        rw = next((v for k, v in ds.items() if k.split("[")[0] in ("RRW", "AccRW", "RW")), None)
+        summary.append((name, a["units"] or "–", res.model.spec,
+                        "–" if white is None else f"{_num(white['value'])} {white['unit']}",
+                        "–" if rw is None else f"{_num(rw['value'])} {rw['unit']}",
+                        len(a["warnings"])))
+    headers = ["axis", "unit", "model", "white noise", "random walk", "warnings"]
+    md += ["## Summary", "", *_md_table(headers, summary), ""]
+    body += ["<h2>Summary</h2>", _html_table(headers, summary)]
+    for name, a in axes.items():
+        res = a["result"]
+        png = out / f"{_slug(name)}_wv.png"
+        ax = plot_wv(res.wv, result=res, units=a["units"] or "")
+        ax.set_title(f"{name}: {res.model.spec}")
+        written += save_figure(ax.figure, png)
+        rows = _rows(a["datasheet"])
+        th = ["term", "quantity", "value", "95% CI", "unit"]
+        md += [f"## {name}", "",
+               f"Model `{res.model.spec}`, T = {res.wv.n_samples} samples, J = {res.wv.n_levels} "
+               f"scales, objective {float(getattr(res, 'objective', float('nan'))):.4g}, converged "
+               f"{'yes' if getattr(res, 'converged', True) else 'NO'}.", "",
+               f"![WV of {name} with the fitted model]({png.name})", "", *_md_table(th, rows), ""]
+        body += [f"<h2>{html.escape(name)}</h2>",
+                 f"<p>Model <code>{html.escape(res.model.spec)}</code>, T = {res.wv.n_samples} "
+                 f"samples, J = {res.wv.n_levels} scales.</p>",
+                 f'<img src="{html.escape(png.name)}" alt="WV of {html.escape(name)}" width="560">',
+                 _html_table(th, rows)]
+        if a["warnings"]:
+            md += ["Warnings:", "", *(f"- {w}" for w in a["warnings"]), ""]
+            body += ["<p>Warnings:</p><ul>"
+                     + "".join(f"<li>{html.escape(w)}</li>" for w in a["warnings"]) + "</ul>"]
+        else:
+            md += ["No warnings.", ""]
+            body += ["<p>No warnings.</p>"]
+    yaml = kalibr_yaml({n: (a["units"], a["result"]) for n, a in axes.items()}, freq)
+    md += ["## Noise densities (Kalibr imu.yaml)", "", "```yaml", yaml, "```", ""]
+    body += ["<h2>Noise densities (Kalibr imu.yaml)</h2>", f"<pre>{html.escape(yaml)}</pre>"]
+    style = ("body{font-family:sans-serif;max-width:60em;margin:2em auto;padding:0 1em}"
+             "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;"
+             "padding:.2em .6em;text-align:right}th{background:#f4f4f4}pre{background:#f8f8f8;"
+             "padding:1em}")
+    page = (f"<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{html.escape(title)}"
+            f"</title><style>{style}</style></head><body>\n" + "\n".join(body) + "\n</body></html>\n")
+    written.append(write_text_atomic(out / "report.md", "\n".join(md)))
+    written.append(write_text_atomic(out / "report.html", page))
+    written.append(write_text_atomic(out / "imu.yaml", yaml + "\n"))
+    return written
