@@ -281,3 +281,26 @@ def test_rdvg_recovers_q_based_coefficients():
     y = np.linalg.solve(Q, np.ones(6))
     assert np.max(np.abs(res.coef - y / y.sum())) < 0.03
     assert res.extra["q_positive_definite"]
+
+
+# --- CLI ------------------------------------------------------------------------------------------
+def test_cli_svo(tmp_path, capsys):
+    from gmwm.cli import main
+
+    X = _array(4096, 3, np.random.default_rng(14))
+    path = tmp_path / "arr.npy"
+    np.save(path, X)
+    out_csv = tmp_path / "v.csv"
+    assert main(["svo", str(path), "--columns", "0,1,2", "--freq", "10", "--n-boot", "20",
+                 "-o", str(out_csv), "--plot", str(tmp_path / "v.png"), "-q"]) == 0
+    text = capsys.readouterr().out
+    assert "95% CI" in text and (tmp_path / "v.png").stat().st_size > 0
+    table = np.genfromtxt(out_csv, delimiter=",", names=True)
+    np.testing.assert_allclose(table["variance"],
+                               svo(X, "short", freq=10.0, n_boot=0).wv().variance, rtol=1e-12)
+    for argv, msg in ((["--columns", "0", ], "at least 2"),
+                      (["--columns", "0,1", "--weights", "nope"], "not 'short', 'long'"),
+                      (["--columns", "0,1", "-o", str(tmp_path / "x.txt")], "use a .csv")):
+        code = main(["svo", str(path), *argv, "-q"])
+        err = capsys.readouterr().err
+        assert code != 0 and msg in err and "Traceback" not in err and err.count("\n") == 1

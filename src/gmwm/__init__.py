@@ -19,6 +19,8 @@ from typing import Any
 # Imported eagerly: importing the submodule gmwm.fit would otherwise rebind the package
 # attribute ``fit`` to the module instead of the function.
 from .fit import GMWMResult, fit
+# Same for gmwm.svo (module and function share the name).
+from .svo import svo
 
 __version__ = "0.1.0"
 
@@ -28,11 +30,12 @@ _EXPORTS = {
     "Model": "model",
     "wvar": "wv", "avar": "wv", "WaveletVariance": "wv", "AllanVariance": "wv",
     "fit_avsm": "avsm",
+    "svo": "svo",
 }
 
 __all__ = ["AllanVariance", "DataUnavailableError", "GMWMError", "GMWMResult",
            "IdentifiabilityError", "InputError", "Model", "ModelError", "WaveletVariance", "avar",
-           "fit", "fit_avsm", "wvar"]
+           "fit", "fit_avsm", "svo", "wvar"]
 
 
 def __getattr__(name: str) -> Any:

@@ -380,7 +380,43 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--title", default=None, help="page title (default: the input file name)")
     p.set_defaults(func=cmd_report)
     _add_select_parser(sub)
+    _add_svo_parser(sub)
     return parser
+
+
+def _add_svo_parser(sub: Any) -> None:
+    """``gmwm svo``: virtual gyroscope from redundant signals of one axis (paper 003)."""
+    p = sub.add_parser(
+        "svo", formatter_class=_Formatter,
+        help="virtual gyroscope from redundant gyros (Scale-wise Variance Optimisation)",
+        description="Combine p signals of one axis into S = c'X (sum of c = 1) minimising the\n"
+                    "omega-weighted Haar wavelet variance of S (SVO, paper 003), with moving-block\n"
+                    "bootstrap CIs for c. --method rdvg / equal give the comparison methods.",
+        epilog="examples:\n  gmwm svo array.csv --columns g1,g2,g3,g4,g5,g6 --weights short --freq 10\n"
+               "  gmwm svo array.npy --columns all --weights long -o virtual_wv.csv --plot svo.png\n"
+               "  gmwm svo array.csv --columns all --weights omega.txt --json\n\n"
+               + _EXIT_STATUS_HELP,
+    )
+    p.add_argument("input", metavar="FILE", help="signals: .npy, .csv/.tsv/.txt or HDF5")
+    p.add_argument("--columns", type=_columns, required=True, metavar="C1,C2,...|all",
+                   help="the p >= 2 signals (names or 0-based indices; HDF5: dataset paths)")
+    p.add_argument("--dataset", default=None, help="HDF5 dataset path of a 2-D array")
+    p.add_argument("--weights", "-w", default="short", metavar="short|long|equal|FILE",
+                   help="scale weights omega: 'short' (paper omega_2, from level 1), 'long' (paper "
+                        "omega_1, ending at level J), 'equal', or a file with J numbers "
+                        "(renormalised)")
+    p.add_argument("--method", choices=("svo", "rdvg", "equal"), default="svo",
+                   help="svo (default), rdvg (minimum random-walk variance) or equal weights")
+    p.add_argument("--n-boot", type=_nonneg_int, default=500,
+                   help="moving-block bootstrap draws for the CIs (0: no CIs)")
+    p.add_argument("--block-const", type=_positive_float, default=10.0, metavar="A",
+                   help="block length l = A * T^(1/3) samples")
+    p.add_argument("--seed", type=_nonneg_int, default=0, help="seed of the bootstrap draws")
+    p.add_argument("--alpha", type=_alpha, default=0.05, help="CI level is 1 - alpha")
+    p.add_argument("-o", "--output", metavar="TABLE.csv", default=None,
+                   help="write the virtual signal's WV table as CSV (readable by 'gmwm fit')")
+    _add_common(p, _DEFAULT_LEVELS)
+    p.set_defaults(func=cmd_svo)
 
 
 def _add_fit_options(p: argparse.ArgumentParser) -> None:
@@ -1341,6 +1377,50 @@ def _python_warnings(caught: Sequence[warnings.WarningMessage], err: TextIO, deb
         if line not in seen:
             seen.add(line)
             err.write(line + "\n")
+
+
+def cmd_svo(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    """Virtual gyroscope: coefficients with CIs, the virtual WV table (-o), a WV figure (--plot)."""
+    from gmwm.svo import equal, plot_virtual_wv, rdvg, read_weights, svo
+
+    if args.output and Path(args.output).suffix.lower() != ".csv":
+        raise UsageError(f"--output {args.output}: the table is written as CSV, use a .csv name")
+    args.column = None
+    signals = _read_input(args)
+    if len(signals) < 2:
+        raise InputError(f"--columns selected {len(signals)} signal; at least 2 are needed")
+    lengths = {len(x) for x in signals.values()}
+    if len(lengths) != 1:
+        raise InputError(f"the selected signals have different lengths: {sorted(lengths)}")
+    names = [str(c) for c in signals]
+    X = np.column_stack([np.asarray(x, dtype=np.float64) for x in signals.values()])
+    weights: Any = args.weights
+    if args.method == "svo" and weights.strip().lower() not in ("short", "long", "equal"):
+        if not Path(weights).is_file():
+            raise InputError(f"--weights {weights}: not 'short', 'long', 'equal' nor an existing file")
+        weights = read_weights(weights)
+    t0 = time.perf_counter()
+    args.progress(f"SVO ({args.method}) on {X.shape[1]} signals of {X.shape[0]} samples")
+    common = {"levels": args.levels, "alpha": args.alpha, "freq": args.freq_hz, "names": names}
+    if args.method == "svo":
+        res = svo(X, weights, n_boot=args.n_boot, block_const=args.block_const,
+                          seed=args.seed, **common)
+    else:
+        res = (rdvg if args.method == "rdvg" else equal)(X, **common)
+    seconds = time.perf_counter() - t0
+    wv = res.wv()
+    headers = ["level", "scale", "scale_s", "variance", "ci_low", "ci_high", "n"]
+    _write_csv(args, headers, _wv_table_rows(wv))
+    if args.plot:
+        _save_plot(plot_virtual_wv(res), args.plot)
+    if args.json:
+        _print_json({"command": "svo", "input": args.input, **res.to_dict(),
+                     "conf_int": res.conf_int().tolist() if res.cov is not None else None,
+                     "virtual_wv": _wv_dict(wv), "seconds": seconds}, out)
+        return EXIT_OK
+    out.write(f"{res.summary()}\n")
+    out.write(f"({args.input}, freq = {wv.freq:g} Hz, {seconds:.2f} s)\n")
+    return EXIT_OK
 
 
 def main(argv: Sequence[str] | None = None) -> int:

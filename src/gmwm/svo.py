@@ -751,3 +751,45 @@ def equal(X: Any, *, levels: int | None = None, alpha: float = 0.05, freq: float
     _, W = _wccv_of(X, levels, alpha, freq, names)
     p = W.n_signals
     return SVOResult(np.full(p, 1.0 / p), None, None, W, "equal", 0, 0, alpha)
+
+
+def read_weights(path: Any) -> np.ndarray:
+    """Scale weights from a text file: numbers separated by commas, spaces or newlines, one per
+    level from j = 1; ``#`` starts a comment."""
+    from pathlib import Path
+
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"weights file {p} not found")
+    tokens = []
+    for line in p.read_text(encoding="utf-8", errors="replace").splitlines():
+        tokens += line.split("#", 1)[0].replace(",", " ").split()
+    try:
+        values = np.array([float(t) for t in tokens])
+    except ValueError as exc:
+        raise InputError(f"weights file {p}: {exc}") from None
+    if values.size == 0:
+        raise InputError(f"weights file {p} holds no numbers")
+    return values
+
+
+def plot_virtual_wv(result: SVOResult, ax: Any = None, units: str = "") -> Any:
+    """WV of every input signal (thin lines) and of the virtual signal (thick, with its CI band)
+    against the scale in seconds (``freq`` of the WCCV); returns the Axes."""
+    from gmwm.plots import PALETTE, new_axes, style, variance_label
+
+    W = result.wccv
+    ax = new_axes(ax)
+    x = W.scales / W.freq
+    with style():
+        for k, name in enumerate(W.names):
+            ax.loglog(x, np.einsum("jii->ji", W.cov)[:, k], lw=0.9, alpha=0.8,
+                      color=PALETTE[(k % (len(PALETTE) - 2)) + 2], label=name)
+        wv = result.wv()
+        ax.fill_between(x, wv.ci_low, wv.ci_high, color=PALETTE[0], alpha=0.2, lw=0)
+        ax.loglog(x, wv.variance, lw=2.2, color=PALETTE[0], marker="o", ms=3,
+                  label=f"virtual ({result.method})")
+        ax.set_xlabel("Scale τ [samples]" if W.freq == 1.0 else "Scale τ [s]")
+        ax.set_ylabel(variance_label("Wavelet variance", units))
+        ax.legend(fontsize="small", ncol=2)
+    return ax
