@@ -21,8 +21,8 @@ Linearising the GMWM estimator, ``nu(theta_hat) - nu_0 ~ A G (nu_hat - nu_0)`` w
     WIC = objective + 2 * tr(Omega A (A' Omega A)^+ A' Omega V).
 
 With efficient weights (``Omega = V^-1``) the trace is rank(A) = the number of identified
-parameters (an AIC-type penalty); with the default CI weights it adapts to the weights used. The
-trace is invariant to a rescaling of ``Omega``, so objective and penalty are on one scale.
+parameters (an AIC-type penalty); with the default CI weights it adapts to the weights used.
+Objective and trace both scale with ``Omega``, so the ranking does not depend on its scale.
 ``V`` is the covariance the fit used for its standard errors: the Gaussian diagonal
 ``2 nu_hat_j^2 / eta_j`` (``eta_j`` includes the efficiency loss of a robust WV), or the caller's
 matrix when ``weights`` is one (e.g. a bootstrap covariance).
@@ -271,7 +271,7 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = "w
                 weights: str | np.ndarray = "ci", robust: bool = False, eff: float = 0.6,
                 alpha: float = 0.05, n_starts: int | None = None, seed: int = 0,
                 progress: Callable[[int, int, str], None] | None = None,
-                fit_kwargs: dict[str, Any] | None = None) -> Ranking:
+                cov: str = "gaussian", fit_kwargs: dict[str, Any] | None = None) -> Ranking:
     """Fit every candidate model to the WV of ``data`` and rank them, best first.
 
     Parameters
@@ -285,8 +285,12 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = "w
     robust, eff : rank on the robust WV (``wvar(x, robust=True, eff=eff)``; needs a signal).
     n_starts, seed : passed to :func:`gmwm.fit`.
     progress : called as ``progress(i, n, model)`` before fitting candidate ``i`` of ``n``.
-    fit_kwargs : further keywords for :func:`gmwm.fit` (default: skip the fit's own model-based
-        WV covariance when it offers ``se_cov``: the penalty computes its V itself).
+    cov : V of the penalty: ``"gaussian"`` (default; the diagonal ``2 nu_hat^2 / eta``, the same
+        for every candidate, cheap) or ``"model"`` (the fit's own ``wv_cov``, the covariance of
+        the WV estimate under each fitted candidate with the between-scale correlation; it
+        penalises extra components less). Ignored when ``weights`` is a covariance matrix.
+    fit_kwargs : further keywords for :func:`gmwm.fit` (default: with ``cov="gaussian"``, skip
+        the fit's own model-based WV covariance when it offers ``se_cov``).
 
     Candidates that cannot be fitted (e.g. more parameters than scales) are listed as skipped.
     """
@@ -301,8 +305,13 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = "w
             specs.append(spec)
     if not specs:
         raise InputError("no candidate models to rank")
-    cov = None if isinstance(weights, str) else np.asarray(weights, dtype=float)
-    options = _default_fit_kwargs(fit) if fit_kwargs is None else dict(fit_kwargs)
+    if cov not in ("gaussian", "model"):
+        raise InputError(f"unknown cov {cov!r}; use 'gaussian' or 'model'")
+    user_cov = None if isinstance(weights, str) else np.asarray(weights, dtype=float)
+    if fit_kwargs is not None:
+        options = dict(fit_kwargs)
+    else:
+        options = _default_fit_kwargs(fit) if cov == "gaussian" else {}
     if n_starts is not None:
         options["n_starts"] = n_starts
     entries: list[RankedModel] = []
@@ -317,7 +326,12 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = "w
                                        error=str(exc).splitlines()[0]))
             continue
         res = _fix_drift_sign(res, drift_sign)
-        pen = optimism(res, cov)
+        V = user_cov
+        if V is None and cov == "model":
+            V = getattr(res, "wv_cov", None)
+            if V is not None and wv.robust:  # the model covariance is the classical WV's
+                V = np.asarray(V) / wv.efficiency
+        pen = optimism(res, V)
         crit = float(res.objective) + factor * pen
         entries.append(RankedModel(spec, crit if np.isfinite(crit) else np.inf,
                                    float(res.objective), pen, model.n_params,

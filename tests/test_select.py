@@ -1,0 +1,150 @@
+"""Model selection (gmwm.select) and the ``gmwm select`` command.
+
+Hit-rate thresholds come from Monte Carlo runs of the same settings (noted at each test)."""
+
+from __future__ import annotations
+
+import io
+import json
+import sys
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import gmwm
+from gmwm.cli import main
+from gmwm.errors import InputError, ModelError
+from gmwm.model import Model
+from gmwm.select import auto_candidates, optimism, rank_models, select_model
+
+WN_RW = Model("WN+RW")
+THETA_WN_RW = WN_RW.theta({"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-4})
+
+
+def _signal(seed: int, T: int = 2**14) -> np.ndarray:
+    return WN_RW.simulate(THETA_WN_RW, T, np.random.default_rng([3, seed]))
+
+
+def _correlated_cov(wv) -> np.ndarray:
+    sd = np.sqrt(2 * wv.variance**2 / wv.edof)
+    lag = np.abs(np.subtract.outer(np.arange(wv.n_levels), np.arange(wv.n_levels)))
+    return np.outer(sd, sd) * 0.5**lag
+
+
+def _with_weights(res, omega: np.ndarray) -> SimpleNamespace:
+    """The fit's estimate with another weight matrix (optimism only reads these fields)."""
+    return SimpleNamespace(wv=res.wv, model=res.model, params=res.params, weights=omega,
+                           method="gmwm")
+
+
+@pytest.mark.parametrize("spec", ["WN+RW", "WN+AR1"])
+def test_optimism_is_the_parameter_count_with_efficient_weights(spec: str) -> None:
+    """Omega = V^-1 makes tr(Omega A G V) = rank(A) = p exactly (the AIC case)."""
+    wv = gmwm.wvar(_signal(0))
+    V = _correlated_cov(wv)
+    res = _with_weights(gmwm.fit(wv, spec), np.linalg.inv(V))
+    assert optimism(res, V) == pytest.approx(Model(spec).n_params, rel=1e-6)
+
+
+def test_penalty_invariant_to_weight_scale() -> None:
+    wv = gmwm.wvar(_signal(1))
+    V = _correlated_cov(wv)
+    res = gmwm.fit(wv, "WN+RW")
+    a = optimism(_with_weights(res, np.diag(1 / np.diag(V))), V)
+    b = optimism(_with_weights(res, np.diag(1e6 / np.diag(V))), V)
+    assert b == pytest.approx(1e6 * a, rel=1e-9)   # scales with Omega, like the objective
+    assert a > 2  # diagonal weights ignoring positively correlated V: more than the AIC count
+
+
+def test_auto_candidates_bounded_and_complete() -> None:
+    got = auto_candidates("WN+2*AR1+RW")
+    assert got[0] == "WN+2*AR1+RW"
+    for m in ("WN+AR1+RW", "2*AR1+RW", "WN+2*AR1", "WN+RW", "QN+WN+2*AR1+RW",
+              "WN+2*AR1+RW+DR", "WN+3*AR1+RW", "WN+2*AR1+SIN+RW"):
+        assert m in got
+    assert len(got) == len(set(got))
+    assert len(auto_candidates("QN+WN+3*AR1+2*SIN+RW+DR")) <= 30
+    assert "WN+3*AR1+RW" not in auto_candidates("WN+3*AR1+RW")[1:]  # cap of 3 AR1
+    assert "WN+2*GM" in auto_candidates("WN+GM")                      # GM base grows GM
+    with pytest.raises(ModelError, match="caps"):
+        auto_candidates("3*SIN+WN")
+
+
+def test_rank_picks_generating_linear_model() -> None:
+    """WN+RW at T = 2^14 among six linear candidates: 30 of 30 seeds picked WN+RW."""
+    cands = ["WN", "RW", "WN+RW", "QN+WN+RW", "WN+RW+DR", "QN+WN"]
+    for seed in range(4):
+        ranking = rank_models(_signal(seed), cands)
+        assert ranking.best.model == "WN+RW"
+        crit = [e.criterion for e in ranking.ranked]
+        assert crit == sorted(crit)
+        for e in ranking.ranked:
+            assert e.criterion == pytest.approx(e.objective + 2 * e.penalty)
+
+
+def test_rank_picks_ar1_over_rw() -> None:
+    """WN + AR1(phi 0.995) at T = 2^14 against WN and WN+RW: 20 of 20 seeds picked WN+AR1."""
+    m = Model("WN+AR1")
+    th = m.theta({"WN[1].sigma2": 1.0, "AR1[1].phi": 0.995, "AR1[1].sigma2": 1e-3})
+    x = m.simulate(th, 2**14, np.random.default_rng([4, 0]))
+    ranking = rank_models(x, ["WN", "WN+RW", "WN+AR1"], criterion="wic-log")
+    assert ranking.best.model == "WN+AR1"
+    assert ranking.factor == pytest.approx(np.log(2**14))
+
+
+def test_skipped_candidates_and_json() -> None:
+    ranking = rank_models(_signal(0), ["WN+RW", "QN+WN+RW+DR"], levels=3)
+    assert [e.model for e in ranking.skipped] == ["QN+WN+RW+DR"]
+    d = json.loads(json.dumps(ranking.to_json_dict()))
+    assert d["ranking"][0]["model"] == "WN+RW"
+    assert set(d["ranking"][0]) >= {"model", "criterion", "objective", "n_params"}
+    assert "more parameters" in d["skipped"][0]["error"] or "parameters" in d["skipped"][0]["error"]
+    with pytest.raises(InputError, match="criterion"):
+        rank_models(_signal(0), ["WN"], criterion="aic")
+
+
+def test_select_model_returns_fit_and_drift_sign() -> None:
+    m = Model("WN+DR")
+    x = m.simulate(m.theta({"WN[1].sigma2": 1.0, "DR[1].omega": 0.01}), 2**13, 1)
+    res = select_model(-x, ["WN", "WN+DR"])
+    assert res.model.spec == "WN+DR"
+    assert res.as_dict()["DR[1].omega"] == pytest.approx(-0.01, rel=0.1)
+    assert not any("drift sign" in w for w in res.diagnostics.get("warnings", []))
+
+
+class _Tty(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_cli_select_json_columns_auto_and_progress(tmp_path, capsys, monkeypatch) -> None:
+    x0, x1 = _signal(0, 2**13), _signal(1, 2**13)
+    npy = tmp_path / "x.npy"
+    np.save(npy, x0)
+    assert main(["select", str(npy), "WN", "WN+RW", "QN+WN+RW", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert [r["model"] for r in d["ranking"]][0] == "WN+RW" and len(d["ranking"]) == 3
+
+    csv = tmp_path / "imu.csv"
+    csv.write_text("gx,gy\n" + "\n".join(f"{a:.17g},{b:.17g}" for a, b in zip(x0, x1)) + "\n")
+    assert main(["select", str(csv), "WN+RW", "--auto", "--columns", "gx,gy", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert set(d["rankings"]) == {"gx", "gy"}
+    assert d["rankings"]["gx"][0]["model"] == "WN+RW"
+    assert len(d["candidates"]) == len(auto_candidates("WN+RW"))
+
+    # progress lines only on a terminal and without --quiet
+    tty = _Tty()
+    monkeypatch.setattr(sys, "stderr", tty)
+    assert main(["select", str(npy), "WN", "WN+RW"]) == 0
+    assert "fitting candidate 2/2: WN+RW" in tty.getvalue()
+    tty2 = _Tty()
+    monkeypatch.setattr(sys, "stderr", tty2)
+    assert main(["select", str(npy), "WN", "WN+RW", "--quiet"]) == 0
+    assert "fitting" not in tty2.getvalue()
+    out = capsys.readouterr().out
+    assert "rank" in out and "WN+RW" in out
+    monkeypatch.undo()
+    assert main(["select", str(npy), "WN+XX"]) == 1
+    assert "unknown process" in capsys.readouterr().err
