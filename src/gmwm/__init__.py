@@ -31,11 +31,12 @@ _EXPORTS = {
     "wvar": "wv", "avar": "wv", "WaveletVariance": "wv", "AllanVariance": "wv",
     "fit_avsm": "avsm",
     "svo": "svo",
+    "select_model": "select", "rank_models": "select",
 }
 
 __all__ = ["AllanVariance", "DataUnavailableError", "GMWMError", "GMWMResult",
            "IdentifiabilityError", "InputError", "Model", "ModelError", "WaveletVariance", "avar",
-           "fit", "fit_avsm", "svo", "wvar"]
+           "fit", "fit_avsm", "rank_models", "select_model", "svo", "wvar"]
 
 
 def __getattr__(name: str) -> Any:
