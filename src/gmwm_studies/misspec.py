@@ -90,12 +90,13 @@ def fit_model_chunk(chunk: WVChunk, model_spec: str, label: str, fit_settings: M
     return ds
 
 
-def misspec_table(fits: Mapping[str, xr.Dataset],
-                  parameters: Sequence[str] | None = None) -> pd.DataFrame:
+def misspec_table(fits: Mapping[str, xr.Dataset], parameters: Sequence[str] | None = None,
+                  labels: Mapping[str, str] | None = None) -> pd.DataFrame:
     """Bias, SD and RMSE per fitted model and parameter (converged replicates).
 
     ``fits`` maps a model label (e.g. "model1") to its gathered Dataset. ``parameters`` limits the
-    rows (default: every parameter of each model). Columns: model, spec, then those of
+    rows (default: every parameter of each model); ``labels`` gives display names ("Model 1").
+    Columns: method ("Model 1 (AR1+RW)"), model (label), then those of
     :func:`gmwm.studies.summarize`, plus ``rmse_ratio`` = RMSE / RMSE of the last model (the true
     one) for shared parameters."""
     from gmwm.studies import summarize
@@ -107,8 +108,9 @@ def misspec_table(fits: Mapping[str, xr.Dataset],
         df = summarize(ds)
         if parameters is not None:
             df = df[df["parameter"].isin(list(parameters))]
-        df.insert(0, "spec", ds.attrs.get("model", ""))
+        name = (labels or {}).get(label, label)
         df.insert(0, "model", label)
+        df.insert(0, "method", f"{name} ({ds.attrs.get('model', '')})")
         parts.append(df)
     out = pd.concat(parts, ignore_index=True)
     ref = parts[-1].set_index("parameter")["rmse"]
@@ -118,11 +120,11 @@ def misspec_table(fits: Mapping[str, xr.Dataset],
 
 
 def plot_fig6(fits: Mapping[str, xr.Dataset], parameters: Sequence[str] = BASIC_PARAMS,
-              labels: Mapping[str, str] | None = None) -> Any:
+              labels: Mapping[str, str] | None = None, title: str | None = None) -> Any:
     """Fig. 6: one panel per basic parameter, a boxplot of each model's estimates, truth dashed.
 
     Converged replicates only. ``labels`` maps model labels to legend text. Returns the Figure."""
-    from gmwm.plots import PALETTE, subplots
+    from gmwm.plots import PALETTE, style, subplots
 
     labels = dict(labels or {})
     fig, axes = subplots(1, len(parameters), figsize=(2.3 * len(parameters) + 0.6, 3.2),
@@ -146,4 +148,7 @@ def plot_fig6(fits: Mapping[str, xr.Dataset], parameters: Sequence[str] = BASIC_
         ax.set_title(PARAM_LABELS.get(name, name))
         ax.ticklabel_format(axis="y", style="sci", scilimits=(-2, 3))
     axes[0][0].legend(loc="best")
+    if title:
+        with style():
+            fig.suptitle(title)
     return fig

@@ -257,6 +257,68 @@ def emulation_dataset(result: Mapping[str, np.ndarray], iterations: Sequence[int
     )
 
 
+BASIC = ("AR1[1].phi", "AR1[1].sigma2", "RW[1].gamma2")
+UNIT_SCALE = {"deg/s": DEG, "rad/s": 1.0}
+
+
+def filter_params_from_fits(fits: Mapping[str, xr.Dataset], models: Sequence[str],
+                            iterations: Sequence[int], freq_from: float, freq_to: float
+                            ) -> tuple[np.ndarray, list[int], dict[int, str]]:
+    """The AR1 + RW estimates of each model for each iteration (= replicate id), converted from
+    ``freq_from`` to ``freq_to``. An iteration is dropped (with its reason) when any model's fit
+    did not converge or its AR1 is not a Gauss-Markov correlation (phi outside (0, 1)).
+
+    Returns (params (I, M, 3) in signal units per IMU sample, kept iterations, dropped reasons)."""
+    rows, kept, dropped = [], [], {}
+    for it in iterations:
+        thetas, why = [], ""
+        for m in models:
+            ds = fits[m]
+            if it not in ds["replicate"].values:
+                raise InputError(f"iteration {it}: replicate missing from the {m} estimates")
+            rep = ds.sel(replicate=it)
+            th = np.array([float(rep["estimate"].sel(parameter=p)) for p in BASIC])
+            if not bool(rep["converged"]) or not np.all(np.isfinite(th)):
+                why = f"{m} fit did not converge"
+            elif not 0 < th[0] < 1:
+                why = f"{m} AR1 phi = {th[0]:.3g} outside (0, 1)"
+            thetas.append(th)
+        if why:
+            dropped[int(it)] = why
+            continue
+        rows.append(convert_basic(np.array(thetas), freq_from, freq_to))
+        kept.append(int(it))
+    params = np.array(rows).reshape(len(kept), len(models), 3)
+    return params, kept, dropped
+
+
+def run_chunk(cfg: Mapping[str, Any], fits: Mapping[str, xr.Dataset], truth: Mapping[str, float],
+              iterations: Sequence[int], study: str = "navigation") -> xr.Dataset:
+    """One chunk of the emulation from the ``navigation`` config: filter parameters from the
+    misspecification fits, error truth from the AR1 + RW part of ``truth``. Dataset with dims
+    (iteration, model, time); dropped iterations are listed in the attribute ``dropped``."""
+    import json
+
+    rate, f_cal = float(cfg["imu_rate"]), float(cfg["freq_calibration"])
+    traj = make_trajectory(duration=float(cfg["duration"]), rate=rate)
+    steps = gnss_schedule(traj, float(cfg["gnss_rate"]), tuple(cfg["outage"]))
+    setup = filter_setup(cfg, rate)
+    models = list(cfg["models"])
+    params, kept, dropped = filter_params_from_fits(fits, models, iterations, f_cal, rate)
+    theta = convert_basic(np.array([float(truth[p]) for p in BASIC]), f_cal, rate)
+    every = max(1, int(round(rate / float(cfg["record_rate"]))))
+    attrs = {"study": study, "truth_basic_imu_rate": json.dumps(theta.tolist()),
+             "dropped": json.dumps(dropped), "config": json.dumps(dict(cfg), sort_keys=True)}
+    if not kept:
+        t = traj.t[::every]
+        empty = {"time": t, "pos_err_norm": np.zeros((0, len(models), len(t))),
+                 "pos_sd": np.zeros((0, len(models), len(t)))}
+        return emulation_dataset(empty, [], models, params, attrs)
+    res = emulate(traj, setup, theta, params, kept, study, int(cfg["seed"]), steps,
+                  unit_scale=UNIT_SCALE[cfg["gyro_unit"]], record_every=every)
+    return emulation_dataset(res, kept, models, params, attrs)
+
+
 # ---------------------------------------------------------------------------------------------
 # statistics
 # ---------------------------------------------------------------------------------------------

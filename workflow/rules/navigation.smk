@@ -1,0 +1,158 @@
+# Navigation emulation of the vibration-noise paper (config key `navigation`; paper 000 sec. 5,
+# Figs. 7-8; library code gmwm_studies.navigation and gmwm_studies.ekf):
+#   misspec study's gathered Model 1 / Model 2 fits (steps (i)-(ii) of the paper's protocol:
+#   iteration b uses replicate b, simulated from Table 5 at T = 2,879,999 and fitted by GMWM)
+#   -> nav_chunk (per chunk of iterations: simulate the AR1+RW gyro errors and sensor noise, run
+#      both EKFs on the same measurements, vectorised over the chunk)
+#   -> nav_report (Fig. 7 trajectory, Fig. 8 ratio with 95 % CI, table of its maximum).
+# Iteration b draws from SeedSequence(seed, spawn_key=(crc32(name), b)): chunking changes nothing.
+# Registered in the index and the archive through INDEX_SECTIONS (report.smk).
+
+import gmwm.studies as _gs_nav
+
+NAV = {
+    "enabled": True,
+    "estimates_from": "misspec",
+    "models": ["model1", "model2"],
+    "iterations": 500,
+    "chunk_size": 25,
+    "seed": config["seed"],
+    "freq_calibration": 200.0,
+    "imu_rate": 100.0,
+    "duration": 235.0,
+    "gnss_rate": 1.0,
+    "outage": [160.0, 210.0],
+    "gnss_sd": 1.0,
+    "gyro_axes": ["x", "y", "z"],
+    "gyro_unit": "deg/s",
+    "accel_vrw": 0.1,
+    "initial_sd": {"position": 1.0, "velocity": 0.1, "roll_pitch": 0.5, "yaw": 1.0},
+    "record_rate": 10.0,
+    "level": 0.95,
+    **config.get("navigation", {}),
+}
+_NAV_ON = NAV["enabled"] and NAV["estimates_from"] in STUDIES
+if NAV["enabled"] and not _NAV_ON:
+    raise WorkflowError(f"config: navigation.estimates_from {NAV['estimates_from']!r} is not an "
+                        "enabled study (kind misspec)")
+if _NAV_ON:
+    _src = STUDIES[NAV["estimates_from"]]
+    if _src["kind"] != "misspec" or any(m not in _src["fit_models"] for m in NAV["models"]):
+        raise WorkflowError(f"config: navigation.models {NAV['models']} must be fit_models of the "
+                            f"misspec study {NAV['estimates_from']!r}")
+    if NAV["iterations"] > _src["replicates"]:
+        raise WorkflowError(f"config: navigation.iterations ({NAV['iterations']}) exceeds the "
+                            f"replicates of {NAV['estimates_from']!r} ({_src['replicates']})")
+
+
+def nav_n_chunks():
+    return len(_gs_nav.chunk_bounds(NAV["iterations"], NAV["chunk_size"]))
+
+
+def nav_targets():
+    if not _NAV_ON:
+        return []
+    return [
+        "reports/navigation/ratio_max.csv",
+        "reports/navigation/ratio_max.md",
+        "reports/navigation/ratio_series.csv",
+        *[f"reports/navigation/fig7_trajectory.{fmt}" for fmt in FIG_FORMATS],
+        *[f"reports/navigation/fig8_ratio.{fmt}" for fmt in FIG_FORMATS],
+    ]
+
+
+def nav_benchmarks():
+    if not _NAV_ON:
+        return []
+    return [*[f"{BENCH}/nav_chunk/navigation/c{c}.tsv" for c in range(nav_n_chunks())],
+            f"{BENCH}/nav_report/navigation/report.tsv"]
+
+
+try:
+    INDEX_SECTIONS
+except NameError:
+    INDEX_SECTIONS = {}
+if _NAV_ON:
+    INDEX_SECTIONS["navigation"] = {
+        "model": "EKF tuned with Model 1 vs Model 2 AR1+RW estimates",
+        "description": ("Vibration-noise paper, navigation emulation (Figs. 7-8): 235 s flight, "
+                        "IMU 100 Hz, GNSS 1 Hz with an outage "
+                        f"{NAV['outage'][0]:g}-{NAV['outage'][1]:g} s, loosely coupled EKF; "
+                        "ratio of mean position errors Model 1 / Model 2."),
+        "n_samples": [int(round(NAV["duration"] * NAV["imu_rate"]))],
+        "replicates": NAV["iterations"],
+        "targets": nav_targets(),
+        "benchmarks": nav_benchmarks(),
+    }
+
+
+def nav_inputs(wildcards):
+    src = NAV["estimates_from"]
+    return {m: misspec_estimates(src, m) for m in NAV["models"]}
+
+
+localrules:
+    nav_report,
+
+
+rule nav_chunk:
+    input:
+        unpack(nav_inputs),
+    output:
+        "results/navigation/chunks/c{chunk}.nc",
+    params:
+        nav=NAV,
+        iterations=lambda w: _gs_nav.chunk_replicates(int(w.chunk), NAV["iterations"],
+                                                       NAV["chunk_size"]),
+        truth=lambda w: STUDIES[NAV["estimates_from"]]["truth"],
+    log:
+        "logs/navigation/nav_chunk/c{chunk}.log",
+    benchmark:
+        f"{BENCH}/nav_chunk/navigation/c{{chunk}}.tsv"
+    threads: 1
+    resources:
+        runtime=lambda w: max(10, int(NAV["chunk_size"] * NAV["duration"] / 235 * 2 / 60) + 5),
+        mem_mb=lambda w: max(1000, int(NAV["chunk_size"] * NAV["duration"] * NAV["imu_rate"]
+                                       * 2 * 3 * 8 * 3 / 1e6) + 500),
+    script:
+        "../scripts/nav_chunk.py"
+
+
+rule nav_report:
+    input:
+        lambda w: [f"results/navigation/chunks/c{c}.nc" for c in range(nav_n_chunks())],
+    output:
+        report(
+            "reports/navigation/fig7_trajectory.png",
+            caption="../report/nav_fig7.rst",
+            category="Navigation emulation",
+            labels={"type": "Figure 7: trajectory and altitude"},
+        ),
+        report(
+            "reports/navigation/fig8_ratio.png",
+            caption="../report/nav_fig8.rst",
+            category="Navigation emulation",
+            labels={"type": "Figure 8: position error ratio"},
+        ),
+        *[f"reports/navigation/fig{k}.{fmt}" for k in ("7_trajectory", "8_ratio")
+          for fmt in FIG_FORMATS if fmt != "png"],
+        csv=report(
+            "reports/navigation/ratio_max.csv",
+            caption="../report/nav_table.rst",
+            category="Navigation emulation",
+            labels={"type": "table: maximum ratio and CI (CSV)"},
+        ),
+        md="reports/navigation/ratio_max.md",
+        series="reports/navigation/ratio_series.csv",
+    params:
+        nav=NAV,
+        formats=FIG_FORMATS,
+    log:
+        "logs/navigation/nav_report.log",
+    benchmark:
+        f"{BENCH}/nav_report/navigation/report.tsv"
+    resources:
+        runtime=10,
+        mem_mb=2000,
+    script:
+        "../scripts/nav_report.py"

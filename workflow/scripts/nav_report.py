@@ -1,0 +1,58 @@
+"""Rule nav_report: Fig. 7 (trajectory), Fig. 8 (position error ratio with CI), table of its maximum."""
+
+import json
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import pandas as pd
+import xarray as xr
+from wflog import get_logger
+
+from gmwm.io import save_figure, write_text_atomic
+from gmwm.store import read_dataset
+from gmwm.studies import write_table
+from gmwm_studies.navigation import (
+    gnss_schedule,
+    make_trajectory,
+    plot_fig7,
+    plot_fig8,
+    ratio_summary,
+    ratio_with_ci,
+)
+
+snakemake = globals()["snakemake"]  # injected by Snakemake
+log = get_logger(snakemake)
+nav = snakemake.params.nav
+fmt = snakemake.params.formats
+out = snakemake.output
+parts = [read_dataset(f) for f in snakemake.input]
+ds = xr.concat(parts, dim="iteration", combine_attrs="override").sortby("iteration")
+dropped = {k: v for p in parts for k, v in json.loads(p.attrs["dropped"]).items()}
+outage = tuple(nav["outage"])
+models = tuple(nav["models"])
+
+traj = make_trajectory(duration=float(nav["duration"]), rate=float(nav["imu_rate"]))
+fig7 = plot_fig7(traj, gnss_schedule(traj, float(nav["gnss_rate"]), outage), outage)
+save_figure(fig7, Path(out[0]).with_suffix(""), formats=fmt)
+fig8 = plot_fig8(ds, outage, models, level=float(nav["level"]))
+save_figure(fig8, Path(out[1]).with_suffix(""), formats=fmt)
+
+table = ratio_summary(ds, models, outage, level=float(nav["level"]), seed=int(nav["seed"]))
+table.insert(1, "n_dropped", len(dropped))
+write_table(table, out.csv, out.md,
+            title=(f"Navigation emulation: maximum of the mean position error ratio "
+                   f"{models[0]} / {models[1]} (paper: 1.1789 in the outage)"))
+e1 = ds["pos_err_norm"].sel(model=models[0]).values
+e2 = ds["pos_err_norm"].sel(model=models[1]).values
+ci = ratio_with_ci(e1, e2, float(nav["level"]))
+series = pd.DataFrame({"time_s": ds["time"].values, "ratio": ci["ratio"], "ci_lo": ci["lo"],
+                       "ci_hi": ci["hi"], "mean_err_model1_m": e1.mean(0),
+                       "mean_err_model2_m": e2.mean(0),
+                       "mean_sd_model1_m": ds["pos_sd"].sel(model=models[0]).values.mean(0),
+                       "mean_sd_model2_m": ds["pos_sd"].sel(model=models[1]).values.mean(0)})
+write_text_atomic(out.series, series.to_csv(index=False, float_format="%.8g"))
+log.info("%d iterations (%d dropped: %s); chunk seconds %s", ds.sizes["iteration"], len(dropped),
+         dropped, [round(float(p.attrs.get("seconds", 0)), 1) for p in parts])
+log.info("\n%s", table.to_string())
