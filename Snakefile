@@ -24,6 +24,8 @@ include: "workflow/rules/sim1.smk"
 include: "workflow/rules/stim300.smk"
 include: "workflow/rules/navchip.smk"
 include: "workflow/rules/uncertainty.smk"
+include: "workflow/rules/misspec.smk"
+include: "workflow/rules/navigation.smk"
 include: "workflow/rules/report.smk"
 
 
