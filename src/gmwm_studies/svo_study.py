@@ -161,3 +161,244 @@ def boot_rng(seed: int, case_name: str, replicate: int) -> np.random.Generator:
     """Generator of the bootstrap draws of one coverage replicate (independent of its array)."""
     key = (_crc("svo"), _crc(case_name), _crc("coverage-mbb"), int(replicate))
     return np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=key))
+
+
+# --- protocol --------------------------------------------------------------------------------------
+def method_coefs(X: np.ndarray, levels: int) -> tuple[dict[str, np.ndarray], WaveletCrossCovariance]:
+    """The four coefficient vectors of one training array (no bootstrap) and its WCCV."""
+    W = wccv(X, levels)
+    coefs = {"svo_w1": svo(W, omega("w1", levels)).coef,
+             "svo_w2": svo(W, omega("w2", levels)).coef,
+             "rdvg": rdvg(W).coef,
+             "equal": equal(W).coef}
+    return coefs, W
+
+
+def _wn_rw_fit(wv: Any) -> tuple[float, float]:
+    """GMWM WN+RW estimates (sigma2, gamma2) of a virtual signal's WV (paper Fig. 3)."""
+    import gmwm
+
+    res = gmwm.fit(wv, "WN+RW", n_starts=1)
+    d = res.as_dict()
+    return float(d["WN[1].sigma2"]), float(d["RW[1].gamma2"])
+
+
+def train_chunk(case_name: str, replicates: Sequence[int], n_samples: int, levels: int,
+                n_test: int, seed: int) -> dict[str, np.ndarray]:
+    """Replicates ``r``: coefficients of the 4 methods on training array r, then the WV of the
+    virtual signal of each method on test arrays (r, 0..n_test-1) and its WN+RW GMWM fit.
+    Arrays: ``coef (R, 4, p)``, ``wv (R, n_test, 4, J)``, ``gmwm (R, n_test, 4, 2)``,
+    ``gyro_wv (p, J)`` (the gyros of the first test array of the first replicate), ``seconds (R,)``."""
+    cs = case(case_name)
+    R, M, p = len(replicates), len(METHODS), cs.p
+    coef = np.empty((R, M, p))
+    wv = np.empty((R, n_test, M, levels))
+    par = np.empty((R, n_test, M, 2))
+    gyro = np.empty((p, levels))
+    secs = np.empty(R)
+    for a, r in enumerate(replicates):
+        t0 = time.perf_counter()
+        X = cs.simulate(n_samples, array_rng(seed, case_name, "train", r))
+        cdict, _ = method_coefs(X, levels)
+        coef[a] = [cdict[m] for m in METHODS]
+        for k in range(n_test):
+            W = wccv(cs.simulate(n_samples, array_rng(seed, case_name, "test", r, k)), levels)
+            if a == 0 and k == 0:
+                gyro[:] = np.einsum("jii->ij", W.cov)
+            for b, m in enumerate(METHODS):
+                v = W.combine(coef[a, b])
+                wv[a, k, b] = v.variance
+                par[a, k, b] = _wn_rw_fit(v)
+        secs[a] = time.perf_counter() - t0
+    return {"replicates": np.asarray(replicates), "coef": coef, "wv": wv, "gmwm": par,
+            "gyro_wv": gyro, "seconds": secs}
+
+
+def coverage_chunk(case_name: str, replicates: Sequence[int], n_samples: int, levels: int,
+                   n_boot: int, block_const: float, alpha: float, seed: int
+                   ) -> dict[str, np.ndarray]:
+    """Coverage replicates: c_hat(omega_2) with MBB SEs on a fresh array; ``hit`` = |c_hat - c0| <=
+    z se per coefficient, c0 from the true WCCV."""
+    cs = case(case_name)
+    om = omega("w2", levels)
+    c0 = svo_coef(cs.wccv(2.0 ** np.arange(1, levels + 1)), om)
+    z = norm.ppf(1.0 - alpha / 2.0)
+    R = len(replicates)
+    coef, se, secs = np.empty((R, cs.p)), np.empty((R, cs.p)), np.empty(R)
+    block = 0
+    for a, r in enumerate(replicates):
+        t0 = time.perf_counter()
+        X = cs.simulate(n_samples, array_rng(seed, case_name, "coverage", r))
+        res = svo(X, om, levels=levels, n_boot=n_boot, block_const=block_const, alpha=alpha,
+                  seed=boot_rng(seed, case_name, r))
+        coef[a], se[a], block = res.coef, res.se, res.block
+        secs[a] = time.perf_counter() - t0
+    return {"replicates": np.asarray(replicates), "coef": coef, "se": se,
+            "hit": np.abs(coef - c0) <= z * se, "c0": c0, "block": np.array(block),
+            "seconds": secs}
+
+
+def merge(parts: Sequence[Mapping[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """Concatenate chunk results along replicates (keys that are per-run are taken once)."""
+    once = {"gyro_wv", "c0", "block"}
+    first = min(parts, key=lambda d: int(np.min(d["replicates"])))
+    out = {k: np.asarray(first[k]) for k in once if k in first}
+    for k in parts[0]:
+        if k not in once:
+            out[k] = np.concatenate([np.asarray(d[k]) for d in parts])
+    return out
+
+
+def wilson(k: int, n: int, conf: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval of a binomial proportion k/n."""
+    z = norm.ppf(0.5 + conf / 2.0)
+    ph = k / n
+    d = 1 + z * z / n
+    mid = (ph + z * z / (2 * n)) / d
+    h = z * math.sqrt(ph * (1 - ph) / n + z * z / (4 * n * n)) / d
+    return mid - h, mid + h
+
+
+# --- tables and figures ----------------------------------------------------------------------------
+def coef_table(res: Mapping[str, np.ndarray], case_name: str, levels: int) -> list[dict[str, Any]]:
+    """Per method and gyro: mean and SD of the 50 estimated coefficients, true value (if known)."""
+    truth = true_coefs(case_name, levels)
+    rows = []
+    for b, m in enumerate(METHODS):
+        for i in range(res["coef"].shape[2]):
+            c = res["coef"][:, b, i]
+            rows.append({"method": m, "gyro": i + 1, "mean": float(c.mean()),
+                         "sd": float(c.std(ddof=1)) if c.size > 1 else float("nan"),
+                         "true": float(truth[m][i]) if m in truth else float("nan")})
+    return rows
+
+
+def wv_table(res: Mapping[str, np.ndarray], freq: float) -> list[dict[str, Any]]:
+    """Average WV of the out-of-sample virtual signals per method and level, its 95 % CI (normal,
+    over all test signals) and the ratio of averages to equal weights."""
+    wv = res["wv"].reshape(-1, len(METHODS), res["wv"].shape[-1])
+    n = wv.shape[0]
+    mean = wv.mean(axis=0)
+    half = 1.96 * wv.std(axis=0, ddof=1) / math.sqrt(n) if n > 1 else np.zeros_like(mean)
+    rows = []
+    for b, m in enumerate(METHODS):
+        for j in range(mean.shape[1]):
+            rows.append({"method": m, "level": j + 1, "scale_s": 2.0 ** (j + 1) / freq,
+                         "mean_wv": float(mean[b, j]), "ci_low": float(mean[b, j] - half[b, j]),
+                         "ci_high": float(mean[b, j] + half[b, j]),
+                         "ratio_to_equal": float(mean[b, j] / mean[METHODS.index("equal"), j]),
+                         "n_signals": n})
+    return rows
+
+
+def coverage_table(cov: Mapping[str, np.ndarray], conf: float = 0.95) -> list[dict[str, Any]]:
+    """Empirical coverage per coefficient with its Wilson interval (Monte Carlo error)."""
+    hit = np.asarray(cov["hit"], dtype=bool)
+    n = hit.shape[0]
+    rows = []
+    for i in range(hit.shape[1]):
+        k = int(hit[:, i].sum())
+        lo, hi = wilson(k, n, conf)
+        rows.append({"gyro": i + 1, "coverage": k / n, "wilson_low": lo, "wilson_high": hi,
+                     "c0": float(cov["c0"][i]), "mean_coef": float(cov["coef"][:, i].mean()),
+                     "sd_coef": float(cov["coef"][:, i].std(ddof=1)) if n > 1 else float("nan"),
+                     "mean_se": float(cov["se"][:, i].mean()), "replicates": n})
+    return rows
+
+
+def _colors() -> dict[str, str]:
+    from gmwm.plots import PALETTE
+
+    return dict(zip(METHODS, (PALETTE[1], PALETTE[2], PALETTE[3], PALETTE[0]), strict=True))
+
+
+def figure_wv(res: Mapping[str, np.ndarray], freq: float, case_name: str) -> Any:
+    """Paper Fig. 2/7: lower = mean WV of the virtual signals with CI band and one test array's
+    gyros; upper = ratio of the mean WV to the equal-weights one."""
+    from gmwm.plots import REPLICATE_COLOR, subplots
+
+    rows = wv_table(res, freq)
+    J = res["wv"].shape[-1]
+    x = 2.0 ** np.arange(1, J + 1) / freq
+    fig, (top, bot) = subplots(2, 1, figsize=(6.4, 6.4), sharex=True,
+                               gridspec_kw={"height_ratios": [1, 2]})
+    col = _colors()
+    for i, g in enumerate(res["gyro_wv"]):
+        bot.loglog(x, g, color=REPLICATE_COLOR, lw=0.8, label="gyros (one test array)" if i == 0
+                   else None)
+    for m in METHODS:
+        r = [row for row in rows if row["method"] == m]
+        mean = np.array([row["mean_wv"] for row in r])
+        bot.fill_between(x, [row["ci_low"] for row in r], [row["ci_high"] for row in r],
+                         color=col[m], alpha=0.25, lw=0)
+        bot.loglog(x, mean, color=col[m], lw=1.6, marker="o", ms=2.5, label=METHOD_LABELS[m])
+        top.semilogx(x, [row["ratio_to_equal"] for row in r], color=col[m], lw=1.4, marker="o",
+                     ms=2.5)
+    top.axhline(1.0, color="k", lw=0.6)
+    top.set_yscale("log")
+    top.set_ylabel("WV ratio to equal")
+    bot.set_xlabel("Scale τ [s]")
+    bot.set_ylabel("Wavelet variance [(deg/s)²]")
+    n = res["wv"].shape[0] * res["wv"].shape[1]
+    top.set_title(f"{case_name}: mean WV of {n} out-of-sample virtual signals (95 % CI)")
+    bot.legend(fontsize="small")
+    return fig
+
+
+def figure_coefs(res: Mapping[str, np.ndarray], case_name: str, levels: int) -> Any:
+    """Paper Fig. 4/8: boxplots of the estimated coefficients per gyro and method, true c0 marks."""
+    from gmwm.plots import subplots
+
+    truth = true_coefs(case_name, levels)
+    methods = [m for m in METHODS if m != "equal"]
+    fig, axes = subplots(1, len(methods), figsize=(3.6 * len(methods), 3.4), sharey=True)
+    col = _colors()
+    p = res["coef"].shape[2]
+    for ax, m in zip(axes, methods, strict=True):
+        b = METHODS.index(m)
+        ax.boxplot([res["coef"][:, b, i] for i in range(p)], widths=0.6,
+                   medianprops={"color": col[m]})
+        if m in truth:
+            ax.plot(np.arange(1, p + 1), truth[m], "x", color="k", ms=7, label="true $c_0$")
+            ax.legend(fontsize="small")
+        ax.axhline(1.0 / p, color="grey", lw=0.6, ls="--")
+        ax.set_title(METHOD_LABELS[m])
+        ax.set_xlabel("gyro")
+    axes[0].set_ylabel(f"coefficient ({res['coef'].shape[0]} arrays)")
+    return fig
+
+
+def figure_gmwm(res: Mapping[str, np.ndarray]) -> Any:
+    """Paper Fig. 3: WN+RW GMWM estimates (sigma2, gamma2) of the virtual signals per method."""
+    from gmwm.plots import subplots
+
+    par = res["gmwm"].reshape(-1, len(METHODS), 2)
+    fig, axes = subplots(1, 2, figsize=(7.6, 3.4))
+    for k, (ax, name) in enumerate(zip(axes, ("WN $\\sigma^2$", "RW $\\gamma^2$"), strict=True)):
+        ax.boxplot([par[:, b, k] for b in range(len(METHODS))], widths=0.6)
+        ax.set_xticks(np.arange(1, len(METHODS) + 1), [METHOD_LABELS[m] for m in METHODS],
+                      rotation=20)
+        ax.set_yscale("log")
+        ax.set_title(name + f" ({par.shape[0]} virtual signals)")
+    return fig
+
+
+def figure_coverage(rows: Sequence[Mapping[str, Any]], conf: float = 0.95) -> Any:
+    """Paper Fig. 5: coverage per coefficient with Wilson intervals; band = the Wilson interval a
+    nominal-coverage study of this size would give."""
+    from gmwm.plots import PALETTE, new_axes
+
+    ax = new_axes()
+    n = int(rows[0]["replicates"])
+    lo, hi = wilson(round(conf * n), n, 0.95)
+    g = np.array([r["gyro"] for r in rows])
+    ax.axhspan(lo, hi, color="grey", alpha=0.25, lw=0, label=f"MC band at {conf:g} (n = {n})")
+    ax.axhline(conf, color="k", lw=0.6)
+    cov = np.array([r["coverage"] for r in rows])
+    err = np.array([[c - r["wilson_low"], r["wilson_high"] - c] for c, r in zip(cov, rows,
+                                                                              strict=True)]).T
+    ax.errorbar(g, cov, yerr=err, fmt="o", color=PALETTE[1], label="empirical coverage (Wilson)")
+    ax.set_xlabel("coefficient (gyro)")
+    ax.set_ylabel("coverage of 95 % CI")
+    ax.legend(fontsize="small")
+    return ax.figure
