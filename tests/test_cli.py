@@ -292,3 +292,264 @@ def test_bad_input_is_one_line_error(capsys, bad_files, case):
     assert err.count("\n") == 1 and err.startswith("gmwm: error: "), err
     assert needle in err
     assert "Traceback" not in err
+
+
+# ---- diagnostics a user sees (issue 9 part 3) -----------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def white_noise(tmp_path_factory):
+    d = tmp_path_factory.mktemp("wn")
+    np.save(d / "wn.npy", np.random.default_rng(3).standard_normal(2**13))
+    return d / "wn.npy"
+
+
+def test_boundary_fit_warns_in_text_and_json(capsys, white_noise):
+    # WN+RW on pure white noise: RW ends at the boundary 0, which is a warning, not a failure
+    code, out, err = run(capsys, "fit", white_noise, "WN+RW")
+    assert code == 0 and "converged yes" in out
+    lines = err.splitlines()
+    assert lines and all(line.startswith("gmwm: warning: ") for line in lines)
+    assert any("RW[1]" in line for line in lines)
+    code, out, err_json = run(capsys, "fit", white_noise, "WN+RW", "--json")
+    obj = json.loads(out)
+    assert code == 0 and obj["params"]["RW[1].gamma2"] == 0.0
+    assert obj["warnings"] and any("RW[1]" in w for w in obj["warnings"])
+    assert len(obj["warnings"]) == len(lines) and err_json == err
+
+
+def test_python_warnings_never_reach_stderr(capsys, white_noise, monkeypatch):
+    import warnings
+
+    import gmwm
+
+    real = gmwm.fit
+
+    def noisy(*args, **kwargs):
+        np.log(np.zeros(1))  # a NumPy RuntimeWarning: divide by zero
+        warnings.warn("numerical trouble", RuntimeWarning, stacklevel=1)
+        warnings.warn("something the user should know", UserWarning, stacklevel=1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(gmwm, "fit", noisy)
+    code, _, err = run(capsys, "fit", white_noise, "WN")
+    assert code == 0
+    assert "RuntimeWarning" not in err and "divide" not in err and "numerical trouble" not in err
+    assert "gmwm: warning: something the user should know\n" in err
+    assert all(line.startswith("gmwm: ") for line in err.splitlines())
+
+
+# ---- a whole IMU (issue 11 part 1) ---------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def imu(tmp_path_factory) -> dict:
+    """A 4-axis CSV (time at 100 Hz, two gyros in deg/s, two accelerometers in m/s^2)."""
+    d = tmp_path_factory.mktemp("imu")
+    fs, n = 100.0, 2**14
+    rng = np.random.default_rng(21)
+    gyro, accel = Model("WN+RW", freq=fs), Model("WN+RW", freq=fs)
+    tg = gyro.theta({"WN[1].sigma2": 0.15**2 / 3600 * fs, "RW[1].gamma2": (50 / 216000) ** 2 / fs})
+    ta = accel.theta({"WN[1].sigma2": 0.05**2 / 3600 * fs, "RW[1].gamma2": (30 / 216000) ** 2 / fs})
+    cols = {"time": np.arange(n) / fs, "gx": gyro.simulate(tg, n, rng), "gy": gyro.simulate(tg, n, rng),
+            "ax": accel.simulate(ta, n, rng), "ay": accel.simulate(ta, n, rng)}
+    p = d / "imu.csv"
+    np.savetxt(p, np.column_stack(list(cols.values())), delimiter=",", fmt="%.17g",
+               header=",".join(cols), comments="")
+    return {"path": p, "cols": cols, "fs": fs, "dir": d}
+
+
+def test_fit_columns_json_per_column_with_datasheet(capsys, imu):
+    code, out, _ = run(capsys, "fit", imu["path"], "gx=WN+RW,gy=WN+RW,WN", "--columns", "all",
+                       "--units", "gx,gy=deg/s", "--units", "m/s^2", "--json")
+    assert code == 0
+    fits = json.loads(out)["fits"]
+    assert list(fits) == ["gx", "gy", "ax", "ay"]
+    assert fits["gx"]["model"] == "WN+RW" and fits["ax"]["model"] == "WN"
+    assert fits["gx"]["freq"] == 100.0  # from the time column
+    # ARW 0.15 deg/sqrt(h) within 5 % (about 0.8 % Monte Carlo SD at 2^14 samples)
+    assert fits["gx"]["datasheet"]["ARW"]["value"] == pytest.approx(0.15, rel=0.05)
+    assert fits["gx"]["datasheet"]["ARW"]["unit"] == "deg/sqrt(h)"
+    assert fits["ax"]["datasheet"]["VRW"]["value"] == pytest.approx(0.05, rel=0.05)
+    assert fits["ax"]["units"] == "m/s^2"
+    # the same column fitted alone gives the same JSON
+    code, out1, _ = run(capsys, "fit", imu["path"], "WN+RW", "--column", "gy", "--json")
+    assert json.loads(out1)["params"] == fits["gy"]["params"]
+
+
+def test_fit_columns_text_has_one_table_per_column(capsys, imu):
+    code, out, _ = run(capsys, "fit", imu["path"], "WN", "--columns", "ax,ay", "--units", "m/s^2")
+    assert code == 0
+    assert out.count("fit of WN to ") == 2 and "ax of" in out and "ay of" in out
+    assert out.count("datasheet coefficients") == 2 and "m/s/sqrt(h)" in out
+
+
+@pytest.mark.parametrize(("argv", "needle"), [
+    (["--column", "gx", "--freq", "50"], "contradicts the sampling frequency 100 Hz"),
+    (["--columns", "gx,gz"], "column 'gz' not found"),
+    (["--columns", "gx", "--column", "gy"], "not both"),
+    (["--columns", "gx", "--units", "gq=deg/s"], "not among the columns"),
+])
+def test_fit_columns_errors(capsys, imu, argv, needle):
+    code, _, err = run(capsys, "fit", imu["path"], "WN", *argv)
+    assert code in (1, 2) and err.count("\n") == 1 and needle in err
+
+
+def test_model_pairs_must_cover_columns(capsys, imu):
+    code, _, err = run(capsys, "fit", imu["path"], "gx=WN+RW", "--columns", "gx,gy")
+    assert code == 1 and "no model for column(s) gy" in err
+
+
+def test_wv_and_av_columns_one_table_and_multichannel_fit(capsys, imu, tmp_path):
+    table = tmp_path / "wv.csv"
+    code, out, _ = run(capsys, "wv", imu["path"], "--columns", "gx,ax", "-o", table)
+    assert code == 0 and "variance per channel" in out and "gx" in out.splitlines()[2]
+    header = table.read_text().splitlines()[0].split(",")
+    assert header[:4] == ["level", "scale", "scale_s", "n"] and "variance[ax]" in header
+    code, out, _ = run(capsys, "fit", table, "WN+RW", "--columns", "all", "--json")
+    fits = json.loads(out)["fits"]
+    code2, out2, _ = run(capsys, "fit", imu["path"], "WN+RW", "--columns", "gx,ax", "--json")
+    assert code == code2 == 0
+    for c in ("gx", "ax"):
+        assert fits[c]["freq"] == 100.0
+        for name, v in json.loads(out2)["fits"][c]["params"].items():
+            assert fits[c]["params"][name] == pytest.approx(v, rel=1e-6)
+    code, out, _ = run(capsys, "av", imu["path"], "--columns", "gx,gy", "--units", "deg/s", "--json")
+    obj = json.loads(out)
+    assert code == 0 and set(obj["av"]) == {"gx", "gy"} and set(obj["readings"]) == {"gx", "gy"}
+    assert obj["readings"]["gx"]["N"]["value"] == pytest.approx(0.15, rel=0.05)
+
+
+def test_hdf5_attribute_gives_the_frequency(capsys, tmp_path, signal_files):
+    p = tmp_path / "imu.h5"
+    with h5py.File(p, "w") as fh:
+        fh.create_dataset("gyro", data=signal_files["x"]).attrs["rate"] = 25.0
+    code, out, _ = run(capsys, "wv", p, "--json")
+    assert code == 0 and json.loads(out)["freq"] == 25.0
+
+
+# ---- datasheet readings from av (issue 11 part 2) -------------------------------------------------
+
+
+def test_av_readings_text_json_and_adev_plot(capsys, imu, tmp_path):
+    png = tmp_path / "adev.png"
+    code, out, _ = run(capsys, "av", imu["path"], "--column", "gx", "--units", "deg/s", "--adev",
+                       "--plot", png)
+    assert code == 0 and "IEEE 952" in out and "N (ARW)" in out and "B (bias instability)" in out
+    assert png.read_bytes()[:8] == PNG
+    code, out, _ = run(capsys, "av", imu["path"], "--column", "gx", "--units", "deg/s", "--json")
+    r = json.loads(out)["readings"]
+    assert r["N"]["unit"] == "deg/sqrt(h)" and r["N"]["ci95"][0] < r["N"]["value"] < r["N"]["ci95"][1]
+    assert r["B"]["unit"] == "deg/h" and r["B"]["value"] > 0
+
+
+def test_report_writes_markdown_html_yaml(capsys, imu, tmp_path):
+    outdir = tmp_path / "rep"
+    code, out, err = run(capsys, "report", imu["path"], "--columns", "all", "--units", "gx,gy=deg/s",
+                         "--units", "ax,ay=m/s^2", "-o", outdir)
+    assert code == 0, err
+    md = (outdir / "report.md").read_text()
+    for c in ("gx", "gy", "ax", "ay"):
+        assert f"## {c}" in md and (outdir / f"{c}_wv.png").read_bytes()[:8] == PNG
+    assert "deg/sqrt(h)" in md and "m/s/sqrt(h)" in md and "```yaml" in md
+    yaml = (outdir / "imu.yaml").read_text()
+    values = {line.split(":")[0]: float(line.split(":")[1].split("#")[0])
+              for line in yaml.splitlines() if line and not line.startswith("#")}
+    # gyro noise density 0.15 deg/sqrt(h) = 0.15/60 deg/s/sqrt(Hz), in rad/s/sqrt(Hz)
+    assert values["gyroscope_noise_density"] == pytest.approx(0.15 / 60 * np.pi / 180, rel=0.06)
+    assert values["accelerometer_noise_density"] == pytest.approx(0.05 / 60, rel=0.06)
+    assert set(values) >= {"gyroscope_random_walk", "accelerometer_random_walk", "update_rate"}
+    assert values["update_rate"] == 100.0
+    html = (outdir / "report.html").read_text()
+    assert html.startswith("<!DOCTYPE html>") and 'src="gx_wv.png"' in html
+
+
+# ---- tables that round-trip (issue 11 part 3) ---------------------------------------------------
+
+
+def test_wv_table_refits_with_its_recorded_frequency(capsys, tmp_path):
+    model = Model("WN+GM", freq=200.0)
+    theta = model.theta({"WN[1].sigma2": 1.0, "GM[1].beta": 2.0, "GM[1].sigma2": 0.5})
+    np.save(tmp_path / "g.npy", model.simulate(theta, 2**14, np.random.default_rng(8)))
+    table = tmp_path / "wv.csv"
+    assert run(capsys, "wv", tmp_path / "g.npy", "--freq", 200, "-o", table)[0] == 0
+    code, out, _ = run(capsys, "fit", table, "WN+GM", "--json")  # no --freq needed
+    code2, out2, _ = run(capsys, "fit", tmp_path / "g.npy", "WN+GM", "--freq", 200, "--json")
+    assert code == code2 == 0
+    a, b = json.loads(out), json.loads(out2)
+    assert a["freq"] == 200.0
+    assert a["params"]["GM[1].beta"] == pytest.approx(b["params"]["GM[1].beta"], rel=1e-6)
+    code, _, err = run(capsys, "fit", table, "WN+GM", "--freq", 1)
+    assert code == 1 and "contradicts the 200 Hz" in err
+
+
+def test_av_table_is_readable_by_fit(capsys, signal_files, tmp_path):
+    table = tmp_path / "av.csv"
+    assert run(capsys, "av", signal_files["npy"], "--freq", 10, "-o", table)[0] == 0
+    code, out, _ = run(capsys, "fit", table, "WN+AR1", "--json")
+    code2, out2, _ = run(capsys, "fit", signal_files["npy"], "WN+AR1", "--freq", 10, "--json")
+    assert code == code2 == 0
+    for name, v in json.loads(out2)["params"].items():
+        assert json.loads(out)["params"][name] == pytest.approx(v, rel=1e-6)
+    # the old mistake: the table's column read as a 13-sample signal
+    code, _, err = run(capsys, "wv", table, "--column", "allan_var")
+    assert code == 1 and "looks like a WV/AV table" in err
+
+
+# ---- edge cases found by a new user (issue 11 part 7) ----------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def edge_files(tmp_path_factory) -> dict:
+    d = tmp_path_factory.mktemp("edge")
+    np.save(d / "empty.npy", np.array([]))
+    (d / "junk.npy").write_bytes(b"\x00\x01garbage" * 20)
+    (d / "outdir.csv").mkdir()
+    (d / "outdir.png").mkdir()
+    np.save(d / "x.npy", np.random.default_rng(0).standard_normal(512))
+    return {"dir": d}
+
+
+EDGE_CASES = {
+    "empty npy": (["wv", "{dir}/empty.npy"], 1, "empty signal"),
+    "junk npy": (["wv", "{dir}/junk.npy"], 1, "not a NumPy .npy file"),
+    "levels 2000": (["model-wv", "WN", "-p", "WN[1].sigma2=1", "--levels", "2000"], 1,
+                    "--levels 2000 is too large"),
+    "negative count": (["fit", "{dir}/x.npy", "-1*WN"], 1, "must be a positive integer"),
+    "negative reweight": (["fit", "{dir}/x.npy", "WN", "--reweight", "-1"], 2,
+                          "must be a non-negative integer"),
+    "output is a directory": (["wv", "{dir}/x.npy", "-o", "{dir}/outdir.csv"], 1, "is a directory"),
+    "plot is a directory": (["wv", "{dir}/x.npy", "--plot", "{dir}/outdir.png"], 1, "is a directory"),
+    "missing table with --n-samples": (["fit", "{dir}/missing.csv", "WN", "--n-samples", "10"], 1,
+                                       "file not found"),
+}
+
+
+@pytest.mark.parametrize("case", list(EDGE_CASES))
+def test_edge_cases_one_clear_line(capsys, edge_files, case):
+    argv, status, needle = EDGE_CASES[case]
+    code, out, err = run(capsys, *(a.format(dir=edge_files["dir"]) for a in argv))
+    assert code == status, err
+    assert err.count("\n") == 1 and err.startswith("gmwm: error: ") and needle in err, err
+    assert "internal error" not in err and "pickle" not in err and ".tmp" not in err
+    assert out == ""
+
+
+def test_model_wv_at_the_level_cap_is_finite(capsys):
+    code, out, err = run(capsys, "model-wv", "WN+RW+DR+AR1", "-p", "WN[1].sigma2=1", "-p",
+                         "RW[1].gamma2=1e-6", "-p", "DR[1].omega=1e-6", "-p", "AR1[1].phi=0.9",
+                         "-p", "AR1[1].sigma2=0.1", "--levels", 60, "--json")
+    assert code == 0 and err == ""
+    assert all(v is not None and v > 0 for v in json.loads(out)["total"])
+
+
+def test_quiet_and_non_terminal_have_no_progress_lines(capsys, signal_files):
+    code, _, err = run(capsys, "wv", signal_files["npy"])  # stderr captured: not a terminal
+    assert code == 0 and err == ""
+
+
+def test_wv_json_separates_first_call_and_steady_state(capsys, signal_files):
+    code, out, _ = run(capsys, "wv", signal_files["npy"], "--json", "--quiet")
+    obj = json.loads(out)
+    assert code == 0 and obj["seconds"] >= 0 and obj["seconds_first_call"] >= 0
+    assert obj["seconds_read"] >= 0

@@ -217,3 +217,162 @@ def test_read_wv_table_rejects_non_dyadic(tmp_path):
     p.write_text("scale,variance\n2,1.0\n3,0.5\n")
     with pytest.raises(InputError, match="dyadic"):
         read_wv_table(p, n_samples=100)
+
+
+# ---- several channels, sampling frequency from the file ----------------------------------------
+
+
+def _imu_csv(p, n=128, fs=50.0, time_name="time", scale=1.0):
+    rng = np.random.default_rng(4)
+    data = rng.standard_normal((n, 3))
+    t = np.arange(n) / fs * scale
+    p.write_text(f"{time_name},gx,label,gy\n" + "".join(
+        f"{float(t[i])!r},{float(data[i, 0])!r},a,{float(data[i, 1])!r}\n" for i in range(n)))
+    return data
+
+
+def test_read_channels_csv_time_column_gives_freq(tmp_path):
+    from gmwm.io import read_channels
+
+    p = tmp_path / "imu.csv"
+    data = _imu_csv(p)
+    ch = read_channels(p, "all")  # numeric columns, the time column aside
+    assert list(ch.signals) == ["gx", "gy"]
+    np.testing.assert_array_equal(ch.signals["gy"], data[:, 1])
+    assert ch.freq == 50.0 and ch.freq_source == "time column 'time'"
+    assert list(read_channels(p, ["gy", 1]).signals) == ["gy", "gx"]
+    with pytest.raises(InputError, match="not numeric"):
+        read_channels(p, ["label"])
+
+
+@pytest.mark.parametrize(("name", "scale"), [("timestamp_ns", 1e9), ("t[ms]", 1e3), ("%time", 1e9)])
+def test_time_column_units(tmp_path, name, scale):
+    from gmwm.io import read_channels, time_column_unit
+
+    assert time_column_unit(name) == pytest.approx(1 / scale)
+    p = tmp_path / "imu.csv"
+    _imu_csv(p, fs=200.0, time_name=name, scale=scale)
+    assert read_channels(p, ["gx"]).freq == pytest.approx(200.0)
+
+
+def test_time_column_problems(tmp_path):
+    from gmwm.io import read_channels
+
+    p = tmp_path / "bad.csv"
+    p.write_text("time,gx\n0,1\n0.1,2\n0.1,3\n0.3,4\n")
+    with pytest.raises(InputError, match="not strictly increasing"):
+        read_channels(p, ["gx"])
+    q = tmp_path / "jitter.csv"
+    q.write_text("time,gx\n" + "".join(f"{float(t)!r},{i}\n" for i, t in
+                                       enumerate(np.cumsum([0.01] * 70 + [0.05] + [0.01] * 20))))
+    ch = read_channels(q, ["gx"])
+    assert ch.freq == pytest.approx(100.0) and "irregular sampling" in ch.notes[0]
+
+
+def test_read_channels_hdf5_datasets_and_attribute(tmp_path, x):
+    from gmwm.io import read_channels
+
+    p = tmp_path / "imu.h5"
+    with h5py.File(p, "w") as fh:
+        g = fh.create_group("imu")
+        g.attrs["sampling_rate"] = 400.0
+        g.create_dataset("gx", data=x)
+        g.create_dataset("gy", data=2 * x)
+    ch = read_channels(p, "all")
+    assert list(ch.signals) == ["imu/gx", "imu/gy"] and ch.freq == 400.0
+    assert "sampling_rate" in ch.freq_source
+    ch = read_channels(p, ["/imu/gy"])
+    np.testing.assert_array_equal(ch.signals["imu/gy"], 2 * x)
+    assert read_channels(p, None, dataset="/imu/gx").freq == 400.0
+
+
+def test_read_channels_npy_matrix(tmp_path, x):
+    from gmwm.io import read_channels
+
+    np.save(tmp_path / "m.npy", np.column_stack([x, 2 * x, 3 * x]))
+    ch = read_channels(tmp_path / "m.npy", "all")
+    assert list(ch.signals) == ["0", "1", "2"] and ch.freq is None
+    np.testing.assert_array_equal(read_channels(tmp_path / "m.npy", [2]).signals["2"], 3 * x)
+
+
+# ---- edge cases of .npy files and outputs ------------------------------------------------------
+
+
+@pytest.mark.parametrize("content", [b"", b"\x00\x01garbage" * 20, b"\x93NUMPY\x01\x00junk"])
+def test_junk_npy_is_one_clear_error_without_pickle_advice(tmp_path, content):
+    p = tmp_path / "j.npy"
+    p.write_bytes(content)
+    with pytest.raises(InputError) as info:
+        read_signal(p)
+    msg = str(info.value)
+    assert "j.npy" in msg and "pickle" not in msg and "\n" not in msg
+
+
+def test_object_npy_says_python_objects(tmp_path):
+    p = tmp_path / "o.npy"
+    np.save(p, np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    with pytest.raises(InputError, match="Python objects") as info:
+        read_signal(p)
+    assert "allow_pickle" not in str(info.value)
+
+
+def test_atomic_path_rejects_a_directory(tmp_path):
+    (tmp_path / "out.csv").mkdir()
+    with pytest.raises(InputError, match=r"out.csv is a directory"):
+        write_text_atomic(tmp_path / "out.csv", "x\n")
+
+
+# ---- tables that round-trip ---------------------------------------------------------------------
+
+
+def test_wv_table_records_its_frequency(tmp_path):
+    p = tmp_path / "wv.csv"
+    p.write_text("level,scale,scale_s,variance,n\n" + "".join(
+        f"{j},{2 ** j},{2 ** j / 250},{1 / 2 ** j},{1000 - 2 ** j + 1}\n" for j in range(1, 6)))
+    assert read_wv_table(p).freq == 250.0
+    assert read_wv_table(p, freq=250.0).freq == 250.0
+    with pytest.raises(InputError, match="contradicts the 250 Hz"):
+        read_wv_table(p, freq=100.0)
+
+
+def test_av_table_reads_as_wv(tmp_path):
+    from gmwm.wv import wvar
+
+    x = np.random.default_rng(5).standard_normal(4096)
+    wv = wvar(x, freq=10.0)
+    m = wv.scales / 2
+    p = tmp_path / "av.csv"
+    p.write_text("cluster_m,tau_s,allan_var,ci_low,ci_high,allan_dev,n\n" + "".join(
+        f"{int(mi)},{float(mi) / 10!r},{float(2 * v)!r},{float(2 * lo)!r},{float(2 * hi)!r},"
+        f"{float(np.sqrt(2 * v))!r},{n}\n"
+        for mi, v, lo, hi, n in zip(m, wv.variance, wv.ci_low, wv.ci_high, wv.n, strict=True)))
+    assert is_wv_table(p)
+    got = read_wv_table(p)
+    assert got.freq == 10.0 and got.n_samples == 4096
+    np.testing.assert_allclose(got.variance, wv.variance, rtol=1e-14)
+    np.testing.assert_allclose(got.ci_high, wv.ci_high, rtol=1e-14)
+
+
+def test_multichannel_table_needs_a_channel(tmp_path):
+    from gmwm.io import table_channels
+
+    p = tmp_path / "wv.csv"
+    p.write_text("level,scale,scale_s,n,variance[gx],ci_low[gx],ci_high[gx],variance[gy],ci_low[gy],"
+                 "ci_high[gy]\n" + "".join(
+                     f"{j},{2 ** j},{2 ** j / 100},{900 - 2 ** j + 1},{1 / 2 ** j},{0.9 / 2 ** j},"
+                     f"{1.1 / 2 ** j},{2 / 2 ** j},{1.8 / 2 ** j},{2.2 / 2 ** j}\n" for j in range(1, 5)))
+    assert table_channels(p) == ["gx", "gy"]
+    with pytest.raises(InputError, match="2 channels"):
+        read_wv_table(p)
+    wv = read_wv_table(p, channel="gy")
+    np.testing.assert_allclose(wv.variance, 2 / 2.0 ** np.arange(1, 5))
+    assert wv.freq == 100.0
+    with pytest.raises(InputError, match="channel 'gz' not found"):
+        read_wv_table(p, channel="gz")
+
+
+def test_short_table_like_csv_is_not_read_as_a_signal(tmp_path):
+    p = tmp_path / "t.csv"
+    p.write_text("cluster_m,allan_var\n" + "".join(f"{2 ** j},{1 / 2 ** j}\n" for j in range(10)))
+    with pytest.raises(InputError, match="looks like a WV/AV table.*10 samples"):
+        read_signal(p, column="allan_var")

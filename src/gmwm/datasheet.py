@@ -106,9 +106,9 @@ def _split(name: str) -> tuple[str, int, str]:
     return ctype, int(k), par
 
 
-def _entry(value: float, unit: str, ci: tuple[float, float] | None, params: Sequence[str]
+def _entry(value: float | None, unit: str, ci: tuple[float, float] | None, params: Sequence[str]
            ) -> dict[str, Any]:
-    return {"value": float(value), "unit": unit,
+    return {"value": None if value is None or not np.isfinite(value) else float(value), "unit": unit,
             "ci95": None if ci is None else [float(ci[0]), float(ci[1])], "parameters": list(params)}
 
 
@@ -184,6 +184,12 @@ def datasheet(result: Any, units: str | None = None, alpha: float = 0.05) -> dic
             entry[what] = _entry(factor * fn(theta), label, ci, [names[i] for i in idx])
         return entry
 
+    def blank_shape(entry: dict[str, Any], size: str, shape: str) -> dict[str, Any]:
+        # a component estimated at 0 has no identifiable time scale or frequency
+        if entry[size]["value"] == 0.0:
+            entry[shape].update(value=None, ci95=None, note=f"not identified: {size} is 0")
+        return entry
+
     gm_k = 0
     for (ctype, k), pars in comps.items():
         suffix = f"[{k}]" if counts[ctype] > 1 else ""
@@ -198,15 +204,16 @@ def datasheet(result: Any, units: str | None = None, alpha: float = 0.05) -> dic
             scalar("RR" + suffix, pars["omega"], lambda w: w * freq, us.ramp)
         elif ctype == "SIN":
             idx = [pars["alpha"], pars["beta"]]
-            out[f"SIN[{k}]"] = pair(idx, {
+            out[f"SIN[{k}]"] = blank_shape(pair(idx, {
                 "frequency": (lambda t: t[1] * freq / (2 * math.pi), ("Hz", 1.0)),
-                "amplitude": (lambda t: abs(t[0]), us.level)})
+                "amplitude": (lambda t: abs(t[0]), us.level)}), "amplitude", "frequency")
         elif ctype == "GM":
             gm_k += 1
             idx = [pars["beta"], pars["sigma2"]]
-            out[f"GM[{gm_k}]"] = pair(idx, {
+            out[f"GM[{gm_k}]"] = blank_shape(pair(idx, {
                 "correlation_time": (lambda t: 1.0 / t[0] if t[0] > 0 else math.inf, ("s", 1.0)),
-                "sigma": (lambda t: math.sqrt(max(t[1], 0.0)), us.level)})
+                "sigma": (lambda t: math.sqrt(max(t[1], 0.0)), us.level)}), "sigma",
+                "correlation_time")
         elif ctype == "AR1":
             idx = [pars["phi"], pars["sigma2"]]
             phi = theta_all[idx[0]]
@@ -214,10 +221,10 @@ def datasheet(result: Any, units: str | None = None, alpha: float = 0.05) -> dic
                                us.level)}
             if 0.0 < phi < 1.0:  # a Gauss-Markov process sampled at f_s
                 gm_k += 1
-                out[f"GM[{gm_k}]"] = pair(idx, {
+                out[f"GM[{gm_k}]"] = blank_shape(pair(idx, {
                     "correlation_time": (lambda t: -1.0 / (freq * math.log(min(max(t[0], 1e-300),
                                                                              1 - 1e-16))), ("s", 1.0)),
-                    **sigma})
+                    **sigma}), "sigma", "correlation_time")
             else:  # phi <= 0 has no continuous-time counterpart: report the AR1 itself
                 entry = pair(idx, sigma)
                 entry["phi"] = _entry(phi, "", None, [names[idx[0]]])
