@@ -178,3 +178,31 @@ def test_variance_label():
     assert variance_label("Wavelet variance", "m") == "Wavelet variance [m²]"
     assert variance_label("Allan variance", "rad/s") == "Allan variance [(rad/s)²]"
     assert variance_label("Wavelet variance") == "Wavelet variance"
+
+
+def test_component_at_zero_is_not_drawn_or_named(sim1):
+    model, theta, wv = sim1
+    th = np.array(theta, dtype=float)
+    th[model.param_names.index("RW[1].gamma2")] = 0.0  # RW estimated at the boundary
+    ax = plot_wv(wv, model=model, theta=th)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "RW[1]" not in labels and "WN[1]" in labels
+    assert len(_component_lines(ax)) == 3
+
+
+def test_plot_av_deviation_with_readings_and_channel_grid():
+    from gmwm.datasheet import allan_readings
+    from gmwm.plots import channel_grid
+
+    fs = 100.0
+    model = Model("WN+RW", freq=fs)
+    x = model.simulate(np.array([1e-4 * fs, 1e-6 / fs]), 2**16, np.random.default_rng(5))
+    av = avar(x, freq=fs)
+    fig, axes = channel_grid(4)
+    assert len(axes) == 4 and sum(a.get_visible() for a in fig.axes) == 4
+    ax = plot_av(av, ax=axes[0], deviation=True, readings=allan_readings(av), units="rad/s")
+    main = [ln for ln in ax.get_lines() if ln.get_label() == "Allan deviation"][0]
+    np.testing.assert_allclose(main.get_ydata(), np.sqrt(av.avar))
+    gids = {ln.get_gid() for ln in ax.get_lines()}
+    assert {"reading_N", "reading_B"} <= gids
+    assert ax.get_ylabel() == "Allan deviation [rad/s]"
