@@ -1,90 +1,103 @@
-"""Time per Kalman-filter MLE fit (gmwm.mle.fit_mle) on Simulation 1 signals; prints a table only.
+"""Per-fit cost of the Simulation 1 MLE variants against the GMWM; prints a table only.
 
-Usage: python benchmarks/bench_mle.py [--reps 2] [--sizes 10000 20000 40000 80000 160000]
-[--starts 1 2] [--statsmodels]
+Usage: python benchmarks/bench_mle.py [--reps 10] [--sizes 10000 ... 160000] [--statsmodels 2]
+[--gmwm-starts 8]
 
-Each fit starts from the truth perturbed by ~20 % (a stand-in for the GMWM estimate the pipeline
-passes). ``--statsmodels`` also times statsmodels' own ``fit`` (exog regressors, lbfgs) from the same
-start, for reference (slow: tens of seconds at T = 1.6e5).
+Per T, ``--reps`` seeded Simulation 1 signals. For each: the GMWM fit as the study runs it (one
+``gmwm.fit`` call on the raw signal, WV included, CI weights, ``--gmwm-starts`` starts), then the
+Kalman-filter MLE (``gmwm.mle.fit_mle``, backend "kalman") from its own moment start, from
+statsmodels' start values, and from the GMWM estimate. ``--statsmodels K`` also times the
+statsmodels-filter backend from the GMWM estimate on the first K signals (slow). Prints wall and
+process-CPU seconds (mean and median), convergence counts, the largest log-likelihood gap between
+the backends, and the load average before and after (wall times scale with other jobs on the
+cores; CPU time is the steadier number).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
-import warnings
 
 import numpy as np
-from scipy.signal import lfilter
 
+from gmwm import fit
 from gmwm.mle import fit_mle
+from gmwm.model import Model
 
-BETA = 0.35
-TRUTH = {"WN[1].sigma2": 1.0, "RW[1].gamma2": 4e-4, "AR1[1].phi": 0.975, "AR1[1].sigma2": 0.03}
-
-
-def simulate(n: int, rng: np.random.Generator) -> np.ndarray:
-    """Simulation 1: WN + RW + AR1 (stationary start) + 0.85 sin(0.35 t + U)."""
-    phi, s2ar = TRUTH["AR1[1].phi"], TRUTH["AR1[1].sigma2"]
-    w = rng.normal(0.0, np.sqrt(s2ar), n)
-    w[0] = rng.normal(0.0, np.sqrt(s2ar / (1.0 - phi**2)))
-    ar = lfilter([1.0], [1.0, -phi], w)
-    rw = np.cumsum(rng.normal(0.0, np.sqrt(TRUTH["RW[1].gamma2"]), n))
-    wn = rng.normal(0.0, np.sqrt(TRUTH["WN[1].sigma2"]), n)
-    return wn + rw + ar + 0.85 * np.sin(BETA * np.arange(n) + rng.uniform(0.0, 2.0 * np.pi))
+SPEC = "WN+RW+AR1+SIN"
+TRUTH = {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.975, "AR1[1].sigma2": 0.03, "SIN[1].alpha": 0.85,
+         "SIN[1].beta": 0.35, "RW[1].gamma2": 4e-4}
+BETA = TRUTH["SIN[1].beta"]
 
 
-def perturbed_start(rng: np.random.Generator) -> dict[str, float]:
-    start = {k: v * np.exp(0.2 * rng.normal()) for k, v in TRUTH.items() if k != "AR1[1].phi"}
-    start["AR1[1].phi"] = 0.97
-    return start
+def timed(f, *args, **kw):
+    w, c = time.perf_counter(), time.process_time()
+    out = f(*args, **kw)
+    return out, time.perf_counter() - w, time.process_time() - c
 
 
-def statsmodels_fit_seconds(x: np.ndarray, start: dict[str, float]) -> tuple[float, float]:
-    from statsmodels.tsa.statespace.structural import UnobservedComponents
-
-    t = BETA * np.arange(x.size)
-    model = UnobservedComponents(x, level="llevel", autoregressive=1, use_exact_diffuse=True,
-                                 exog=np.column_stack([np.cos(t), np.sin(t)]))
-    p0 = [start["WN[1].sigma2"], start["RW[1].gamma2"], start["AR1[1].sigma2"], start["AR1[1].phi"],
-          0.0, 0.85]
-    t0 = time.perf_counter()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        res = model.fit(start_params=p0, disp=0, cov_type="none")
-    return time.perf_counter() - t0, float(res.llf)
+def row(label: str, wall: list[float], cpu: list[float], extra: str = "") -> str:
+    return (f"  {label:<22} wall mean {np.mean(wall):7.3f} median {np.median(wall):7.3f} | "
+            f"CPU mean {np.mean(cpu):7.3f} median {np.median(cpu):7.3f}  {extra}")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--reps", type=int, default=2)
+    ap.add_argument("--reps", type=int, default=10)
     ap.add_argument("--sizes", type=int, nargs="+", default=[10_000, 20_000, 40_000, 80_000, 160_000])
-    ap.add_argument("--starts", type=int, nargs="+", default=[1, 2])
-    ap.add_argument("--statsmodels", action="store_true")
+    ap.add_argument("--statsmodels", type=int, default=0, metavar="K")
+    ap.add_argument("--gmwm-starts", type=int, default=8)
     args = ap.parse_args()
 
-    print(f"{'T':>7} {'n_starts':>8} {'s/fit':>8} {'min':>7} {'max':>7} {'converged':>9}  winners"
-          f"{'   statsmodels s/fit (dllf)' if args.statsmodels else ''}")
+    model = Model(SPEC)
+    theta = model.theta(TRUTH)
+    # first calls compile the numba kernels (WV, filter); keep them out of the timings
+    x0 = model.simulate(theta, 4096, np.random.default_rng(0))
+    fit(x0, model, n_starts=1)
+    fit_mle(x0, BETA, n_starts=1)
+    fit_mle(x0, BETA, n_starts=1, own_starts="default")
+    print(f"load average before: {os.getloadavg()}")
     for n in args.sizes:
-        data = []
+        res: dict[str, tuple[list, list, list, list]] = {}
+
+        def add(key: str, wall: float, cpu: float, ok: bool, ll: float = np.nan,
+                res: dict = res) -> None:
+            for lst, v in zip(res.setdefault(key, ([], [], [], [])), (wall, cpu, ok, ll),
+                              strict=True):
+                lst.append(v)
+
         for rep in range(args.reps):
-            rng = np.random.default_rng([n, rep])
-            data.append((simulate(n, rng), perturbed_start(rng)))
-        for n_starts in args.starts:
-            secs, conv, winners, lls = [], 0, [], []
-            for x, start in data:
-                res = fit_mle(x, BETA, start, n_starts=n_starts)
-                secs.append(res.seconds)
-                conv += res.converged
-                winners.append(res.start)
-                lls.append(res.loglike)
-            extra = ""
-            if args.statsmodels and n_starts == args.starts[-1]:
-                sm = [statsmodels_fit_seconds(x, s) for x, s in data]
-                dllf = max(ll - sm_ll for ll, (_, sm_ll) in zip(lls, sm, strict=True))
-                extra = f"   {np.mean([s for s, _ in sm]):8.2f} ({dllf:+.1e})"
-            print(f"{n:>7} {n_starts:>8} {np.mean(secs):8.2f} {min(secs):7.2f} {max(secs):7.2f} "
-                  f"{conv:>4}/{len(data):<4}  {','.join(winners)}{extra}", flush=True)
+            x = model.simulate(theta, n, np.random.default_rng([n, rep]))
+            g, w, c = timed(fit, x, model, n_starts=args.gmwm_starts, seed=rep)
+            add("GMWM (incl. WV)", w, c, bool(g.converged))
+            start = model.as_dict(model.canonical(np.asarray(g.params, float)))
+            for key, kw in (("MLE own moment start", {}),
+                            ("MLE statsmodels start", {"own_starts": "default"}),
+                            ("MLE GMWM start", {"start": start})):
+                m, w, c = timed(fit_mle, x, BETA, n_starts=1, **kw)
+                add(key, w, c, m.converged, m.loglike)
+            if rep < args.statsmodels:
+                m, w, c = timed(fit_mle, x, BETA, start, n_starts=1, backend="statsmodels")
+                add("MLE GMWM start (sm)", w, c, m.converged, m.loglike)
+        print(f"T = {n}: {args.reps} signals")
+        best = np.nanmax(np.array([r[3][:args.reps] for k, r in res.items() if not k.endswith("(sm)")]),
+                         axis=0)
+        for key, (wall, cpu, ok, ll) in res.items():
+            ll = np.asarray(ll)
+            extra = f"converged {sum(ok)}/{len(ok)}"
+            if np.isfinite(ll).any():
+                gap = best[:len(ll)] - ll
+                extra += f", ll below best > 1: {int(np.sum(gap > 1))}"
+                if key.endswith("(sm)"):
+                    kf = np.asarray(res["MLE GMWM start"][3][:len(ll)])
+                    extra += f", max |ll(sm) - ll(kalman)| {np.max(np.abs(ll - kf)):.1e}"
+            print(row(key, wall, cpu, extra), flush=True)
+        g = np.median(res["GMWM (incl. WV)"][0])
+        print("  speed-up (median wall MLE / GMWM): "
+              + ", ".join(f"{k[4:]} {np.median(r[0]) / g:.1f}" for k, r in res.items()
+                          if k.startswith("MLE")), flush=True)
+    print(f"load average after: {os.getloadavg()}")
 
 
 if __name__ == "__main__":

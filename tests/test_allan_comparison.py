@@ -20,6 +20,7 @@ FREQ = 250.0
 ESTIMATORS = {
     "gmwm_cf": {"method": "gmwm", "weights": "ci", "n_starts": 1, "reweight": 2},
     "armav": {"method": "armav", "n_starts": 1},
+    "armav_ols": {"method": "armav", "weights": "identity", "n_starts": 1},
     "avsm": {"method": "avsm", "min_edof": 2, "slope_tol": 0.1},
 }
 GYRO, ACCEL = "WN+RW", "QN+WN+RW+DR"
@@ -49,7 +50,7 @@ def test_gmwm_and_armav_recover_a_noise_free_wv_exactly():
     truth = stim300_truth("gyro")
     wv = _theoretical(GYRO, truth, 2_500_000)
     theta = Model(GYRO).theta(truth)
-    for name in ("gmwm_cf", "armav"):
+    for name in ("gmwm_cf", "armav", "armav_ols"):
         params, se, conv, _, _ = ac.fit_wv(wv, GYRO, ESTIMATORS[name])
         assert conv and np.all(np.isfinite(se))
         np.testing.assert_allclose(params, theta, rtol=1e-6, err_msg=name)
@@ -96,12 +97,15 @@ def test_estimates_file_round_trip(tmp_path, accel_fits):
 
 def test_table_units_and_summary(accel_fits):
     groups = ac.group_datasets(accel_fits.values())
-    assert [k[0] for k in groups] == ["gmwm_cf", "armav", "avsm"]  # GMWM, ARMAV, AVSM order
+    # GMWM, ARMAV (both weightings, by estimator name), AVSM order
+    assert [k[0] for k in groups] == ["gmwm_cf", "armav", "armav_ols", "avsm"]
     conv = ac.to_table_units(groups[("gmwm_cf", 2**15)], "accel", FREQ)
     assert list(conv["symbol"].values) == ["Q", "N", "K", "R"]
     np.testing.assert_allclose(conv["truth"].values[:2], [1.79e-6, 4.70e-2], rtol=1e-12)
     table = ac.summarize_table_units(groups, "accel", FREQ)
-    assert len(table) == 12 and set(table["method"]) == {"GMWM", "ARMAV", "AVSM"}
+    assert len(table) == 16
+    assert list(dict.fromkeys(table["method"])) == ["GMWM", "ARMAV (weighted)", "ARMAV (OLS)",
+                                                     "AVSM"]
     assert (table["unit"][table["symbol"] == "R"] == "m/s/h/h").all()
     # RMSE^2 = bias^2 + (n-1)/n SD^2 (exact identity of the sample moments)
     n = table["n_used"]
@@ -116,7 +120,7 @@ def test_table_units_and_summary(accel_fits):
 def test_cost_summary_projection(accel_fits):
     cost = ac.cost_summary(ac.group_datasets(accel_fits.values()), replicates=3000, cores=2)
     row = cost.iloc[0]
-    parts = ["simulate_s", "wv_s", "fit_gmwm_cf_s", "fit_armav_s", "fit_avsm_s"]
+    parts = ["simulate_s", "wv_s", "fit_gmwm_cf_s", "fit_armav_s", "fit_armav_ols_s", "fit_avsm_s"]
     assert row["total_s"] == pytest.approx(sum(row[p] for p in parts))
     assert row["projected_min"] == pytest.approx(row["total_s"] * 3000 / 2 / 60)
 
@@ -129,7 +133,8 @@ def test_figures_have_one_panel_per_parameter(accel_fits):
     table = ac.summarize_table_units(groups, "accel", FREQ)
     fig2 = ac.figure_rmse(table)
     assert sum(ax.get_visible() for ax in fig2.axes) == 4
-    assert {ln.get_label() for ln in fig2.axes[0].lines} == {"GMWM", "ARMAV", "AVSM"}
+    assert {ln.get_label() for ln in fig2.axes[0].lines} == {"GMWM", "ARMAV (weighted)",
+                                                             "ARMAV (OLS)", "AVSM"}
 
 
 def test_full_config_truth_is_table_i():
@@ -139,3 +144,25 @@ def test_full_config_truth_is_table_i():
         assert s["sensor"] == sensor and s["n_samples"] == [2500000, 6300000]
         diff = ac.check_table_i_truth(s["model"], s["truth"], sensor, s["freq"])
         assert max(abs(v) for v in diff.values()) < 1e-12, (name, diff)
+
+
+def test_armav_weightings_are_labelled_and_differ(accel_fits):
+    assert accel_fits["armav"].attrs["label"] == "ARMAV (weighted)"
+    assert accel_fits["armav_ols"].attrs["label"] == "ARMAV (OLS)"
+    assert ac.estimator_label({"method": "armav", "weights": "ci"}) == "ARMAV (weighted)"
+    assert ac.estimator_label({"method": "gmwm", "weights": "identity"}) == "GMWM"
+    # equal weights on log10 AV are a different estimator on noisy WVs
+    a, b = (accel_fits[k]["estimate"].values for k in ("armav", "armav_ols"))
+    assert np.max(np.abs(a - b) / np.abs(a).max(axis=0)) > 1e-3
+
+
+def test_ranking_table_orders_by_rmse():
+    import pandas as pd
+
+    table = pd.DataFrame({
+        "n_samples": [10] * 3 + [20] * 3, "symbol": ["N"] * 6, "unit": ["u"] * 6,
+        "method": ["GMWM", "ARMAV (OLS)", "AVSM"] * 2, "rmse": [1.0, 0.5, 2.0, 1.0, 3.0, 2.0]})
+    rk = ac.ranking_table(table)
+    assert list(rk["best"]) == ["ARMAV (OLS)", "GMWM"]
+    assert rk["ranking"].iloc[1] == "GMWM < AVSM < ARMAV (OLS)"
+    assert rk["rmse/GMWM: ARMAV (OLS)"].tolist() == [0.5, 3.0]

@@ -6,7 +6,10 @@ config (``estimators.<name>.method``):
 
 * ``gmwm``: GMWM, closed form (non-negative weighted least squares, SPEC 5.2) for these linear
   models, optionally re-weighted with the fitted model's WV (``reweight``, SPEC 5.1);
-* ``armav``: the GMWFM estimator with ``f = log10`` on the Allan variance (SPEC 5.3);
+* ``armav``: the GMWFM estimator with ``f = log10`` on the Allan variance (SPEC 5.3), with the
+  delta-method weights ("ARMAV (weighted)", asymptotically the GMWM) or, with
+  ``weights: identity``, equal weights ("ARMAV (OLS)", least squares on log10 AV, the usual reading
+  of Jurado et al.'s regression); both can run side by side as differently named estimators;
 * ``avsm``: the automated Allan-variance slope method (:mod:`gmwm.avsm`, SPEC 5.4).
 
 Estimates are per-sample parameters (signal in deg/s for the gyroscope, m/s^2 for the
@@ -34,12 +37,14 @@ __all__ = [
     "ESTIMATOR_METHODS",
     "LABELS",
     "cost_summary",
+    "estimator_label",
     "figure_boxplots",
     "figure_rmse",
     "fit_chunk",
     "fit_chunk_all",
     "fit_wv",
     "group_datasets",
+    "ranking_table",
     "read_estimates",
     "summarize_table_units",
     "to_table_units",
@@ -56,6 +61,22 @@ _AVSM_KEYS = ("method", "min_edof", "slope_tol")
 
 def _noop(_: str) -> None:
     return None
+
+
+def estimator_label(settings: Mapping[str, Any]) -> str:
+    """Display name of an estimator from its settings: GMWM, AVSM, and for ARMAV its weighting,
+    "ARMAV (OLS)" (``weights: identity``) or "ARMAV (weighted)" (delta-method weights)."""
+    method = _method(settings)
+    if method == "armav":
+        return "ARMAV (OLS)" if settings.get("weights") == "identity" else "ARMAV (weighted)"
+    return LABELS[method]
+
+
+def _label(ds: xr.Dataset) -> str:
+    """Display name stored with a Dataset (older files: from its method only)."""
+    if "label" in ds.attrs:
+        return str(ds.attrs["label"])
+    return LABELS.get(str(ds.attrs.get("method", "")), str(ds.attrs.get("estimator", "")))
 
 
 def _method(settings: Mapping[str, Any]) -> str:
@@ -76,8 +97,8 @@ def fit_wv(wv: Any, model: Any, settings: Mapping[str, Any], seed: int = 0
 
     Returns (params, se, converged, objective, message); AVSM has no SE or objective (NaN).
     """
+    from gmwm import fit
     from gmwm.avsm import fit_avsm
-    from gmwm.fit import fit
 
     method = _method(settings)
     if method == "avsm":
@@ -105,7 +126,7 @@ def fit_chunk(chunk: WVChunk, settings: Mapping[str, Any], estimator: str, freq:
     method = _method(settings)
     ds = fit_study_chunk(chunk, settings, estimator, progress, freq=freq,
                          fit_one=lambda wv, model, seed: fit_wv(wv, model, settings, seed))
-    ds.attrs.update(method=method, freq=float(freq))
+    ds.attrs.update(method=method, freq=float(freq), label=estimator_label(settings))
     return ds
 
 
@@ -193,7 +214,7 @@ def summarize_table_units(groups: Mapping[tuple[str, int], xr.Dataset], sensor: 
         conv = to_table_units(ds, sensor, freq)
         df = summarize(conv)
         df.insert(1, "sensor", units.canonical_sensor(sensor))
-        df.insert(3, "method", LABELS.get(str(ds.attrs.get("method", "")), ""))
+        df.insert(3, "method", _label(ds))
         pos = df.columns.get_loc("parameter") + 1
         df.insert(pos, "symbol", [str(s) for s in conv["symbol"].values])
         df.insert(pos + 1, "unit", [str(u) for u in conv["unit"].values])
@@ -253,7 +274,7 @@ def figure_boxplots(groups: Mapping[tuple[str, int], xr.Dataset], sensor: str, f
             continue
         values: dict[str, dict[str, np.ndarray]] = {}
         for est in estimators:
-            label = LABELS.get(str(conv[(est, lengths[0])].attrs.get("method")), est)
+            label = _label(conv[(est, lengths[0])])
             values[label] = {}
             for T in lengths:
                 ds = conv[(est, T)]
@@ -337,6 +358,25 @@ def lengths_of(groups: Mapping[tuple[str, int], xr.Dataset]) -> Sequence[int]:
     return sorted({T for _, T in groups})
 
 
+def ranking_table(table: pd.DataFrame) -> pd.DataFrame:
+    """Per sample size and parameter: each estimator's RMSE relative to the GMWM's (columns named
+    by display name, in table order), the estimator with the lowest RMSE and the full ranking
+    (lowest RMSE first), for the paper's claim "GMWM has the lowest RMSE for every parameter"."""
+    labels = list(dict.fromkeys(table["method"]))
+    ref = "GMWM" if "GMWM" in labels else labels[0]
+    rows = []
+    for (T, symbol), g in table.groupby(["n_samples", "symbol"], sort=False):
+        rmse = g.set_index("method")["rmse"]
+        row: dict[str, Any] = {"n_samples": int(T), "symbol": symbol, "unit": g["unit"].iloc[0]}
+        for lab in labels:
+            row[f"rmse/{ref}: {lab}"] = float(rmse.get(lab, np.nan)) / float(rmse[ref])
+        order = rmse.sort_values(kind="stable")
+        row["best"] = order.index[0]
+        row["ranking"] = " < ".join(order.index)
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
 TABLE_COLUMNS = ["study", "sensor", "estimator", "method", "n_samples", "parameter", "symbol",
                  "unit", "truth", "mean", "bias", "sd", "rmse", "rel_bias", "rel_sd", "std_bias",
                  "mc_se_bias", "n_used", "n_replicates", "share_not_converged"]
@@ -364,6 +404,8 @@ def report_markdown(table: pd.DataFrame, cost: pd.DataFrame, *, title: str, mode
     cols = ["method", "n_samples", "symbol", "unit", "truth", "mean", "bias", "sd", "rmse",
             "rel_bias", "rel_sd", "share_not_converged"]
     lines += [format_markdown_table(table[cols], digits=4), ""]
+    lines += [("RMSE relative to the GMWM's and ranking by RMSE (lowest first) per length and "
+               "parameter:"), "", format_markdown_table(ranking_table(table), digits=3), ""]
     lines += [(f"Mean cost per replicate [s] and projected wall time [min] of "
               f"{int(table['n_replicates'].max()) if len(table) else 0} replicates "
               f"(this run's count) on {cores} cores, compute only:"), "",

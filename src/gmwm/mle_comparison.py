@@ -3,15 +3,22 @@
 Per replicate one WN + RW + AR1 + SIN signal is simulated from
 :func:`gmwm.seeds.replicate_rng` ``(study, T, r, seed)`` (so results do not depend on chunking), the
 GMWM is fitted to the signal (timed as one call, WV computation included) and, for the first
-``n_mle`` replicates of each sample size, the MLE of :func:`gmwm.mle.fit_mle` with the sinusoid's
-frequency known, started from the GMWM estimate and then from its own start(s). Raw signals are
-never stored.
+``n_mle`` replicates of each sample size, the MLE of :func:`gmwm.mle.fit_mle` (sinusoid frequency
+known) once per configured *variant*, i.e. per starting rule:
+
+* ``moment``: the MLE's own data-driven start (NNLS fit of the model to the empirical variogram
+  on a grid of phi), no GMWM information: the MLE as a user would run it;
+* ``default``: statsmodels' own start values (``UnobservedComponents(...).start_params``);
+* ``gmwm``: started at the GMWM estimate (labelled; not a like-for-like comparison).
+
+The first variant is the headline. Raw signals are never stored.
 
 Results are xarray Datasets with dims ``(estimator, replicate, parameter)``; ``estimator`` is
-``['gmwm', 'mle']``. The two methods are compared on WN sigma2, AR1 phi, AR1 innovation variance
-and RW gamma2 only (the MLE treats the sinusoid as deterministic, as the paper's Hector MLE did).
-Following the paper, a replicate whose MLE did not converge is dropped from *both* methods'
-statistics and counted; replicates beyond the MLE cap are used only in the GMWM-only rows.
+``['gmwm', <variant names>]``. The methods are compared on WN sigma2, AR1 phi, AR1 innovation
+variance and RW gamma2 only (the MLE treats the sinusoid as deterministic, as the paper's Hector
+MLE did). Following the paper, a replicate where a variant's MLE did not converge, or stopped at a
+wrong optimum (log-likelihood more than ``wrong_optimum_ll`` below the best any variant reached on
+that signal), is dropped from *both* methods in that variant's comparison, and counted.
 """
 
 from __future__ import annotations
@@ -30,24 +37,33 @@ from gmwm.seeds import replicate_rng, replicate_seed
 
 __all__ = [
     "COMPARED",
-    "METHODS",
+    "DEFAULT_MLE",
+    "PARAM_LABELS",
     "SHORT_NAMES",
+    "START_RULES",
     "comparison_table",
     "counts_text",
-    "mle_start_counts",
+    "method_label",
     "paired_mask",
     "run_chunk",
     "run_replicate",
     "standardized_by_method",
     "study_tables",
     "summarize_comparison",
+    "variants_of",
+    "wrong_optimum",
 ]
 
-METHODS = ("gmwm", "mle")
 COMPARED = ("WN[1].sigma2", "AR1[1].phi", "AR1[1].sigma2", "RW[1].gamma2")
 SHORT_NAMES = {"WN[1].sigma2": "sigma2", "AR1[1].phi": "phi", "AR1[1].sigma2": "ar1_sigma2",
                "RW[1].gamma2": "gamma2"}
-MLE_KEYS = ("n_starts", "maxiter")
+#: Starting rules of the MLE variants and their display names.
+START_RULES = {"moment": "own moment start", "default": "statsmodels' start",
+               "gmwm": "GMWM start"}
+MLE_KEYS = ("backend", "maxiter", "wrong_optimum_ll", "variants")
+#: Settings used when the config leaves them out.
+DEFAULT_MLE: dict[str, Any] = {"backend": "kalman", "maxiter": 200, "wrong_optimum_ll": 1.0,
+                               "variants": {"mle": "moment", "mle_gmwm": "gmwm"}}
 _FAILURES = (GMWMError, np.linalg.LinAlgError, FloatingPointError)
 
 Progress = Callable[[str], None]
@@ -55,6 +71,37 @@ Progress = Callable[[str], None]
 
 def _noop(_: str) -> None:
     return None
+
+
+def _mle_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
+    """Settings with defaults filled in and checked (one-line errors)."""
+    unknown = sorted(set(settings) - set(MLE_KEYS))
+    if unknown:
+        raise InputError(f"unknown MLE setting(s) {unknown}; allowed: {list(MLE_KEYS)}")
+    out = {**DEFAULT_MLE, **dict(settings)}
+    variants = dict(out["variants"])
+    if not variants:
+        raise InputError("the MLE needs at least one variant (name: start rule)")
+    for name, rule in variants.items():
+        if rule not in START_RULES:
+            raise InputError(f"MLE variant {name!r}: unknown start rule {rule!r}; "
+                             f"use one of {list(START_RULES)}")
+        if name == "gmwm":
+            raise InputError("an MLE variant cannot be called 'gmwm'")
+    out["variants"] = variants
+    if not float(out["wrong_optimum_ll"]) > 0:
+        raise InputError(f"wrong_optimum_ll must be > 0, got {out['wrong_optimum_ll']}")
+    return out
+
+
+def variants_of(ds: xr.Dataset) -> dict[str, str]:
+    """{variant name: start rule} of a results Dataset, in configured order (first = headline)."""
+    return json.loads(ds.attrs["variants"])
+
+
+def method_label(name: str, rule: str | None = None) -> str:
+    """Display name: ``'GMWM'`` or ``'MLE (<start>)'``."""
+    return "GMWM" if name == "gmwm" else f"MLE ({START_RULES.get(rule or '', name)})"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -72,6 +119,28 @@ def _check_model(model: Any, truth: Mapping[str, float]) -> float:
     return float(truth["SIN[1].beta"])
 
 
+def _fit_variant(x: np.ndarray, beta: float, rule: str, gmwm_start: dict[str, float] | None,
+                 settings: Mapping[str, Any], names: Sequence[str]) -> dict[str, Any]:
+    from gmwm.mle import fit_mle
+
+    out: dict[str, Any] = {"estimate": np.full(len(names), np.nan), "converged": False,
+                           "start": "", "loglike": np.nan}
+    if rule == "gmwm" and gmwm_start is None:
+        return {**out, "seconds": np.nan, "message": "not run: the GMWM fit failed"}
+    kw = {"maxiter": int(settings["maxiter"]), "backend": str(settings["backend"]), "n_starts": 1,
+          "own_starts": "default" if rule == "default" else "variogram"}
+    t0 = time.perf_counter()
+    try:
+        res = fit_mle(x, beta, gmwm_start if rule == "gmwm" else None, **kw)
+        out.update(estimate=np.array([res.params.get(n, np.nan) for n in names]),
+                   converged=bool(res.converged), start=res.start, loglike=float(res.loglike),
+                   message=res.message)
+    except _FAILURES as exc:
+        out["message"] = f"{type(exc).__name__}: {exc}"
+    out["seconds"] = time.perf_counter() - t0
+    return out
+
+
 def run_replicate(
     model_spec: str,
     truth: Mapping[str, float],
@@ -82,15 +151,15 @@ def run_replicate(
     gmwm_settings: Mapping[str, Any],
     mle_settings: Mapping[str, Any] | None,
 ) -> dict[str, Any]:
-    """Simulate replicate ``replicate`` and fit it by GMWM and (unless ``mle_settings`` is None) MLE.
+    """Simulate replicate ``replicate``, fit the GMWM and (unless ``mle_settings`` is None) every
+    MLE variant.
 
-    Returns a dict with, per method ``m``: ``m_estimate`` (canonical parameter order of the model;
-    the MLE's known frequency is NaN), ``m_converged``, ``m_seconds`` (wall time of the whole fit
-    call [s]; the GMWM's includes its WV), ``m_message``; plus ``mle_ran``, ``mle_start`` (the
-    winning start: ``'gmwm'`` = the GMWM estimate, else the MLE's own) and ``mle_loglike``.
+    Returns ``{'mle_ran': bool, 'fits': {estimator: {...}}}`` where each fit has ``estimate``
+    (canonical parameter order of the model; the MLE's known frequency is NaN), ``converged``,
+    ``seconds`` (wall time of the whole fit call [s]; the GMWM's includes its WV), ``message``,
+    ``start`` (the MLE's start name) and ``loglike`` (the MLE's exact log-likelihood).
     """
-    from gmwm.fit import fit
-    from gmwm.mle import fit_mle
+    from gmwm import fit
     from gmwm.model import Model
     from gmwm.studies import check_truth, fit_settings_kwargs
 
@@ -98,51 +167,32 @@ def run_replicate(
     theta = check_truth(model_spec, truth)
     beta = _check_model(model, truth)
     gmwm_kwargs = fit_settings_kwargs(gmwm_settings)
-    mle_kwargs = None if mle_settings is None else _mle_kwargs(mle_settings)
+    settings = None if mle_settings is None else _mle_settings(mle_settings)
     names = list(model.param_names)
     x = model.simulate(theta, int(n_samples), replicate_rng(study, n_samples, replicate, base_seed))
-    out: dict[str, Any] = {
-        "gmwm_estimate": np.full(len(names), np.nan), "gmwm_converged": False,
-        "mle_estimate": np.full(len(names), np.nan), "mle_converged": False,
-        "mle_ran": mle_settings is not None, "mle_start": "", "mle_loglike": np.nan,
-        "mle_seconds": np.nan, "mle_message": "not run (beyond the MLE replicate cap)",
-    }
+    g: dict[str, Any] = {"estimate": np.full(len(names), np.nan), "converged": False, "start": "",
+                         "loglike": np.nan}
     seed = replicate_seed(study, n_samples, replicate, base_seed, stream=1)
     t0 = time.perf_counter()
     try:
         res = fit(x, model, seed=seed, **gmwm_kwargs)
         gmwm_theta = model.canonical(np.asarray(res.params, dtype=float))
-        out.update(gmwm_estimate=gmwm_theta, gmwm_converged=bool(res.converged),
-                   gmwm_message=str(res.message))
+        g.update(estimate=gmwm_theta, converged=bool(res.converged), message=str(res.message))
     except _FAILURES as exc:
         gmwm_theta = None
-        out["gmwm_message"] = f"{type(exc).__name__}: {exc}"
-    out["gmwm_seconds"] = time.perf_counter() - t0
-
-    if mle_kwargs is None:
-        return out
+        g["message"] = f"{type(exc).__name__}: {exc}"
+    g["seconds"] = time.perf_counter() - t0
+    fits = {"gmwm": g}
+    if settings is None:
+        return {"mle_ran": False, "fits": fits}
     start = None if gmwm_theta is None else model.as_dict(gmwm_theta)
-    t0 = time.perf_counter()
-    try:
-        mres = fit_mle(x, beta, start, **mle_kwargs)
-        est = np.array([mres.params.get(n, np.nan) for n in names])
-        out.update(mle_estimate=est, mle_converged=bool(mres.converged), mle_start=mres.start,
-                   mle_loglike=float(mres.loglike), mle_message=mres.message)
-    except _FAILURES as exc:
-        out["mle_message"] = f"{type(exc).__name__}: {exc}"
-    out["mle_seconds"] = time.perf_counter() - t0
-    return out
+    for name, rule in settings["variants"].items():
+        fits[name] = _fit_variant(x, beta, rule, start, settings, names)
+    return {"mle_ran": True, "fits": fits}
 
 
-def _mle_kwargs(settings: Mapping[str, Any]) -> dict[str, Any]:
-    unknown = sorted(set(settings) - set(MLE_KEYS))
-    if unknown:
-        raise InputError(f"unknown MLE setting(s) {unknown}; allowed: {list(MLE_KEYS)}")
-    return dict(settings)
-
-
-def _warm_up(model_spec: str) -> None:
-    """Compile the WV kernels and load statsmodels before timing anything (first-call costs)."""
+def _warm_up(model_spec: str, backend: str) -> None:
+    """Compile the WV and filter kernels and load the libraries before timing anything."""
     from gmwm.mle import fit_mle
     from gmwm.model import Model
     from gmwm.wv import wvar
@@ -150,7 +200,9 @@ def _warm_up(model_spec: str) -> None:
     rng = np.random.default_rng(0)
     wvar(rng.normal(size=1024))
     Model(model_spec)
-    fit_mle(rng.normal(size=256), 0.35, n_starts=1, maxiter=2)
+    fit_mle(rng.normal(size=256), 0.35, n_starts=1, maxiter=2, backend=backend)
+    fit_mle(rng.normal(size=256), 0.35, n_starts=1, maxiter=2, backend=backend,
+            own_starts="default")
 
 
 def run_chunk(
@@ -178,23 +230,27 @@ def run_chunk(
         raise InputError("a chunk needs at least one replicate")
     if n_mle < 0:
         raise InputError(f"the MLE replicate cap must be >= 0, got {n_mle}")
-    _mle_kwargs(mle_settings)
+    settings = _mle_settings(mle_settings)
+    methods = ["gmwm", *settings["variants"]]
     model = Model(model_spec)
     names = list(model.param_names)
-    _warm_up(model_spec)
+    _warm_up(model_spec, settings["backend"])
     rows = []
     for i, rep in enumerate(reps):
         row = run_replicate(model_spec, truth, n_samples, rep, study, base_seed, gmwm_settings,
-                            mle_settings if rep < n_mle else None)
+                            settings if rep < n_mle else None)
         rows.append(row)
-        mle = (f"MLE {row['mle_seconds']:.2f} s converged={row['mle_converged']} "
-               f"start={row['mle_start']}" if row["mle_ran"] else "MLE not run (cap)")
-        progress(f"{study} T={n_samples}: replicate {i + 1}/{len(reps)} (id {rep}) "
-                 f"GMWM {row['gmwm_seconds']:.2f} s converged={row['gmwm_converged']}; {mle}")
+        done = "; ".join(f"{m} {f['seconds']:.2f} s conv={f['converged']}"
+                         for m, f in row["fits"].items())
+        progress(f"{study} T={n_samples}: replicate {i + 1}/{len(reps)} (id {rep}): {done}")
     truth_vec = np.array([float(truth[n]) for n in names])
+    not_run = {"estimate": np.full(len(names), np.nan), "converged": False, "seconds": np.nan,
+               "message": "not run (beyond the MLE replicate cap)", "start": "",
+               "loglike": np.nan}
 
     def stack(key: str, dtype: Any = float) -> np.ndarray:
-        return np.array([[r[f"{m}_{key}"] for r in rows] for m in METHODS], dtype=dtype)
+        return np.array([[r["fits"].get(m, not_run)[key] for r in rows] for m in methods],
+                        dtype=dtype)
 
     return xr.Dataset(
         {
@@ -202,12 +258,12 @@ def run_chunk(
             "converged": (("estimator", "replicate"), stack("converged", bool)),
             "seconds": (("estimator", "replicate"), stack("seconds")),
             "message": (("estimator", "replicate"), stack("message", object)),
+            "start": (("estimator", "replicate"), stack("start", object)),
+            "loglike": (("estimator", "replicate"), stack("loglike")),
             "mle_ran": ("replicate", np.array([r["mle_ran"] for r in rows], dtype=bool)),
-            "mle_start": ("replicate", np.array([r["mle_start"] for r in rows], dtype=object)),
-            "mle_loglike": ("replicate", np.array([r["mle_loglike"] for r in rows], dtype=float)),
         },
         coords={
-            "estimator": np.array(METHODS, dtype=object),
+            "estimator": np.array(methods, dtype=object),
             "replicate": np.asarray(reps, dtype=np.int64),
             "parameter": np.asarray(names, dtype=object),
             "truth": ("parameter", truth_vec),
@@ -217,10 +273,12 @@ def run_chunk(
             "model": model_spec,
             "n_samples": int(n_samples),
             "base_seed": int(base_seed),
-            "estimator": "gmwm+mle",
+            "estimator": "+".join(methods),
             "n_mle": int(n_mle),
+            "variants": json.dumps(settings["variants"]),
+            "wrong_optimum_ll": float(settings["wrong_optimum_ll"]),
             "gmwm_settings": json.dumps(dict(gmwm_settings), sort_keys=True),
-            "mle_settings": json.dumps(dict(mle_settings), sort_keys=True),
+            "mle_settings": json.dumps(settings, sort_keys=True),
         },
     )
 
@@ -230,116 +288,146 @@ def run_chunk(
 # ---------------------------------------------------------------------------------------------
 
 
-def paired_mask(ds: xr.Dataset) -> np.ndarray:
-    """Replicates used for the comparison: the MLE ran and converged, and both methods gave finite
-    estimates of the compared parameters (the paper's rule: MLE failures are dropped from both)."""
-    est = ds["estimate"].sel(parameter=list(COMPARED))
+def wrong_optimum(ds: xr.Dataset) -> xr.DataArray:
+    """(estimator, replicate): a converged MLE whose log-likelihood is more than
+    ``wrong_optimum_ll`` below the best log-likelihood any variant reached on the same signal
+    (always False for the GMWM)."""
+    ll = ds["loglike"]
+    best = ll.max("estimator", skipna=True)
+    tol = float(ds.attrs["wrong_optimum_ll"])
+    wrong = ds["converged"] & (ll < best - tol)
+    return wrong & (ds["estimator"] != "gmwm")
+
+
+def _status(ds: xr.Dataset, variant: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(ran, not converged, wrong optimum) per replicate for one MLE variant."""
+    ran = ds["mle_ran"].values & np.isfinite(ds["seconds"].sel(estimator=variant).values)
+    failed = ds["mle_ran"].values & ~ds["converged"].sel(estimator=variant).values
+    wrong = wrong_optimum(ds).sel(estimator=variant).values
+    return ran, failed, wrong
+
+
+def paired_mask(ds: xr.Dataset, variant: str | None = None) -> np.ndarray:
+    """Replicates used to compare the GMWM with one MLE variant (default: the headline one): the
+    MLE ran, converged and did not stop at a wrong optimum, and both methods gave finite estimates
+    of the compared parameters (the paper's rule: MLE failures are dropped from both)."""
+    variant = variant or next(iter(variants_of(ds)))
+    est = ds["estimate"].sel(estimator=["gmwm", variant], parameter=list(COMPARED))
     finite = np.isfinite(est.values).all(axis=2).all(axis=0)
-    mle_ok = ds["mle_ran"].values & ds["converged"].sel(estimator="mle").values
-    return mle_ok & finite
-
-
-def _mle_failed(ds: xr.Dataset) -> np.ndarray:
-    """The MLE ran but did not converge (or raised)."""
-    return ds["mle_ran"].values & ~ds["converged"].sel(estimator="mle").values
+    ran, failed, wrong = _status(ds, variant)
+    return ran & ~failed & ~wrong & finite
 
 
 def _stats(x: np.ndarray, truth: float) -> dict[str, float]:
     n = len(x)
     mean = float(np.mean(x)) if n else np.nan
     sd = float(np.std(x, ddof=1)) if n > 1 else np.nan
-    return {"n_used": n, "mean": mean, "bias": mean - truth, "sd": sd,
-            "rmse": float(np.sqrt(np.mean((x - truth) ** 2))) if n else np.nan,
-            "rel_rmse": float(np.sqrt(np.mean((x - truth) ** 2))) / abs(truth) if n and truth
-            else np.nan}
+    rmse = float(np.sqrt(np.mean((x - truth) ** 2))) if n else np.nan
+    return {"n_used": n, "mean": mean, "bias": mean - truth, "sd": sd, "rmse": rmse,
+            "rel_bias": (mean - truth) / abs(truth) if truth else np.nan,
+            "rel_rmse": rmse / abs(truth) if truth else np.nan,
+            "z_bias": (mean - truth) / (sd / np.sqrt(n)) if n > 1 and sd > 0 else np.nan}
+
+
+def _times(secs: np.ndarray) -> dict[str, float]:
+    secs = secs[np.isfinite(secs)]
+    return {"mean_seconds": float(np.mean(secs)) if secs.size else np.nan,
+            "median_seconds": float(np.median(secs)) if secs.size else np.nan}
 
 
 def summarize_comparison(ds: xr.Dataset) -> pd.DataFrame:
-    """RMSE, bias, SD and mean run time per method and compared parameter at one sample size.
+    """RMSE, bias, SD and run times per comparison, method and compared parameter at one T.
 
-    ``set = 'paired'`` rows (methods ``gmwm`` and ``mle``): the replicates of :func:`paired_mask`,
-    identical for both methods. ``set = 'all'`` rows (``gmwm`` only): every replicate except those
-    whose MLE failed (so the paper's 500 replicates where the MLE was capped). ``mean_seconds`` of
-    the paired rows is over every replicate where the MLE ran (converged or not: a failed fit
-    costs time too), the same signals for both methods; of the ``all`` row over its replicates.
+    ``set = 'paired'`` rows, one pair per MLE ``variant`` (methods ``gmwm`` and the variant): the
+    replicates of :func:`paired_mask` for that variant, identical for both methods; run times are
+    over every replicate where the MLE ran (converged or not: a failed fit costs time too), the
+    same signals for both methods. ``set = 'all'`` rows (``gmwm`` only, variant ``''``): every
+    replicate with a converged GMWM fit, including those beyond the MLE cap.
     """
-    paired = paired_mask(ds)
-    failed = _mle_failed(ds)
-    ran = ds["mle_ran"].values
     gmwm_ok = ds["converged"].sel(estimator="gmwm").values
-    common = {
-        "n_samples": int(ds.attrs["n_samples"]),
-        "n_replicates": int(ds.sizes["replicate"]),
-        "n_mle_run": int(ran.sum()),
-        "n_mle_not_converged": int(failed.sum()),
-    }
+    base = {"n_samples": int(ds.attrs["n_samples"]), "n_replicates": int(ds.sizes["replicate"]),
+            "n_mle_run": int(ds["mle_ran"].values.sum())}
     rows = []
-    for method, subset, timed in (("gmwm", paired, ran), ("mle", paired, ran),
-                                  ("gmwm", ~failed, np.ones_like(ran))):
-        secs = ds["seconds"].sel(estimator=method).values[timed]
+    jobs = []
+    for variant, rule in variants_of(ds).items():
+        ran, failed, wrong = _status(ds, variant)
+        counts = {"variant": variant, "start_rule": rule,
+                  "n_not_converged": int(failed.sum()), "n_wrong_optimum": int(wrong.sum())}
+        mask = paired_mask(ds, variant)
+        jobs += [("paired", "gmwm", mask, ran, counts), ("paired", variant, mask, ran, counts)]
+    jobs.append(("all", "gmwm", gmwm_ok, np.ones_like(gmwm_ok),
+                 {"variant": "", "start_rule": "", "n_not_converged": int((~gmwm_ok).sum()),
+                  "n_wrong_optimum": 0}))
+    for set_name, method, subset, timed, counts in jobs:
+        times = _times(ds["seconds"].sel(estimator=method).values[timed])
         for p in COMPARED:
             truth = float(ds["truth"].sel(parameter=p))
             x = ds["estimate"].sel(estimator=method, parameter=p).values[subset]
             x = x[np.isfinite(x)]
-            rows.append({
-                **common, "set": "paired" if subset is paired else "all", "method": method,
-                "parameter": p, "truth": truth, **_stats(x, truth),
-                "n_gmwm_not_converged": int((~gmwm_ok & subset).sum()),
-                "mean_seconds": float(np.nanmean(secs)) if secs.size else np.nan,
-            })
+            rows.append({**base, **counts, "set": set_name, "method": method, "parameter": p,
+                         "truth": truth, **_stats(x, truth), **times})
     return pd.DataFrame(rows)
 
 
 def comparison_table(summary: pd.DataFrame) -> pd.DataFrame:
-    """One row per sample size: counts, mean times, speed-up (MLE / GMWM mean time on the same
-    signals) and the RMSE ratio MLE / GMWM per compared parameter (paired replicates)."""
+    """One row per sample size and MLE variant: counts, mean and median times, speed-ups (MLE /
+    GMWM time on the same signals, ratio of means and ratio of medians) and the RMSE ratio
+    MLE / GMWM per compared parameter (that variant's paired replicates)."""
     paired = summary[summary["set"] == "paired"]
     rows = []
-    for T, g in paired.groupby("n_samples", sort=True):
+    for (T, variant), g in paired.groupby(["n_samples", "variant"], sort=False):
         by = g.set_index(["method", "parameter"])
-        t_g = float(by.loc[("gmwm", COMPARED[0]), "mean_seconds"])
-        t_m = float(by.loc[("mle", COMPARED[0]), "mean_seconds"])
+        gm, ml = by.loc[("gmwm", COMPARED[0])], by.loc[(variant, COMPARED[0])]
         first = g.iloc[0]
         row = {
             "n_samples": int(T),
+            "variant": variant,
+            "start_rule": first["start_rule"],
             "n_replicates": int(first["n_replicates"]),
             "n_mle": int(first["n_mle_run"]),
-            "mle_not_converged": int(first["n_mle_not_converged"]),
-            "n_used": int(by.loc[("mle", COMPARED[0]), "n_used"]),
-            "gmwm_seconds": t_g,
-            "mle_seconds": t_m,
-            "speedup": t_m / t_g if t_g > 0 else np.nan,
+            "not_converged": int(first["n_not_converged"]),
+            "wrong_optimum": int(first["n_wrong_optimum"]),
+            "n_used": int(ml["n_used"]),
+            "gmwm_mean_s": float(gm["mean_seconds"]),
+            "mle_mean_s": float(ml["mean_seconds"]),
+            "speedup_mean": _ratio(ml["mean_seconds"], gm["mean_seconds"]),
+            "gmwm_median_s": float(gm["median_seconds"]),
+            "mle_median_s": float(ml["median_seconds"]),
+            "speedup_median": _ratio(ml["median_seconds"], gm["median_seconds"]),
         }
         for p in COMPARED:
-            r_g, r_m = float(by.loc[("gmwm", p), "rmse"]), float(by.loc[("mle", p), "rmse"])
-            row[f"rmse_ratio_{SHORT_NAMES[p]}"] = r_m / r_g if r_g > 0 else np.nan
+            row[f"rmse_ratio_{SHORT_NAMES[p]}"] = _ratio(by.loc[(variant, p), "rmse"],
+                                                         by.loc[("gmwm", p), "rmse"])
         rows.append(row)
-    return pd.DataFrame(rows)
+    return pd.DataFrame(rows)  # in the summary's order: by T, then variants as configured
 
 
-def mle_start_counts(ds: xr.Dataset) -> dict[str, int]:
-    """How often each start won the MLE (replicates where the MLE ran)."""
-    starts = ds["mle_start"].values[ds["mle_ran"].values]
-    names, counts = np.unique(starts.astype(str), return_counts=True)
-    return {str(n) if n else "(failed)": int(c) for n, c in zip(names, counts, strict=True)}
+def _ratio(a: float, b: float) -> float:
+    a, b = float(a), float(b)
+    return a / b if b > 0 else np.nan
 
 
-def standardized_by_method(ds: xr.Dataset) -> dict[str, dict[str, np.ndarray]]:
-    """(estimate - truth) / SD of the MLE, per method and compared parameter, paired replicates.
+def standardized_by_method(ds: xr.Dataset, variant: str | None = None
+                           ) -> dict[str, dict[str, np.ndarray]]:
+    """(estimate - truth) / SD of the MLE, per method and compared parameter, on one variant's
+    paired replicates (default: the headline variant).
 
     Both methods are divided by the same number, the MLE's empirical SD (ddof = 1), so that the
     boxes show relative efficiency as well as bias (MLE boxes have unit SD; a wider GMWM box means
-    a larger variance). Keys: ``'GMWM'``, ``'MLE'``.
+    a larger variance). Keys: ``'GMWM'`` and the variant's label (:func:`method_label`).
     """
-    paired = paired_mask(ds)
-    out: dict[str, dict[str, np.ndarray]] = {"GMWM": {}, "MLE": {}}
+    variants = variants_of(ds)
+    variant = variant or next(iter(variants))
+    label = method_label(variant, variants[variant])
+    paired = paired_mask(ds, variant)
+    out: dict[str, dict[str, np.ndarray]] = {"GMWM": {}, label: {}}
     for p in COMPARED:
         truth = float(ds["truth"].sel(parameter=p))
-        mle = ds["estimate"].sel(estimator="mle", parameter=p).values[paired]
+        mle = ds["estimate"].sel(estimator=variant, parameter=p).values[paired]
         sd = float(np.std(mle, ddof=1)) if len(mle) > 1 else np.nan
-        for label, method in (("GMWM", "gmwm"), ("MLE", "mle")):
+        for key, method in (("GMWM", "gmwm"), (label, variant)):
             x = ds["estimate"].sel(estimator=method, parameter=p).values[paired]
-            out[label][p] = (x - truth) / sd if sd > 0 else np.full(len(x), np.nan)
+            out[key][p] = (x - truth) / sd if sd > 0 else np.full(len(x), np.nan)
     return out
 
 
@@ -348,35 +436,38 @@ PARAM_LABELS = {"WN[1].sigma2": "WN $\\sigma^2$", "AR1[1].phi": "AR1 $\\phi$",
 
 
 def study_tables(datasets: Sequence[xr.Dataset]) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(long table of :func:`summarize_comparison` over all T, per-T :func:`comparison_table` with
-    the winning MLE starts), sorted by sample size."""
+    """(long table of :func:`summarize_comparison` over all T, per-T and variant
+    :func:`comparison_table`), sorted by sample size."""
     parts = sorted(datasets, key=lambda d: int(d.attrs["n_samples"]))
     if not parts:
         raise InputError("no gathered Simulation 1 results given")
     long = pd.concat([summarize_comparison(d) for d in parts], ignore_index=True)
-    comp = comparison_table(long)
-    comp["mle_winning_start"] = [
-        ", ".join(f"{k} {v}" for k, v in mle_start_counts(d).items()) for d in parts
-    ]
-    return long, comp
+    return long, comparison_table(long)
 
 
 def counts_text(comp: pd.DataFrame, mle_settings: Mapping[str, Any]) -> str:
-    """Plain sentences (valid reStructuredText) with the MLE cap, the dropped replicates and the
-    winning starts per T, for the figure captions and the tables."""
-    def per_t(col: str) -> str:
-        return "; ".join(f"T = {int(r.n_samples):,}: {getattr(r, col)}" for r in comp.itertuples())
+    """Plain sentences (valid reStructuredText) with the MLE cap, the variants, the dropped
+    replicates and the used counts per T, for the figure captions and the tables."""
+    settings = _mle_settings(mle_settings)
+    first = comp[comp["variant"] == comp["variant"].iloc[0]]
 
-    dropped = "; ".join(
-        f"T = {int(r.n_samples):,}: {int(r.mle_not_converged)} of {int(r.n_mle)}"
-        for r in comp.itertuples()
-    )
-    n_starts = mle_settings.get("n_starts", 2)
-    return (
-        f"GMWM replicates per sample size: {per_t('n_replicates')}. "
-        f"MLE fitted on the first replicates only (cost cap): {per_t('n_mle')}. "
-        f"MLE fits that did not converge, dropped from both methods' statistics (as in the "
-        f"paper): {dropped}. Replicates compared: {per_t('n_used')}. "
-        f"MLE starts: the GMWM estimate first, then the MLE's own data-driven start(s), "
-        f"{n_starts} in all, highest likelihood kept; winning start: {per_t('mle_winning_start')}.\n"
-    )
+    def per_t(df: pd.DataFrame, col: str) -> str:
+        return "; ".join(f"T = {int(r.n_samples):,}: {getattr(r, col)}" for r in df.itertuples())
+
+    lines = [(
+        f"GMWM replicates per sample size: {per_t(first, 'n_replicates')}. "
+        f"MLE fitted on the first replicates only (cost cap): {per_t(first, 'n_mle')}. "
+        f"MLE backend {settings['backend']!r} (exact likelihood, one start per variant). "
+        f"A fit counts as a wrong optimum when its log-likelihood is more than "
+        f"{float(settings['wrong_optimum_ll']):g} below the best any variant reached on the same "
+        f"signal. Replicates whose MLE did not converge or stopped at a wrong optimum are dropped "
+        f"from both methods' statistics for that variant (as in the paper)."
+    )]
+    for variant, df in comp.groupby("variant", sort=False):
+        rule = str(df["start_rule"].iloc[0])
+        dropped = "; ".join(
+            f"T = {int(r.n_samples):,}: {int(r.not_converged)} + {int(r.wrong_optimum)} of "
+            f"{int(r.n_mle)}" for r in df.itertuples())
+        lines.append(f"{method_label(variant, rule)} [{variant}]: not converged + wrong optimum: "
+                     f"{dropped}; compared: {per_t(df, 'n_used')}.")
+    return " ".join(lines) + "\n"

@@ -1,6 +1,7 @@
 # Simulation 1 of the vibration-noise paper (kind: mle_comparison): GMWM against the Kalman-filter
-# MLE on WN + RW + AR1 + SIN signals. Per chunk of replicates: simulate, fit GMWM (always) and the
-# MLE (only replicates below the study's MLE cap at that T) -> gather per T -> tables -> figures.
+# MLE on WN + RW + AR1 + SIN signals. Per chunk of replicates: simulate, fit GMWM (always) and each
+# MLE variant (own start, statsmodels' start, GMWM start; only replicates below the study's MLE cap
+# at that T) -> gather per T -> tables -> figures.
 # The statistics live in gmwm.mle_comparison; raw signals are never stored.
 
 
@@ -66,10 +67,12 @@ def sim1_chunk_n_mle(w):
 
 
 def sim1_chunk_runtime(w):
-    # measured (2 cores, shared): MLE ~5 s per fit at T = 1.6e5 (2 starts), GMWM ~0.1 s; x4 margin
+    # measured (benchmarks/bench_mle.py, Kalman backend): an MLE fit costs at most ~1.5 s at
+    # T = 1.6e5 (statsmodels' start, idle core), the GMWM ~0.1 s; about x4 margin for load
     reps = chunk_reps(w.study, w.chunk)
     n_mle = sum(r < sim1_chunk_n_mle(w) for r in reps)
-    return max(10, int((n_mle * 1.2e-4 * int(w.T) + len(reps) * 1.0) / 60) + 5)
+    n_var = len(STUDIES[w.study].get("mle", {}).get("variants", {})) or 2
+    return max(10, int((n_mle * n_var * 4e-5 * int(w.T) + len(reps) * 1.0) / 60) + 5)
 
 
 rule sim1_chunk:

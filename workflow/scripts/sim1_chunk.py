@@ -18,5 +18,7 @@ ds = run_chunk(p.model, p.truth, p.n_samples, reps, study=snakemake.wildcards.st
                base_seed=p.seed, gmwm_settings=p.gmwm, mle_settings=p.mle, n_mle=n_mle,
                progress=log.info)
 write_dataset(ds, snakemake.output[0])
-log.info("wrote %s; MLE converged %d/%d", snakemake.output[0],
-         int((ds["converged"].sel(estimator="mle") & ds["mle_ran"]).sum()), int(ds["mle_ran"].sum()))
+for est in ds["estimator"].values[1:]:
+    log.info("%s: converged %d/%d", est, int((ds["converged"].sel(estimator=est) & ds["mle_ran"]).sum()),
+             int(ds["mle_ran"].sum()))
+log.info("wrote %s", snakemake.output[0])

@@ -11,7 +11,7 @@ import pandas as pd
 from wflog import get_logger
 
 from gmwm.io import save_figure
-from gmwm.mle_comparison import COMPARED, PARAM_LABELS, standardized_by_method
+from gmwm.mle_comparison import COMPARED, PARAM_LABELS, method_label, standardized_by_method
 from gmwm.plots import boxplot_grouped, plot_rmse_curves, plot_runtime, style
 from gmwm.store import read_dataset
 
@@ -23,16 +23,24 @@ outdir = Path(snakemake.output[0]).parent
 long = pd.read_csv(snakemake.input.table)
 comp = pd.read_csv(snakemake.input.comparison)
 paired = long[long["set"] == "paired"]
-T = comp["n_samples"].to_numpy()
+variants = dict(zip(comp["variant"], comp["start_rule"], strict=False))  # configured order
+head = next(iter(variants))
+by_variant = {v: comp[comp["variant"] == v].sort_values("n_samples") for v in variants}
+T = by_variant[head]["n_samples"].to_numpy()
+label = {v: method_label(v, r) for v, r in variants.items()}
 
 
-def per_t(col):
-    return "/".join(str(int(v)) for v in comp[col])
+def per_t(df, col):
+    return "/".join(str(int(v)) for v in df[col])
 
 
 sizes = ", ".join(f"{t / 1e4:g}" for t in T)
-note = (f"T = ({sizes}) x 1e4; MLE on {per_t('n_mle')} of {per_t('n_replicates')} replicates; "
-        f"MLE not converged (dropped from both): {per_t('mle_not_converged')}")
+note = (f"T = ({sizes}) x 1e4; MLE on {per_t(by_variant[head], 'n_mle')} of "
+        f"{per_t(by_variant[head], 'n_replicates')} replicates; dropped from both (not converged "
+        f"+ wrong optimum): " + "; ".join(
+            f"{label[v]} " + "/".join(f"{int(a)}+{int(b)}" for a, b in
+                                     zip(df["not_converged"], df["wrong_optimum"], strict=True))
+            for v, df in by_variant.items()))
 
 
 def save(fig, stem):
@@ -40,35 +48,46 @@ def save(fig, stem):
     log.info("wrote %s", ", ".join(map(str, written)))
 
 
-# Figure 1: RMSE against T, one panel per parameter, both methods on the same replicates
-rmse = {label: {p: paired[(paired.method == m) & (paired.parameter == p)]
-                .sort_values("n_samples")["rmse"].to_numpy() for p in COMPARED}
-        for label, m in (("GMWM", "gmwm"), ("MLE", "mle"))}
+# Figure 1: RMSE against T, one panel per parameter. GMWM and the headline MLE on the same
+# replicates; every other MLE variant on its own paired replicates.
+
+
+def rmse_of(variant, method):
+    sub = paired[(paired.variant == variant) & (paired.method == method)]
+    return {p: sub[sub.parameter == p].sort_values("n_samples")["rmse"].to_numpy()
+            for p in COMPARED}
+
+
+rmse = {"GMWM": rmse_of(head, "gmwm"), **{label[v]: rmse_of(v, v) for v in variants}}
 fig = plot_rmse_curves(T, rmse, ncols=2, param_labels=PARAM_LABELS)
-fig.set_size_inches(7.0, 5.6)
-fig.suptitle(f"{name}: RMSE against T (replicates with a converged MLE)\n{note}", fontsize=8)
+fig.set_size_inches(7.0, 5.8)
+fig.suptitle(f"{name}: RMSE against T (GMWM on the replicates of {label[head]})\n{note}",
+             fontsize=7)
 save(fig, "fig1_rmse")
 
-# Figure 2: mean run time against T with the speed-up annotated
+# Figure 2: mean run time against T, speed-up of the headline MLE over the GMWM annotated
 with style():  # the package style for the whole figure, as in Figure 1
     fig, ax = plt.subplots(figsize=(6.0, 4.5), layout="constrained")
-    plot_runtime(T, {"GMWM": comp["gmwm_seconds"].to_numpy(),
-                     "MLE": comp["mle_seconds"].to_numpy()},
-                 ax=ax, ratio=("MLE", "GMWM"), ylabel="Mean run time per replicate [s]")
-    ax.set_title(f"{name}: mean run time (GMWM incl. its WV; same signals)\n{note}", fontsize=8)
+    times = {"GMWM": by_variant[head]["gmwm_mean_s"].to_numpy(),
+             **{label[v]: df["mle_mean_s"].to_numpy() for v, df in by_variant.items()}}
+    plot_runtime(T, times, ax=ax, ratio=(label[head], "GMWM"),
+                 ylabel="Mean run time per replicate [s]")
+    ax.set_title(f"{name}: mean run time (GMWM incl. its WV; same signals)\n{note}", fontsize=7)
     save(fig, "fig2_runtime")
 plt.close(fig)
 
-# Figure 9: standardized errors of both estimators at the largest T
+# Figure 9: standardized errors of the GMWM and the headline MLE at the largest T
 ds = read_dataset(snakemake.input.estimates[-1])
 big = int(ds.attrs["n_samples"])
-std = standardized_by_method(ds)
+std = standardized_by_method(ds, head)
 std = {m: {PARAM_LABELS[p]: v for p, v in d.items()} for m, d in std.items()}
-n_used = len(next(iter(std["MLE"].values())))
+n_used = len(next(iter(std[label[head]].values())))
+last = by_variant[head].iloc[-1]
 with style():
     fig, ax = plt.subplots(figsize=(7.0, 4.5), layout="constrained")
     boxplot_grouped(std, ax=ax, ylabel="(estimate - truth) / SD of the MLE",
-                    title=(f"{name}: T = {big:,}, {n_used} replicates with a converged MLE "
-                           f"({int(comp['mle_not_converged'].iloc[-1])} dropped)"))
+                    title=(f"{name}: T = {big:,}, {n_used} replicates compared "
+                           f"({int(last['not_converged'])} not converged, "
+                           f"{int(last['wrong_optimum'])} wrong optima dropped)"))
     save(fig, "fig9_boxplot")
 plt.close(fig)

@@ -15,10 +15,11 @@ long, comp = study_tables([read_dataset(f) for f in snakemake.input])
 counts = counts_text(comp, snakemake.params.mle)
 write_text_atomic(out.counts, counts)
 write_table(comp, out.comparison, out.comparison_md,
-            title=(f"{name}: GMWM vs MLE, speed-up (mean MLE time / mean GMWM time, same signals) "
-                   f"and RMSE ratio MLE / GMWM per parameter\n\n{counts}"))
+            title=(f"{name}: GMWM vs MLE variants, speed-up (MLE time / GMWM time on the same "
+                   f"signals; ratio of means and ratio of medians) and RMSE ratio MLE / GMWM per "
+                   f"parameter\n\n{counts}"))
 write_table(long, out.table, out.table_md,
             title=(f"{name}: RMSE, bias, SD and mean run time per method, sample size and "
-                   f"parameter (set 'paired': replicates with a converged MLE, both methods; "
-                   f"set 'all': GMWM on every replicate whose MLE did not fail)\n\n{counts}"))
+                   f"parameter (set 'paired': per MLE variant, the replicates where it converged to "
+                   f"the best optimum, both methods; set 'all': GMWM on every replicate)\n\n{counts}"))
 log.info("speed-up and RMSE ratios:\n%s", comp.to_string())

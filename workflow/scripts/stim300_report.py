@@ -21,7 +21,8 @@ log.info("truth vs Table I (relative difference): %s", diff)
 
 table = ac.summarize_table_units(groups, p.sensor, p.freq)[ac.TABLE_COLUMNS]
 cost = ac.cost_summary(groups, p.replicates, cores=p.cores)
-title = f"{study}: STIM-300 {p.sensor}, GMWM vs ARMAV vs AVSM"
+labels = list(dict.fromkeys(ac.estimator_label(v) for v in p.estimators.values()))
+title = f"{study}: STIM-300 {p.sensor}, " + " vs ".join(labels)
 write_text_atomic(snakemake.output.csv, table.to_csv(index=False))
 write_text_atomic(snakemake.output.md, ac.report_markdown(
     table, cost, title=title, model=p.model, estimators=p.estimators, truth_vs_table_i=diff,
