@@ -582,46 +582,33 @@ def _rho_terms(w: np.ndarray, n: int, inv: float) -> tuple[float, float]:
 
 @njit(cache=True)
 def _m_scale(w: np.ndarray, n: int, c: float, b: float, nu0: float) -> float:
-    """Solve ``mean rho_c(w / sqrt(nu)) = b`` for nu: safeguarded Newton in log nu (the left side
-    decreases in nu), starting at ``nu0``. Returns 0 if fewer than a fraction ``1 - b`` of the
-    coefficients are non-zero (the scale is then not identified)."""
+    """Solve ``mean rho_c(w / sqrt(nu)) = b`` for nu: Newton in log nu from ``nu0`` (the left side
+    decreases in nu), steps capped at a factor 4, bisection once a bracket is known and a step
+    leaves it. Converges in ~4-6 passes from the MAD start."""
     c2 = c * c
-    lo = np.log(nu0)
-    g_lo = _rho_terms(w, n, 1.0 / (c2 * np.exp(lo)))[0] - b
-    hi = lo
-    g_hi = g_lo
-    # bracket: g(lo) > 0 > g(hi)
-    step = np.log(4.0)
-    it = 0
-    while g_lo <= 0.0:
-        hi, g_hi = lo, g_lo
-        lo -= step
-        g_lo = _rho_terms(w, n, 1.0 / (c2 * np.exp(lo)))[0] - b
-        it += 1
-        if it > 400:
-            return 0.0
-    if hi == lo:
-        hi = lo
-        while g_hi >= 0.0:
-            lo, g_lo = hi, g_hi
-            hi += step
-            g_hi = _rho_terms(w, n, 1.0 / (c2 * np.exp(hi)))[0] - b
-    x = 0.5 * (lo + hi)
-    for _ in range(100):
+    x = np.log(nu0)
+    lo = -np.inf
+    hi = np.inf
+    cap = np.log(4.0)
+    for _ in range(300):
         g, d = _rho_terms(w, n, 1.0 / (c2 * np.exp(x)))
         g -= b
         if g > 0.0:
             lo = x
         else:
             hi = x
-        if hi - lo < 1e-12:
+        if hi - lo < 1e-11:
             break
-        x_new = x + g / d if d > 0.0 else 0.5 * (lo + hi)
-        if not (lo < x_new < hi):
+        if d > 0.0:
+            step = min(max(g / d, -cap), cap)
+        else:
+            step = cap if g > 0.0 else -cap
+        if abs(step) < 1e-11:
+            x += step
+            break
+        x_new = x + step
+        if not (lo < x_new < hi):  # only possible once both ends are finite
             x_new = 0.5 * (lo + hi)
-        if abs(x_new - x) < 1e-12:
-            x = x_new
-            break
         x = x_new
     return np.exp(x)
 
