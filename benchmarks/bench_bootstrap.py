@@ -21,7 +21,7 @@ import numpy as np
 import gmwm
 from gmwm import bootstrap as bs
 from gmwm.data import load_navchip_wv
-from gmwm.fit import weight_matrix
+from gmwm.estimator import weight_matrix
 from gmwm.model import Model
 
 SPEC = "QN+WN+2*GM+RW+DR"
@@ -68,7 +68,7 @@ def _with_length(res: gmwm.GMWMResult, T: int, J: int) -> gmwm.GMWMResult:
     scales = 2.0 ** np.arange(1, J + 1)
     nu = res.model.wv(res.params, scales)
     wv = gmwm.WaveletVariance.from_table(scales, nu, n_samples=T, freq=res.wv.freq)
-    return dataclasses.replace(res, wv=wv, weights=weight_matrix(wv, "ci")[0])
+    return dataclasses.replace(res, wv=wv, weights=weight_matrix(wv, "ci"))
 
 
 if __name__ == "__main__":

@@ -100,8 +100,14 @@ def test_cis_ses_tables_and_efficient_fit(wn_ar1_fit):
     q = boot.quantiles()
     pc, bc = boot.percentile_ci(), boot.basic_ci()
     np.testing.assert_allclose(pc, q)
-    np.testing.assert_allclose(bc, np.column_stack([2 * wn_ar1_fit.params - q[:, 1],
-                                                    2 * wn_ar1_fit.params - q[:, 0]]))
+    # basic intervals: on the log scale for positive parameters (never below 0), plain for phi
+    th = wn_ar1_fit.params
+    phi = wn_ar1_fit.param_names.index("AR1[1].phi")
+    np.testing.assert_allclose(bc[phi], [2 * th[phi] - q[phi, 1], 2 * th[phi] - q[phi, 0]])
+    pos = [i for i in range(th.size) if i != phi]
+    np.testing.assert_allclose(bc[pos], np.column_stack([th[pos] ** 2 / q[pos, 1],
+                                                         th[pos] ** 2 / q[pos, 0]]))
+    assert np.all(bc[pos] > 0)
     assert np.all(pc[:, 0] < pc[:, 1])
     np.testing.assert_allclose(boot.se(), np.std(boot.theta_used, axis=0, ddof=1))
     df = boot.to_frame()

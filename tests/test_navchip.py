@@ -10,7 +10,7 @@ import pytest
 from gmwm import navchip as nv
 from gmwm.data import load_navchip_wv, load_registry
 from gmwm.errors import DataUnavailableError
-from gmwm.fit import fit
+from gmwm.estimator import fit
 from gmwm.model import Model
 from gmwm.wv import WaveletVariance
 
@@ -60,17 +60,6 @@ def test_gyro_x_fit_on_real_data(gyro_x):
     assert np.all(cf.se[:2] / cf.params[:2] < 0.02)
 
 
-def test_sandwich_matches_theta_coordinates_when_well_conditioned():
-    # WN + RW: two parameters, B well conditioned, so the free-coordinate sandwich equals the
-    # library's theta-coordinate sandwich (up to rounding)
-    T, freq = 2**18, 250.0
-    rng = np.random.default_rng(3)
-    m = Model("WN+RW", freq=freq)
-    x = m.simulate(m.theta({"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-4}), T, rng)
-    res = fit(x, m, freq=freq, weights="gaussian")
-    np.testing.assert_allclose(nv.sandwich_se(res), res.se, rtol=1e-6)
-
-
 def test_inside_ci_and_boundary_flags():
     scales = 2.0 ** np.arange(1, 9)
     wv = WaveletVariance.from_table(scales, 1.0 / scales, n_samples=4096, freq=250.0)
@@ -78,7 +67,7 @@ def test_inside_ci_and_boundary_flags():
     assert inside.tolist() == [True, True, False, True, True, True, True, True]
     res = fit(wv, "WN+RW", weights="gaussian")  # pure WN: RW estimated at the boundary 0
     assert nv._boundary(res).tolist() == [False, True]
-    assert np.isnan(nv.sandwich_se(res)[1]) and np.isfinite(nv.sandwich_se(res)[0])
+    assert np.isnan(res.se[1]) and np.isfinite(res.se[0])
 
 
 @needs_data

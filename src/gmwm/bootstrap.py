@@ -26,7 +26,6 @@ Pipeline runners (the Snakemake rules of ``workflow/rules/uncertainty.smk`` only
 
 from __future__ import annotations
 
-import inspect
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
@@ -35,17 +34,32 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .errors import GMWMError, InputError
-from .fit import GMWMResult, fit, weight_matrix
+from .estimator import GMWMResult, fit
 from .model import Model
 from .wv import wvar
 
 __all__ = ["CI_KINDS", "BootstrapResult", "Coverage", "bootstrap_cov", "bootstrap_from_dataset",
            "bootstrap_table", "bootstrap_to_dataset", "coverage", "coverage_chunk",
-           "coverage_summary", "covers", "draw_seed", "infer_weights", "navchip_result", "parametric_bootstrap",
+           "coverage_summary", "covers", "draw_seed", "navchip_result", "parametric_bootstrap",
            "plot_coverage", "replicate_fit", "simulate_draw", "wv_bootstrap"]
 
 Progress = Callable[[int, int], None]
-_FIT_N_STARTS = int(inspect.signature(fit).parameters["n_starts"].default)
+
+
+def _free(model: Model, theta: np.ndarray) -> np.ndarray:
+    with np.errstate(all="ignore"):
+        eta = model.to_free(np.asarray(theta, dtype=float))
+    return np.nan_to_num(eta, nan=0.0, posinf=50.0, neginf=-50.0)
+
+
+def _positive_params(model: Model) -> np.ndarray:
+    """Per parameter: its domain is (0, inf) (every parameter but AR1 phi, DR omega, SIN beta)."""
+    out = []
+    for c in model.components:
+        for n in c.process.param_names:
+            out.append(not ((c.process.name == "AR1" and n == "phi") or c.process.name == "DR"
+                            or (c.process.name == "SIN" and n == "beta")))
+    return np.array(out, dtype=bool)
 SeedLike = int | np.random.SeedSequence
 
 
@@ -145,29 +159,6 @@ def bootstrap_cov(wv_draws: np.ndarray) -> np.ndarray:
     return np.atleast_2d(np.cov(X, rowvar=False, ddof=1))
 
 
-# -- refit settings -------------------------------------------------------------------------------
-def infer_weights(result: GMWMResult) -> tuple[str | np.ndarray, int]:
-    """Weights argument and ``reweight`` count that reproduce ``result.weights`` on its own WV.
-
-    Recognises ``"ci"``, ``"gaussian"`` and ``"identity"``, and Gaussian weights recomputed from
-    the fitted model WV (``reweight`` > 0; reported as 1 pass). Any other matrix is taken as a
-    fixed user covariance ``V`` (recovered from ``Omega``) and reused unchanged by every refit.
-    Pass ``weights``/``reweight`` to :func:`parametric_bootstrap` when they are known.
-    """
-    wv, method, omega = result.wv, result.method, np.asarray(result.weights)
-    for kind in ("ci", "gaussian", "identity"):
-        if np.allclose(omega, weight_matrix(wv, kind, method)[0], rtol=1e-10, atol=0):
-            return kind, 0
-    refit = weight_matrix(wv, "gaussian", method, model_wv=result.model_wv())[0]
-    if np.allclose(omega, refit, rtol=1e-6, atol=0):
-        return "ci", 1
-    Vf = np.linalg.pinv(omega, hermitian=True)
-    if method == "armav":  # undo V_f = F V F' with F = diag(log10(e) / nu_hat)
-        g = wv.variance / np.log10(np.e)
-        Vf = Vf * np.outer(g, g)
-    return Vf, 0
-
-
 # -- parametric bootstrap -------------------------------------------------------------------------
 @dataclass
 class BootstrapResult:
@@ -247,8 +238,36 @@ class BootstrapResult:
         return used
 
     def se(self) -> np.ndarray:
-        """Bootstrap standard errors: SD (ddof = 1) of the converged refits."""
-        return np.std(self._need_refits(), axis=0, ddof=1)
+        """Bootstrap standard errors: SD (ddof = 1) of the converged, label-aligned refits."""
+        return np.std(self.aligned(), axis=0, ddof=1)
+
+    def aligned(self) -> np.ndarray:
+        """Converged refits with same-type components relabelled to match the estimate (the
+        permutation closest to it in free coordinates), so quantiles do not mix label-switched
+        draws."""
+        used = self._need_refits().copy()
+        model = self.estimate.model
+        est_eta = _free(model, self.estimate.params)
+        for name in ("AR1", "GM", "SIN"):
+            comps = [c for c in model.components if c.process.name == name]
+            if len(comps) < 2:
+                continue
+            from itertools import permutations
+
+            perms = list(permutations(range(len(comps))))
+            for row in used:
+                eta = _free(model, row)
+                blocks = [row[c.slice].copy() for c in comps]
+                eblocks = [eta[c.slice] for c in comps]
+
+                def dist(perm: tuple[int, ...]) -> float:
+                    return sum(float(np.sum((eblocks[src] - est_eta[c.slice]) ** 2))
+                               for c, src in zip(comps, perm, strict=True))
+
+                best = min(perms, key=dist)
+                for c, src in zip(comps, best, strict=True):
+                    row[c.slice] = blocks[src]
+        return used
 
     def quantiles(self, alpha: float = 0.05) -> np.ndarray:
         """(p, 2) quantiles ``q(alpha/2), q(1 - alpha/2)`` of the converged refits.
@@ -258,7 +277,7 @@ class BootstrapResult:
         default ``a (n - 1) + 1`` makes 95% intervals from 50 draws cover only about 91%.
         """
         _check_alpha(alpha)
-        q = np.quantile(self._need_refits(), [alpha / 2, 1 - alpha / 2], axis=0,
+        q = np.quantile(self.aligned(), [alpha / 2, 1 - alpha / 2], axis=0,
                         method="weibull")
         return q.T
 
@@ -267,11 +286,18 @@ class BootstrapResult:
         return self.quantiles(alpha)
 
     def basic_ci(self, alpha: float = 0.05) -> np.ndarray:
-        """(p, 2) basic intervals ``[2 theta_hat - q(1-alpha/2), 2 theta_hat - q(alpha/2)]``
-        (may leave the parameter domain, e.g. a negative variance, when theta* is skewed)."""
+        """(p, 2) basic intervals ``[2 theta_hat - q(1-alpha/2), 2 theta_hat - q(alpha/2)]``,
+        formed on the log scale for positive parameters (variances, amplitudes, GM beta) so that
+        they never leave the domain: ``[theta_hat^2 / q_hi, theta_hat^2 / q_lo]``."""
         q = self.quantiles(alpha)
         th = self.estimate.params
-        return np.column_stack([2 * th - q[:, 1], 2 * th - q[:, 0]])
+        out = np.column_stack([2 * th - q[:, 1], 2 * th - q[:, 0]])
+        pos = _positive_params(self.estimate.model)
+        with np.errstate(all="ignore"):
+            logci = np.column_stack([th**2 / q[:, 1], th**2 / q[:, 0]])
+        ok = pos & (th > 0) & np.all(q > 0, axis=1)
+        out[ok] = logci[ok]
+        return out
 
     def ci(self, alpha: float = 0.05, kind: str = "percentile") -> np.ndarray:
         """(p, 2) intervals of ``kind`` 'percentile' or 'basic'."""
@@ -374,8 +400,8 @@ def parametric_bootstrap(result: GMWMResult, B: int = 100, *, seed: SeedLike = 0
 
     Each draw ``b`` simulates ``T = result.wv.n_samples`` samples from ``result.params`` (stream
     :func:`draw_seed` ``(seed, b)``), computes its WV on the same J levels and, if ``refit``,
-    refits the same model with the same method, weights kind (inferred by :func:`infer_weights`
-    unless ``weights``/``reweight`` are given) and ``n_starts`` (default: the estimator's). A
+    refits the same model with the same method, weights, reweighting and ``n_starts`` as the
+    estimate (its ``settings``, unless ``weights``/``reweight``/``n_starts`` are given). A
     refit that raises a :class:`GMWMError` or reports ``converged=False`` is kept in ``theta``
     but excluded from intervals and SEs (counted in ``n_failed``, message in ``messages``).
     ``draws`` restricts the run to those draw indices (chunks for a pipeline; join them with
@@ -386,13 +412,14 @@ def parametric_bootstrap(result: GMWMResult, B: int = 100, *, seed: SeedLike = 0
     model, theta = result.model, np.asarray(result.params, dtype=float)
     wv0 = result.wv
     J, T = wv0.n_levels, int(wv0.n_samples)
+    recorded = result.fit_kwargs()
     if weights is None:
-        w_inf, rw_inf = infer_weights(result)
-        weights = w_inf
-        reweight = rw_inf if reweight is None else reweight
-    reweight = 0 if reweight is None else int(reweight)
-    if n_starts is None:  # the estimator's own default (the estimate's value is not recorded)
-        n_starts = _FIT_N_STARTS
+        weights = recorded["weights"]
+    if reweight is None:
+        reweight = recorded["reweight"]
+    reweight = int(reweight)
+    if n_starts is None:
+        n_starts = recorded["n_starts"]
     kind = weights if isinstance(weights, str) else "covariance"
     settings = {"refit": bool(refit), "weights": kind, "reweight": reweight, "n_starts": n_starts,
                 "method": result.method, "levels": J, "n_samples": T, "freq": wv0.freq}
@@ -409,7 +436,8 @@ def parametric_bootstrap(result: GMWMResult, B: int = 100, *, seed: SeedLike = 0
         else:
             try:
                 res = fit(x, model, levels=J, freq=wv0.freq, weights=weights, method=result.method,
-                          n_starts=n_starts, seed=_fit_seed(ss), reweight=reweight)
+                          n_starts=n_starts, seed=_fit_seed(ss), reweight=reweight,
+                          se_cov="gaussian", nested=recorded["nested"])
                 nus[i] = res.wv.variance
                 th[i] = res.params
                 ok[i] = bool(res.converged) and bool(np.all(np.isfinite(res.params)))

@@ -37,12 +37,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from .errors import GMWMError, InputError
-from .fit import GMWMResult, weight_matrix
+from .estimator import GMWMResult
+from .inference import Problem, f_jacobian, omega_from_cov, wv_cov, whitener
 from .model import Model
-from .processes import _series_coefs
 from .wv import WaveletVariance
 
 __all__ = ["COND_MAX", "LOADING_MIN", "RANK_RTOL", "SD_FREE_MAX", "GlobalCheck",
@@ -61,195 +60,84 @@ _LOG10E = np.log10(np.e)
 # -- the problem ----------------------------------------------------------------------------------
 @dataclass
 class _Setup:
-    """The fitted quantities every check needs."""
+    """The fitted quantities every check needs, around the fit's own :class:`Problem`."""
 
-    model: Model
+    problem: Problem
     theta: np.ndarray
-    wv: WaveletVariance
-    omega: np.ndarray          # weight matrix of the fit (for f(nu))
-    omega_chi: np.ndarray      # inverse covariance of f(nu_hat): chi-square scale
+    V: np.ndarray              # covariance of nu_hat behind the SEs
     cov: np.ndarray            # sandwich covariance of theta_hat
-    method: str = "gmwm"
-    objective: float = np.nan
+    objective: float
+
+    @property
+    def model(self) -> Model:
+        return self.problem.model
+
+    @property
+    def wv(self) -> WaveletVariance:
+        return self.problem.wv
+
+    @property
+    def omega(self) -> np.ndarray:
+        return self.problem.omega
 
     @property
     def tau(self) -> np.ndarray:
-        return self.wv.scales.astype(float)
+        return self.problem.tau
 
-    def f(self, nu: np.ndarray) -> np.ndarray:
-        return np.log10(np.maximum(nu, 1e-300)) if self.method == "armav" else nu
+    @property
+    def omega_chi(self) -> np.ndarray:
+        """Inverse covariance of f(nu_hat): the chi-square scale."""
+        return omega_from_cov(self.V, self.wv.variance, self.problem.method)
 
-    def jac_theta(self, theta: np.ndarray) -> np.ndarray:
-        A = self.model.jacobian(theta, self.tau)
-        if self.method == "armav":
-            A = A * (_LOG10E / np.maximum(self.model.wv(theta, self.tau), 1e-300))[:, None]
-        return A
-
-    def quad(self, theta: np.ndarray, omega: np.ndarray) -> float:
-        r = self.f(self.wv.variance) - self.f(self.model.wv(theta, self.tau))
+    def quad(self, theta: np.ndarray, omega: np.ndarray | None = None) -> float:
+        if omega is None:
+            return self.problem.objective(theta)
+        with np.errstate(all="ignore"):
+            r = self.problem.target - self.problem.f(self.model.wv(theta, self.tau))
         return float(r @ omega @ r)
 
-
-def _whitener(omega: np.ndarray) -> np.ndarray:
-    """L with ``Omega = L L'`` (eigen-factor when Omega is only semi-definite)."""
-    if np.allclose(omega, np.diag(np.diag(omega))):
-        return np.diag(np.sqrt(np.clip(np.diag(omega), 0, None)))
-    try:
-        return np.linalg.cholesky(omega)
-    except np.linalg.LinAlgError:
-        w, U = np.linalg.eigh(omega)
-        return U * np.sqrt(np.clip(w, 0, None))
-
-
-def _sandwich(A: np.ndarray, omega: np.ndarray, V: np.ndarray) -> np.ndarray:
-    B = np.linalg.pinv(A.T @ omega @ A, hermitian=True)
-    G = B @ A.T @ omega
-    return G @ V @ G.T
-
-
-def _user_cov(result: GMWMResult) -> bool:
-    """True if the fit used a caller's covariance (not one of the named weight kinds)."""
-    for kind in ("ci", "gaussian", "identity"):
-        if np.allclose(result.weights, weight_matrix(result.wv, kind, result.method)[0],
-                       rtol=1e-10, atol=0):
-            return False
-    refit = weight_matrix(result.wv, "gaussian", result.method, model_wv=result.model_wv())[0]
-    return not np.allclose(result.weights, refit, rtol=1e-6, atol=0)
+    def posterior_scale(self) -> float:
+        """c such that ``Q_fit / c`` is on the chi-square scale: ``tr(Omega V_f) / J`` (1 for
+        the efficient weights Omega = V_f^-1)."""
+        F = f_jacobian(self.wv.variance, self.problem.method)
+        Vf = self.V * np.outer(F, F)
+        return float(np.trace(self.omega @ Vf) / self.wv.n_levels)
 
 
 def _setup(obj: Any, cov: np.ndarray | None = None) -> _Setup:
-    """From a GMWMResult or a tuple ``(model, theta, wv, omega[, V])``; ``cov`` (J, J) is a
-    covariance of nu_hat (e.g. from a bootstrap) that replaces the Gaussian one."""
+    """From a GMWMResult or a tuple ``(model, theta, wv, Omega[, V])``; ``cov`` (J, J) is a
+    covariance of nu_hat (e.g. from a bootstrap) that replaces the fit's."""
     if isinstance(obj, GMWMResult):
-        model, theta, wv, omega, method = obj.model, obj.params, obj.wv, obj.weights, obj.method
-        if cov is None and _user_cov(obj):
-            omega_chi = np.asarray(obj.weights, dtype=float)
-        else:
-            omega_chi = None
-        V = None
+        prob, theta = Problem.of(obj), np.asarray(obj.params, dtype=float)
+        V = obj.wv_cov if cov is None else np.asarray(cov, dtype=float)
+        if V is None:
+            V = wv_cov("model", obj.model, theta, obj.wv)
     elif isinstance(obj, tuple) and len(obj) in (4, 5):
         model, theta, wv, omega = obj[:4]
-        V = obj[4] if len(obj) == 5 else None
-        method, omega_chi = "gmwm", None
         if not isinstance(model, Model) or not isinstance(wv, WaveletVariance):
             raise InputError("expected (Model, theta, WaveletVariance, Omega[, V])")
+        theta = np.asarray(theta, dtype=float)
+        omega = np.asarray(omega, dtype=float)
+        J = wv.n_levels
+        if theta.shape != (model.n_params,) or omega.shape != (J, J):
+            raise InputError(f"theta must have {model.n_params} entries and Omega be {J}x{J}")
+        prob = Problem(model, wv, omega)
+        V = cov if cov is not None else (obj[4] if len(obj) == 5 else None)
+        V = wv_cov("model", model, theta, wv) if V is None else np.asarray(V, dtype=float)
     else:
         raise InputError("identifiability checks need a GMWM/ARMAV fit result "
                          "or a tuple (model, theta, wv, Omega[, V])")
-    theta = np.asarray(theta, dtype=float)
-    omega = np.asarray(omega, dtype=float)
-    J = wv.n_levels
-    if theta.shape != (model.n_params,) or omega.shape != (J, J):
-        raise InputError(f"theta must have {model.n_params} entries and Omega be {J}x{J}")
-    Vuse = cov if cov is not None else V
-    if Vuse is not None:
-        _, Vg = weight_matrix(wv, np.asarray(Vuse, dtype=float), method)
-        if method == "armav":
-            F = np.diag(_LOG10E / wv.variance)
-            omega_chi = np.linalg.pinv(F @ Vg @ F.T, hermitian=True)
-        else:
-            omega_chi = np.linalg.pinv(Vg, hermitian=True)
-    else:
-        Vg = weight_matrix(wv, "gaussian", method)[1]
-    if omega_chi is None:
-        omega_chi = weight_matrix(wv, "gaussian", method)[0]
-    s = _Setup(model, theta, wv, omega, omega_chi, np.zeros((1, 1)), method)
     if isinstance(obj, GMWMResult) and cov is None:
-        s.cov = np.asarray(obj.cov, dtype=float)
-        s.objective = float(obj.objective)
+        C = np.asarray(obj.cov, dtype=float)
     else:
-        Vf = Vg
-        if method == "armav":
-            F = np.diag(_LOG10E / wv.variance)
-            Vf = F @ Vg @ F.T
         with np.errstate(all="ignore"):
-            s.cov = _sandwich(s.jac_theta(theta), omega, Vf)
-        s.objective = s.quad(theta, omega)
-    return s
-
-
-# -- batched theoretical WV (posterior sampling) --------------------------------------------------
-class _BatchWV:
-    """Theoretical Haar WV of ``model`` at fixed scales for many parameter vectors at once, with
-    the scale-only constants precomputed (the emcee log-probability calls it thousands of times)."""
-
-    def __init__(self, model: Model, scales: np.ndarray):
-        tau = np.asarray(scales, dtype=float)
-        self.model, self.tau, self.m = model, tau, tau / 2
-        self.cols = {"WN": 1 / tau, "QN": 6 / tau**2, "RW": (tau**2 + 2) / (12 * tau),
-                     "DR": tau**2 / 16}
-        self.series = np.array(_series_coefs(self.m))  # (5, J), AR1 with m a < 1e-2
-        self.tau2 = tau**2
-
-    def ar1_unit(self, phi: np.ndarray) -> np.ndarray:
-        """Unit-innovation AR1 WV for phi (N, 1): the cancellation-free form of SPEC 2.2 in
-        a = -ln phi (series when m a < 1e-2), the plain closed form for phi <= 0."""
-        m, tau = self.m, self.tau
-        with np.errstate(all="ignore"):
-            a = -np.log(np.where(phi > 0, phi, 0.5))
-            ma = m * a
-            e = -np.expm1(-ma)
-            u1, u2 = -np.expm1(-a), -np.expm1(-2 * a)
-            out = 2 * (m * u2 - np.exp(-a) * e * (2 + e)) / (self.tau2 * u1**2 * u2)
-            small = ma < 1e-2
-            if small.any():
-                pw = a[..., None] ** np.arange(5)  # (N, 1, 5)
-                series = np.einsum("nk,kj->nj", pw[:, 0, :], self.series)
-                out = np.where(small, series, out)
-            neg = phi[:, 0] <= 0
-            if neg.any():
-                q = phi[neg]
-                n = (1 - q**2) * tau - 2 * q * (3 - 4 * q**m + q**tau)
-                out[neg] = n / (self.tau2 * (1 - q) ** 3 * (1 + q))
-        return out
-
-    def __call__(self, theta: np.ndarray) -> np.ndarray:
-        TH = np.atleast_2d(np.asarray(theta, dtype=float))
-        tau, model = self.tau, self.model
-        out = np.zeros((TH.shape[0], tau.size))
-        for c in model.components:
-            P = TH[:, c.slice]
-            p0 = P[:, :1]
-            name = c.process.name
-            if name in ("WN", "QN", "RW"):
-                out += p0 * self.cols[name]
-            elif name == "DR":
-                out += p0**2 * self.cols["DR"]
-            elif name == "SIN":
-                b = P[:, 1:2]
-                out += 2 * p0**2 * np.sin(b * tau / 4) ** 4 / (self.tau2 * np.sin(b / 2) ** 2)
-            elif name == "AR1":
-                out += P[:, 1:2] * self.ar1_unit(p0)
-            elif name == "GM":
-                a = p0 / model.freq
-                out += P[:, 1:2] * -np.expm1(-2 * a) * self.ar1_unit(np.exp(-a))
-            else:  # a process added later: the per-vector formula
-                out += np.array([c.process.wv(p, tau, model.freq) for p in P])
-        return out
+            C = prob.sandwich(theta, V)[0]
+    return _Setup(prob, theta, V, C, prob.objective(theta))
 
 
 def batch_wv(model: Model, theta: np.ndarray, scales: np.ndarray) -> np.ndarray:
     """Theoretical Haar WV for many parameter vectors at once: theta (N, p) -> (N, J)."""
-    return _BatchWV(model, scales)(theta)
-
-
-_SHAPE_KEY = {"AR1": lambda P: P[:, 0], "GM": lambda P: 1.0 / P[:, 0], "SIN": lambda P: -P[:, 1]}
-
-
-def _canonical_batch(model: Model, TH: np.ndarray) -> np.ndarray:
-    """Model.canonical applied to every row of TH (N, p)."""
-    out = TH.copy()
-    for name, key in _SHAPE_KEY.items():
-        comps = [c for c in model.components if c.process.name == name]
-        if len(comps) < 2:
-            continue
-        keys = np.column_stack([key(TH[:, c.slice]) for c in comps])
-        order = np.argsort(keys, axis=1, kind="stable")
-        blocks = np.stack([TH[:, c.slice] for c in comps], axis=1)  # (N, k, q)
-        sorted_blocks = np.take_along_axis(blocks, order[:, :, None], axis=1)
-        for i, c in enumerate(comps):
-            out[:, c.slice] = sorted_blocks[:, i]
-    return out
+    return model.wv_many(theta, scales)
 
 
 # -- degenerate configurations ----------------------------------------------------------------------
@@ -281,7 +169,15 @@ def degeneracies(model: Model, theta: np.ndarray, wv: WaveletVariance) -> list[s
             continue
         p = theta[c.slice]
         name = c.process.name
-        if name in ("AR1", "GM"):
+        if name == "AR1" and p[0] <= 0:
+            if p[0] < -0.999:
+                notes.append(f"{c.name} is at the edge phi -> -1 (phi = {p[0]:.7g}): an "
+                             "alternating process whose WV is concentrated at the first scale; "
+                             "its phi and variance are not separately identified")
+            elif p[0] > -0.05 and model.count("WN"):
+                notes.append(f"{c.name} collapses into white noise (phi = {p[0]:.3g} ~ 0): its "
+                             "split with WN[1] is not identified")
+        elif name in ("AR1", "GM"):
             a = _ar1_a(c, p, model.freq)
             if a > 3 and model.count("WN"):
                 notes.append(f"{c.name} collapses into white noise (phi = {np.exp(-a):.3g}, "
@@ -388,9 +284,9 @@ def local_check(result: GMWMResult | tuple, *, cov: np.ndarray | None = None) ->
     null_dirs: list[dict[str, Any]] = []
     weak_dirs: list[dict[str, Any]] = []
     if act.any():
-        L = _whitener(s.omega)
+        L = whitener(s.omega)
         with np.errstate(all="ignore"):
-            A = L.T @ s.jac_theta(theta)[:, act] * d[act]
+            A = L.T @ s.problem.jac_theta(theta)[:, act] * d[act]
         norms = np.linalg.norm(A, axis=0)
         if np.all(np.isfinite(A)) and np.all(norms > 0):
             _, sv, Vt = np.linalg.svd(A / norms, full_matrices=False)
@@ -491,27 +387,8 @@ def _random_start(model: Model, eta_hat: np.ndarray, wv: WaveletVariance,
 
 
 def _optimise(s: _Setup, eta0: np.ndarray, center: np.ndarray) -> tuple[np.ndarray, float, bool]:
-    model, tau = s.model, s.tau
-    L = _whitener(s.omega)
-    target = s.f(s.wv.variance)
-    scale = float(np.linalg.norm(L.T @ target)) or 1.0
-
-    def resid(eta: np.ndarray) -> np.ndarray:
-        return L.T @ (target - s.f(model.wv(model.from_free(eta), tau))) / scale
-
-    def jac(eta: np.ndarray) -> np.ndarray:
-        th = model.from_free(eta)
-        return -(L.T @ s.jac_theta(th)) * model.dtheta_deta(eta) / scale
-
-    lo, hi = center - 40.0, center + 40.0
-    x0 = np.clip(eta0, lo + 1e-6, hi - 1e-6)
-    with np.errstate(all="ignore"):
-        sol = least_squares(resid, x0, jac=jac, method="trf", bounds=(lo, hi), x_scale="jac",
-                            xtol=1e-10, ftol=1e-12, gtol=1e-10, max_nfev=400)
-    th = model.canonical(model.from_free(sol.x))
-    obj = s.quad(th, s.omega)
-    ok = bool(sol.status > 0 and np.all(np.isfinite(th)) and np.isfinite(obj))
-    return th, obj, ok
+    sol = s.problem.solve(s.model.from_free(eta0), max_nfev=400, center=center)
+    return s.model.canonical(sol.theta), sol.objective, sol.ok
 
 
 def _describe(model: Model, best: np.ndarray, alt: np.ndarray, far: np.ndarray,
@@ -582,12 +459,12 @@ def global_check(result: GMWMResult | tuple, *, n_starts: int = 16, seed: int = 
     for opt in optima[1:]:
         near = opt["delta_chi2"] < 1.0 or opt["delta"] < 0.01 * max(best_obj, 1e-300)
         if near:
-            th = model.theta(opt["params"])
+            th = np.array([opt["params"][n] for n in model.param_names])
             far = np.abs(free(th) - free(best_th)) > thr
             opt["kind"] = _describe(model, best_th, th, far, wv)
             alternatives.append(opt)
-    better = bool(best_obj < est_obj - max(1e-6 * abs(est_obj), 1e-12)
-                  and not optima[0]["is_estimate"])
+    # judged on the objective alone: a lower objective is a better optimum wherever it lies
+    better = bool(best_obj < est_obj - max(1e-6 * abs(est_obj), 1e-12))
     reasons = []
     if better:
         reasons.append(f"a better optimum exists (objective {best_obj:.6g} < {est_obj:.6g}): "
@@ -615,6 +492,7 @@ class PosteriorCheck:
     samples: np.ndarray
     estimate: np.ndarray
     sandwich_se: np.ndarray
+    laplace_se: np.ndarray
     tau: np.ndarray
     n_walkers: int
     n_steps: int
@@ -647,9 +525,11 @@ class PosteriorCheck:
 
     @property
     def sd_ratio(self) -> np.ndarray:
-        """Posterior SD / sandwich SE per parameter (about 1 when the asymptotics hold)."""
+        """Posterior SD / its Laplace (Gaussian) approximation ``c (A' Omega A)^-1`` per
+        parameter: about 1 when the objective is locally quadratic over the posterior's
+        extent. With efficient weights the Laplace SE is the sandwich SE."""
         with np.errstate(divide="ignore", invalid="ignore"):
-            return self.sd / self.sandwich_se
+            return self.sd / self.laplace_se
 
     def plot(self, truths: np.ndarray | None = None, fig=None):
         return corner_plot(self.samples, self.param_names, truths=truths, fig=fig)
@@ -693,18 +573,21 @@ def _n_modes(x: np.ndarray, n_grid: int = 200) -> int:
 
 def posterior_check(result: GMWMResult | tuple, *, n_walkers: int | None = None,
                     n_steps: int = 1000, max_steps: int = 10000, seed: int = 0,
-                    cov: np.ndarray | None = None, box: float = 10.0,
+                    cov: np.ndarray | None = None, box: float = 20.0,
                     progress: bool = False) -> PosteriorCheck:
-    """emcee sample of the quasi-posterior ``exp(-Q(eta)/2)`` with flat priors on a box of
-    half-width ``clip(box * SD_i, 0.5, box)`` around the estimate in free coordinates
-    (``SD_i`` the sandwich SD of free coordinate i), ``Q`` on the chi-square scale
-    (Gaussian inverse-variance weights, or ``cov`` = a covariance of nu_hat such as a bootstrap's).
+    """emcee sample of the quasi-posterior ``exp(-Q(eta) / (2 c))`` of the estimator being
+    checked: ``Q`` is the fit's own objective (its weight matrix Omega and method), so the
+    posterior mode is the estimate, and ``c = tr(Omega V_f) / J`` puts it on the chi-square
+    scale (c = 1 for the efficient weights; V the fit's covariance of nu_hat, or ``cov``).
+    Flat prior on a box of half-width ``clip(box * SD_i, 2, box)`` around the estimate in free
+    coordinates (``SD_i`` the sandwich SD of free coordinate i); a marginal with more than 1 %
+    of its draws in the outer 2 % of the box is reported (the box then truncates it).
 
     Runs ``n_steps`` and extends by ``n_steps`` until the chain is longer than ``TAU_FACTOR = 50``
     integrated autocorrelation times (or ``max_steps``); burn-in ``2 tau_max``, thinning
     ``tau_max / 2``. Verdicts: unimodal (one KDE mode per parameter and along the two leading
     principal axes), centred (|median - estimate| < 1 posterior SD), spread (posterior SD /
-    sandwich SE in [0.5, 2]), MAP within one posterior SD of the estimate.
+    Laplace SE in [0.5, 2]), MAP within one posterior SD of the estimate.
     Parameters at the boundary 0 are held fixed.
     """
     import emcee
@@ -730,12 +613,12 @@ def posterior_check(result: GMWMResult | tuple, *, n_walkers: int | None = None,
     with np.errstate(all="ignore"):
         d = model.dtheta_deta(np.where(act, eta_raw, 0.0))
         sd = (np.sqrt(np.clip(np.diag(s.cov), 0, None)) / np.abs(d))[act]
-    half = np.clip(box * np.nan_to_num(sd, nan=box, posinf=box), 0.5, box)
+    half = np.clip(box * np.nan_to_num(sd, nan=box, posinf=box), 2.0, box)
     lo, hi = eta_hat - half, eta_hat + half
-    L = _whitener(s.omega_chi)
-    target = s.f(s.wv.variance)
+    L = whitener(s.omega / s.posterior_scale())
+    target = s.problem.target
     base = s.theta.copy()
-    wv_of = _BatchWV(model, tau)
+    wv_of = lambda TH: model.wv_many(TH, tau)  # noqa: E731
 
     pos = np.cumsum(act) - 1  # column of each active parameter in the sampled vector
     blocks = [(c, np.arange(c.start, c.start + c.process.n_params))
@@ -755,7 +638,7 @@ def posterior_check(result: GMWMResult | tuple, *, n_walkers: int | None = None,
             TH = to_theta(E[inside])
             with np.errstate(all="ignore"):
                 nu = wv_of(_zero_fixed(TH, fixed_comps)) + offset
-                R = (target - s.f(nu)) @ L
+                R = (target - s.problem.f(nu)) @ L
                 q = np.einsum("ij,ij->i", R, R)
             out[inside] = np.where(np.isfinite(q), -0.5 * q, -np.inf)
         return out
@@ -789,7 +672,13 @@ def posterior_check(result: GMWMResult | tuple, *, n_walkers: int | None = None,
     chain = sampler.get_chain(discard=burn, thin=thin, flat=True)
     lp = sampler.get_log_prob(flat=True)
     best_eta = sampler.get_chain(flat=True)[int(np.argmax(lp))]
-    samples = _canonical_batch(model, to_theta(chain))
+    at_edge = []
+    for i, n in enumerate(np.array(names)[act]):
+        w = 0.02 * (hi[i] - lo[i])
+        frac = float(np.mean((chain[:, i] < lo[i] + w) | (chain[:, i] > hi[i] - w)))
+        if frac > 0.01:
+            at_edge.append(f"{n} ({frac:.0%} of draws)")
+    samples = model.canonical_many(to_theta(chain))
     map_params = model.canonical(to_theta(best_eta[None, :])[0])
     # modes, in free coordinates of the canonical draws
     with np.errstate(all="ignore"):
@@ -805,8 +694,13 @@ def posterior_check(result: GMWMResult | tuple, *, n_walkers: int | None = None,
                 multimodal.append(f"principal axis {k + 1}")
     tau_full = np.full(len(names), np.nan)
     tau_full[act] = tau_int
+    c_post = s.posterior_scale()
+    F = f_jacobian(s.wv.variance, s.problem.method)
+    with np.errstate(all="ignore"):
+        lap = s.problem.sandwich(s.theta, c_post * np.linalg.pinv(s.omega, hermitian=True)
+                                 / np.outer(F, F), ~act)[1]
     pc = PosteriorCheck(names, samples, s.theta.copy(), np.sqrt(np.clip(np.diag(s.cov), 0, None)),
-                        tau_full, nw, int(sampler.iteration), burn, thin, bool(done),
+                        lap, tau_full, nw, int(sampler.iteration), burn, thin, bool(done),
                         float(np.mean(sampler.acceptance_fraction)), map_params,
                         not multimodal, multimodal, 0.0)
     reasons = []
@@ -823,11 +717,15 @@ def posterior_check(result: GMWMResult | tuple, *, n_walkers: int | None = None,
     bad = [f"{n} ({r:.2g})" for n, r, a in zip(names, ratio, fa, strict=True)
            if a and not 0.5 <= r <= 2]
     if bad:
-        reasons.append("posterior SD / sandwich SE outside [0.5, 2] for " + ", ".join(bad))
+        reasons.append("posterior SD / its Laplace approximation outside [0.5, 2] for "
+                       + ", ".join(bad))
     far_map = [n for n, m, e, sdv, a in zip(names, map_params, s.theta, pc.sd, fa, strict=True)
                if a and abs(m - e) > sdv]
     if far_map:
         reasons.append("posterior mode more than 1 SD from the estimate for " + ", ".join(far_map))
+    if at_edge:
+        reasons.append("posterior piles up at the prior box edge (the box truncates it) for "
+                       + ", ".join(at_edge))
     pc.reasons = reasons
     pc.seconds = time.perf_counter() - t0
     return pc
@@ -971,7 +869,7 @@ def check(result: GMWMResult, *, posterior: bool = False, seed: int = 0, n_start
 def summary_row(label: str, report: IdentifiabilityReport | dict[str, Any]) -> dict[str, Any]:
     """One row of a pass/warn table from a report or its ``to_json_dict()``: fit label, model,
     status, local rank and condition number, distinct and near-equal optima, posterior modality,
-    longest autocorrelation time and chain length, range of posterior SD / sandwich SE, and the
+    longest autocorrelation time and chain length, range of posterior SD / Laplace SE, and the
     reasons joined by '; '."""
     d = report.to_json_dict() if isinstance(report, IdentifiabilityReport) else report
     loc, glob, post = d["local"], d.get("global"), d.get("posterior")

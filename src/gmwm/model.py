@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ModelError
-from .processes import PROCESSES, SINGLETONS, Process
+from .processes import PROCESSES, SINGLETONS, Process, ar1_unit_wv_many, sin_unit_wv
 
 _TERM = re.compile(r"^\s*(?:(\d+)\s*\*\s*)?([A-Za-z][A-Za-z0-9]*)\s*$")
 
@@ -172,6 +172,47 @@ class Model:
         for nu in self.component_wv(theta, tau).values():
             total += nu
         return total
+
+    def wv_many(self, thetas: np.ndarray, scales: np.ndarray) -> np.ndarray:
+        """Theoretical WV for many parameter vectors at once: (N, p) -> (N, J). Vectorised over
+        the rows (posterior sampling and grid scans call it with thousands of rows)."""
+        TH = np.atleast_2d(np.asarray(thetas, dtype=float))
+        tau = np.asarray(scales, dtype=float)
+        out = np.zeros((TH.shape[0], tau.size))
+        for c in self.components:
+            P = TH[:, c.slice]
+            name = c.process.name
+            if name == "AR1":
+                out += P[:, 1:2] * ar1_unit_wv_many(P[:, 0], tau)
+            elif name == "GM":
+                a = P[:, 0] / self.freq
+                out += (P[:, 1] * -np.expm1(-2 * a))[:, None] * ar1_unit_wv_many(np.exp(-a), tau)
+            elif name == "SIN":
+                out += P[:, :1] ** 2 * sin_unit_wv(P[:, 1:2], tau)
+            elif c.process.linear:  # nu = h(p) * column, h(p) = p (DR: p^2)
+                col = c.process.wv(np.ones(1), tau, self.freq)
+                h = P[:, :1] ** 2 if name == "DR" else P[:, :1]
+                out += h * col
+            else:
+                out += np.array([c.process.wv(p, tau, self.freq) for p in P])
+        return out
+
+    def canonical_many(self, thetas: np.ndarray) -> np.ndarray:
+        """:meth:`canonical` applied to every row of ``thetas`` (N, p)."""
+        TH = np.atleast_2d(np.asarray(thetas, dtype=float))
+        out = TH.copy()
+        for name in PROCESSES:
+            comps = [c for c in self.components if c.process.name == name]
+            if len(comps) < 2:
+                continue
+            keys = np.column_stack([[c.process.order_key(p, self.freq) for p in TH[:, c.slice]]
+                                    for c in comps])
+            order = np.argsort(keys, axis=1, kind="stable")
+            blocks = np.stack([TH[:, c.slice] for c in comps], axis=1)  # (N, k, q)
+            ordered = np.take_along_axis(blocks, order[:, :, None], axis=1)
+            for i, c in enumerate(comps):
+                out[:, c.slice] = ordered[:, i]
+        return out
 
     def jacobian(self, theta: np.ndarray, scales: np.ndarray) -> np.ndarray:
         """Analytic d nu_j / d theta, shape (J, n_params)."""

@@ -6,11 +6,9 @@ rad/s, accelerometer in m/s^2, 250 Hz, T = 3,105,250), obtained by :func:`gmwm.d
 
 * Fit: ``QN + WN + 2*GM + RW + DR`` by :func:`gmwm.fit` on each axis (the WV is all there is: the
   raw signal is not public, so the drift sign is not identified and reported positive).
-* Standard errors: finite-sample sandwich (SPEC 5.5) with the Gaussian diagonal WV covariance
-  ``2 nu_j^2 / eta_j``, evaluated in the estimator's free coordinates (logs), where it is well
-  conditioned, then mapped back by the delta method. It ignores the correlation between scales, so
-  it is optimistic; the bootstrap CIs are a separate step reading the fits file written here.
-  Components at the boundary 0 (contributing < 1e-6 of the WV at every scale) get no SE.
+* Standard errors: those of :func:`gmwm.fit` (sandwich of SPEC 5.5 with the model covariance of
+  the WV estimate, :mod:`gmwm.inference`); the bootstrap CIs are a separate step reading the fits
+  file written here. Components at the boundary 0 get no SE.
 * Datasheet model: WN + bias instability (:func:`gmwm.units.navchip_datasheet`), BI drawn as
   band-limited flicker; the datasheet gives no RW, QN or DR.
 * Goodness of fit: share of scales where a model WV lies inside the empirical WV's CI.
@@ -45,7 +43,6 @@ __all__ = [
     "inside_ci",
     "load_fits",
     "obtain_navchip",
-    "sandwich_se",
     "write_tables",
 ]
 
@@ -117,42 +114,9 @@ def inside_ci(wv: Any, model_wv: np.ndarray) -> np.ndarray:
 
 
 def _boundary(result: Any) -> np.ndarray:
-    model, nu_hat = result.model, np.asarray(result.wv.variance)
-    comp = result.component_wv()
-    out = np.zeros(model.n_params, dtype=bool)
-    for c in model.components:
-        out[c.slice] = np.max(comp[c.name] / nu_hat) < BOUNDARY_SHARE
-    return out
-
-
-def sandwich_se(result: Any, boundary: np.ndarray | None = None) -> np.ndarray:
-    """Sandwich SEs (SPEC 5.5) of a GMWM fit, computed in the free coordinates eta (logs, ...).
-
-    ``Cov(eta) = B^-1 A' W V W A B^-1`` with ``A = d nu / d eta``, ``B = A' W A``, W the fit's
-    weights and V = diag(2 nu_hat^2 / eta_j); ``SE(theta) = |d theta / d eta| SE(eta)``. In theta
-    coordinates B spans ~20 orders of magnitude (GM beta ~ 1 vs RW gamma2 ~ 1e-13) and its inverse
-    is numerically meaningless; in eta it is well scaled. Boundary parameters are left out (NaN).
-    """
-    model, wv = result.model, result.wv
-    theta = np.asarray(result.params, dtype=float)
-    keep = ~(boundary if boundary is not None else _boundary(result))
-    se = np.full(theta.size, np.nan)
-    if not keep.any():
-        return se
-    with np.errstate(divide="ignore"):  # boundary zeros map to -inf; they are left out below
-        eta = model.to_free(theta)
-    d = model.dtheta_deta(eta)
-    A = (model.jacobian(theta, wv.scales) * d)[:, keep]
-    W = np.asarray(result.weights, dtype=float)
-    V = np.diag(2.0 * np.asarray(wv.variance) ** 2 / np.asarray(wv.edof))
-    try:
-        Binv = np.linalg.inv(A.T @ W @ A)
-    except np.linalg.LinAlgError:
-        return se
-    G = Binv @ A.T @ W
-    cov = G @ V @ G.T
-    se[keep] = np.abs(d[keep]) * np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    return se
+    """Per parameter: its component is at the boundary 0 (as reported by the fit)."""
+    gone = set(result.diagnostics.get("at_boundary", []))
+    return np.array([n.split(".")[0] in gone for n in result.model.param_names], dtype=bool)
 
 
 def datasheet_wv(sensor: str, scales: np.ndarray, freq: float) -> dict[str, np.ndarray]:
@@ -171,7 +135,7 @@ def datasheet_label(sensor: str, freq: float = 250.0) -> str:
 def fit_channel(wv: Any, model: str, sensor: str, axis: str,
                 fit_settings: Mapping[str, Any] | None = None) -> ChannelFit:
     """GMWM fit of ``model`` to one channel's WV (at the WV's frequency), SEs and GOF."""
-    from gmwm.fit import fit
+    from gmwm.estimator import fit
 
     settings = dict(fit_settings or {})
     res = fit(wv, model, freq=wv.freq, **settings)
@@ -179,7 +143,7 @@ def fit_channel(wv: Any, model: str, sensor: str, axis: str,
     sheet = datasheet_wv(sensor, wv.scales, wv.freq)["total"]
     return ChannelFit(sensor=units.canonical_sensor(sensor), axis=str(axis).upper(), wv=res.wv,
                       model=res.model, params=np.asarray(res.params, float),
-                      se=sandwich_se(res, boundary), se_library=np.asarray(res.se, float),
+                      se=np.asarray(res.se, float), se_library=np.asarray(res.se, float),
                       boundary=boundary, inside=inside_ci(wv, res.model_wv()),
                       inside_datasheet=inside_ci(wv, sheet), converged=bool(res.converged),
                       objective=float(res.objective), message=str(res.message),

@@ -11,6 +11,8 @@ optimisers work unconstrained; ``dp_deta`` is the (diagonal) derivative of that 
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from scipy.signal import lfilter
 from scipy.special import expit, logit
@@ -162,6 +164,13 @@ def _series_coefs(m: np.ndarray) -> list[np.ndarray]:
     ]
 
 
+@lru_cache(maxsize=64)
+def _series_matrix(m: tuple[float, ...]) -> np.ndarray:
+    out = np.array(_series_coefs(np.asarray(m)))
+    out.setflags(write=False)
+    return out
+
+
 def ar1_wv_a(a: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """WV of an AR1 with unit innovation variance and phi = exp(-a) > 0, and its derivative in a."""
     tau = np.asarray(tau, dtype=float)
@@ -209,6 +218,40 @@ def ar1_unit_wv(phi: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         nu, dnu_da = ar1_wv_a(-np.log(phi), tau)
         return nu, -dnu_da / phi
     return _ar1_wv_direct(phi, tau)
+
+
+def ar1_unit_wv_many(phi: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """Unit-innovation AR1 WV for many phi at once: phi (N,) -> (N, J). Same numerics as
+    :func:`ar1_unit_wv` (cancellation-free form in a = -ln phi for phi > 0, series when
+    m a < 1e-2, the plain closed form for phi <= 0)."""
+    phi = np.asarray(phi, dtype=float).reshape(-1, 1)
+    tau = np.asarray(tau, dtype=float)[None, :]
+    m = tau / 2
+    with np.errstate(all="ignore"):
+        a = -np.log(np.where(phi > 0, phi, 0.5))
+        ma = m * a
+        e = -np.expm1(-ma)
+        u1, u2 = -np.expm1(-a), -np.expm1(-2 * a)
+        out = 2 * (m * u2 - np.exp(-a) * e * (2 + e)) / (tau**2 * u1**2 * u2)
+        small = ma < _SERIES_SWITCH
+        if small.any():
+            coefs = _series_matrix(tuple(m[0]))  # (5, J)
+            series = (a ** np.arange(5)) @ coefs  # (N, J)
+            out = np.where(small, series, out)
+        neg = phi[:, 0] <= 0
+        if neg.any():
+            q = phi[neg]
+            n = (1 - q**2) * tau - 2 * q * (3 - 4 * q**m + q**tau)
+            out[neg] = n / (tau**2 * (1 - q) ** 3 * (1 + q))
+    return out
+
+
+def sin_unit_wv(beta: np.ndarray | float, tau: np.ndarray) -> np.ndarray:
+    """Unit-amplitude SIN WV ``2 sin^4(beta tau / 4) / (tau^2 sin^2(beta / 2))`` (the stable
+    form of SPEC 2.3); ``beta`` broadcasts against ``tau`` (e.g. beta (G, 1) x tau (J,))."""
+    beta = np.asarray(beta, dtype=float)
+    tau = np.asarray(tau, dtype=float)
+    return 2 * np.sin(beta * tau / 4) ** 4 / (tau**2 * np.sin(beta / 2) ** 2)
 
 
 def _simulate_ar1(phi: float, s2: float, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -297,8 +340,7 @@ class Sinusoid(Process):
     param_names = ("alpha", "beta")
 
     def wv(self, p, tau, freq=1.0):
-        alpha, beta = p
-        return 2 * alpha**2 * np.sin(beta * tau / 4) ** 4 / (tau**2 * np.sin(beta / 2) ** 2)
+        return p[0] ** 2 * sin_unit_wv(p[1], tau)
 
     def jacobian(self, p, tau, freq=1.0):
         alpha, beta = p

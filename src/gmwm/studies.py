@@ -270,7 +270,7 @@ def fit_chunk(
 
 
 def _gmwm_fit_one(kwargs: Mapping[str, Any]) -> FitOne:
-    from gmwm.fit import fit
+    from gmwm.estimator import fit
 
     def fit_one(wv: Any, model: Any, seed: int):
         res = fit(wv, model, seed=seed, **kwargs)

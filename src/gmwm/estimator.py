@@ -1,0 +1,784 @@
+"""GMWM (and ARMAV) estimation of composite error models from a signal or its wavelet variance.
+
+The objective, weights, Jacobian, bounded solve and sandwich live in :mod:`gmwm.inference`; this
+module finds the optimum and reports it.
+
+How the optimum is found (no user starting values):
+
+1. Variable projection (VP). Every process's WV is linear in one "scale" parameter (sigma2, Q2,
+   gamma2, omega^2, the AR1 innovation variance, the GM variance, alpha^2) once its "shape"
+   (AR1 phi, GM beta, SIN beta) is fixed. For fixed shapes the best non-negative scale
+   parameters solve a small non-negative least-squares problem (NNLS) on the whitened system;
+   for models made only of QN, WN, RW and DR that *is* the closed-form GMWM of paper 004.
+2. Shapes are searched in coordinates where a uniform grid is natural: AR1 ``xi = 2 atanh(phi)``
+   over the whole domain phi in (-1, 1) (log-spaced towards both ends), GM ``log(beta / freq)``,
+   SIN ``log(beta)``. A greedy placement and ``n_init`` seeded random placements are each
+   improved by coordinate descent, every coordinate profiled over its whole grid in one
+   vectorised projection (SIN: smooth envelope, then a phase-resolving fine scan), then a 1-D
+   bounded refinement. Joint (SIN, other) pair scans find a SIN bump hidden under another
+   component.
+3. Nested models. The fit of a model includes the fits of its submodels obtained by dropping one
+   component (recursively, memoised): each submodel's optimum, with the dropped component added
+   at its best VP shape, is a further start, and the submodel's optimum with that component at
+   exactly zero is a candidate. A model therefore never ends above any of its submodels.
+4. Refinement: bounded trust-region least squares in free coordinates (logs, scaled logit for
+   phi, pi*logistic for SIN beta) with the analytic Jacobian from the best distinct starts; the
+   best objective wins.
+
+Standard errors use the sandwich of SPEC 5.5 with ``V`` the covariance of the WV estimate under
+the fitted model (between-scale correlation included, SIN only through its cross term with the
+noise; :func:`gmwm.inference.model_wv_cov`), or the caller's covariance. ``weights="efficient"``
+is the two-step efficient GMWM: a first fit with CI weights, then ``Omega = V(theta_1)^-1``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import zlib
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+from scipy.optimize import minimize_scalar, nnls
+from scipy.stats import norm
+
+from .errors import IdentifiabilityError, InputError
+from .inference import (METHODS, Problem, Whitener, check_cov, omega_from_cov, weight_matrix,
+                        wv_cov)
+from .model import Model, as_model
+from .processes import PROCESSES, ar1_unit_wv_many, sin_unit_wv
+from .wv import WaveletVariance, wvar
+
+__all__ = ["GMWMResult", "fit", "weight_matrix"]
+
+#: A component whose WV share is below this at every scale is "at the boundary 0".
+VANISH_SHARE = 1e-6
+#: Condition number of the whitened free-coordinate Jacobian above which a fit is flagged.
+COND_WARN = 1e8
+
+
+# -- result ---------------------------------------------------------------------------------------
+@dataclass
+class GMWMResult:
+    """Outcome of :func:`fit`. ``params``/``se`` follow ``param_names`` (canonical order).
+
+    ``weights`` is the weight matrix Omega the objective used, ``wv_cov`` the covariance V of
+    the WV estimate behind ``cov``/``se``, and ``settings`` every option needed to repeat the
+    fit (``weights`` kind, method, starts, seed, levels, reweighting; the user covariance, if
+    one was given, is ``settings["weights_cov"]``)."""
+
+    model: Model
+    params: np.ndarray
+    se: np.ndarray
+    cov: np.ndarray
+    objective: float
+    weights: np.ndarray
+    converged: bool
+    message: str
+    wv: WaveletVariance
+    method: str = "gmwm"
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+    seconds_wv: float = 0.0
+    seconds_fit: float = 0.0
+    wv_cov: np.ndarray | None = None
+    settings: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def param_names(self) -> list[str]:
+        return self.model.param_names
+
+    @property
+    def warnings(self) -> list[str]:
+        return list(self.diagnostics.get("warnings", []))
+
+    def as_dict(self) -> dict[str, float]:
+        return self.model.as_dict(self.params)
+
+    def se_dict(self) -> dict[str, float]:
+        return self.model.as_dict(self.se)
+
+    def conf_int(self, alpha: float = 0.05) -> np.ndarray:
+        """Wald intervals ``params -/+ z se`` (asymptotic; see :mod:`gmwm.bootstrap` for better)."""
+        z = norm.ppf(1 - alpha / 2)
+        return np.column_stack([self.params - z * self.se, self.params + z * self.se])
+
+    def problem(self) -> Problem:
+        """The objective this result minimised (:class:`gmwm.inference.Problem`)."""
+        return Problem.of(self)
+
+    def fit_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of :func:`fit` that repeat this fit on another WV (bootstrap)."""
+        s = self.settings
+        w = s.get("weights", "ci")
+        kw = {"weights": s["weights_cov"] if w == "covariance" else w,
+              "method": self.method, "n_starts": s.get("n_starts", 4),
+              "reweight": s.get("reweight", 0), "max_nfev": s.get("max_nfev", 1000),
+              "se_cov": s.get("se_cov", "model"), "nested": s.get("nested", True)}
+        return kw
+
+    def model_wv(self, scales: np.ndarray | None = None) -> np.ndarray:
+        return self.model.wv(self.params, self.wv.scales if scales is None else scales)
+
+    def component_wv(self, scales: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        return self.model.component_wv(self.params, self.wv.scales if scales is None else scales)
+
+    def summary(self) -> str:
+        """Plain-text table of estimates, standard errors and fit diagnostics."""
+        lines = [(f"GMWM fit ({self.method}, {self.settings.get('weights', '?')} weights) of "
+                  f"{self.model.spec}  |  T = {self.wv.n_samples}, J = {self.wv.n_levels}, "
+                  f"freq = {self.wv.freq:g} Hz"),
+                 f"objective = {self.objective:.6g}   converged = {self.converged}"
+                 + ("" if self.converged else f"   ({self.message})"),
+                 f"{'parameter':<16}{'estimate':>14}{'std. error':>14}",
+                 "-" * 44]
+        for name, est, se in zip(self.param_names, self.params, self.se, strict=True):
+            lines.append(f"{name:<16}{est:>14.6g}{se:>14.4g}")
+        for w in self.warnings:
+            lines.append(f"warning: {w}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-able summary (model, n, params, se, objective, converged, warnings, WV, timings)."""
+        settings = {k: v for k, v in self.settings.items() if k != "weights_cov"}
+        return {
+            "model": self.model.spec,
+            "method": self.method,
+            "n": int(self.wv.n_samples),
+            "freq": self.wv.freq,
+            "params": self.as_dict(),
+            "se": {k: (None if not np.isfinite(v) else v) for k, v in self.se_dict().items()},
+            "objective": float(self.objective),
+            "converged": bool(self.converged),
+            "message": self.message,
+            "warnings": self.warnings,
+            "settings": settings,
+            "condition_number": _finite_or_none(self.diagnostics.get("condition_number")),
+            "wv": self.wv.to_dict(),
+            "seconds_wv": self.seconds_wv,
+            "seconds_fit": self.seconds_fit,
+        }
+
+    def plot(self, ax=None, **kwargs):
+        """Log-log WV with CI band, fitted model and its components (see gmwm.plots.plot_wv)."""
+        from .plots import plot_wv
+
+        return plot_wv(self.wv, result=self, ax=ax, **kwargs)
+
+
+def _finite_or_none(x: Any) -> float | None:
+    return float(x) if x is not None and np.isfinite(x) else None
+
+
+# -- shape coordinates of the variable projection -------------------------------------------------
+# AR1: xi = 2 atanh(phi) (phi in (-1, 1)); GM: log a, a = beta / freq (phi = e^-a in (0, 1));
+# SIN: log beta. In these coordinates a uniform grid resolves both ends of each domain.
+_XI_NEG = -np.log(2 / 2e-6)   # phi = -1 + 2e-6
+
+
+def _shape_bounds(name: str, tau: np.ndarray) -> tuple[float, float] | None:
+    if name == "AR1":  # up to a correlation time ~5x the longest scale
+        return _XI_NEG, float(np.log(2 * 5 * tau[-1]))
+    if name == "GM":
+        return float(np.log(0.2 / tau[-1])), float(np.log(7.0))
+    if name == "SIN":
+        return float(np.log(1.0 / tau[-1])), float(np.log(0.999 * np.pi))
+    return None
+
+
+def _grid(name: str, tau: np.ndarray, step: float) -> np.ndarray | None:
+    b = _shape_bounds(name, tau)
+    if b is None:
+        return None
+    return np.linspace(b[0], b[1], max(int(np.ceil((b[1] - b[0]) / step)) + 1, 8))
+
+
+def _unit_columns(name: str, u: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """Unit-scale WV columns (J, G) at shape coordinates u (G,)."""
+    u = np.atleast_1d(np.asarray(u, dtype=float))
+    if name == "AR1":
+        return ar1_unit_wv_many(np.tanh(u / 2), tau).T
+    if name == "GM":
+        a = np.exp(u)
+        return (-np.expm1(-2 * a)[:, None] * ar1_unit_wv_many(np.exp(-a), tau)).T
+    if name == "SIN":
+        return sin_unit_wv(np.exp(u)[None, :], tau[:, None])
+    col = PROCESSES[name].wv(np.ones(1), tau)
+    return np.repeat(col[:, None], u.size, axis=1)
+
+
+def _sin_envelope_columns(u: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """Smooth stand-in for the SIN WV used to locate the bump on a coarse grid: past the first
+    peak, sin^4(beta tau / 4) is replaced by its mean 3/8, removing the oscillation in beta
+    that makes a coarse grid land on arbitrary phases."""
+    b = np.exp(np.asarray(u))[None, :]
+    t = tau[:, None]
+    x = b * t / 4
+    s4 = np.where(x < 1.1656, np.sin(np.minimum(x, 1.1656)) ** 4, 0.375)
+    return 2 * s4 / (t**2 * np.sin(b / 2) ** 2)
+
+
+@lru_cache(maxsize=128)
+def _grid_columns(name: str, tau: tuple[float, ...], step: float) -> tuple[np.ndarray, np.ndarray]:
+    """Shape grid and its unit-scale columns (SIN: smooth envelope); cached per scale set."""
+    t = np.asarray(tau)
+    grid = _grid(name, t, step)
+    cols = _sin_envelope_columns(grid, t) if name == "SIN" else _unit_columns(name, grid, t)
+    grid.setflags(write=False)
+    cols.setflags(write=False)
+    return grid, cols
+
+
+def _theta_from_vp(model: Model, shapes: list[float], coef: np.ndarray, drift_sign: float,
+                   floor: np.ndarray | None = None) -> np.ndarray:
+    """Shape coordinates + NNLS scale coefficients -> parameter vector. Zero coefficients are
+    lifted to ``floor`` (if given) so that free coordinates are defined."""
+    theta = np.empty(model.n_params)
+    for k, (c, u) in enumerate(zip(model.components, shapes, strict=True)):
+        s = coef[k] if floor is None else max(coef[k], floor[k])
+        name = c.process.name
+        if name in ("WN", "QN", "RW"):
+            theta[c.slice] = [s]
+        elif name == "DR":
+            theta[c.slice] = [drift_sign * np.sqrt(s)]
+        elif name == "AR1":
+            theta[c.slice] = [np.tanh(u / 2), s]
+        elif name == "GM":
+            theta[c.slice] = [np.exp(u) * model.freq, s]
+        else:  # SIN
+            theta[c.slice] = [np.sqrt(s), np.exp(u)]
+    return theta
+
+
+def _shapes_of(model: Model, theta: np.ndarray, tau: np.ndarray) -> list[float]:
+    """Shape coordinates of a parameter vector (0 for components without a shape)."""
+    out = []
+    for c in model.components:
+        p = theta[c.slice]
+        name = c.process.name
+        lo, hi = _shape_bounds(name, tau) or (0.0, 0.0)
+        if name == "AR1":
+            u = 2 * np.arctanh(np.clip(p[0], -1 + 1e-15, 1 - 1e-15))
+        elif name == "GM":
+            u = np.log(max(p[0] / model.freq, 1e-300))
+        elif name == "SIN":
+            u = np.log(max(p[1], 1e-300))
+        else:
+            u = 0.0
+        out.append(float(np.clip(u, lo, hi)))
+    return out
+
+
+class _VP:
+    """Variable-projection search over the shapes of one model on one whitened WV."""
+
+    STEP = 0.45          # grid spacing in shape coordinates
+    N_INIT = 6           # random placements besides the greedy one
+
+    def __init__(self, model: Model, tau: np.ndarray, nu_hat: np.ndarray, white: Whitener,
+                 drift_sign: float, rng: np.random.Generator):
+        self.model, self.tau, self.nu_hat = model, tau, nu_hat
+        self.white, self.drift_sign, self.rng = white, drift_sign, rng
+        self.names = [c.process.name for c in model.components]
+        key = tuple(float(t) for t in tau)
+        self.grids: list[np.ndarray | None] = []
+        self.gcols: list[np.ndarray | None] = []
+        for n in self.names:
+            if _shape_bounds(n, tau) is None:
+                self.grids.append(None)
+                self.gcols.append(None)
+            else:
+                g, c = _grid_columns(n, key, self.STEP)
+                self.grids.append(g)
+                self.gcols.append(white @ c)
+        self.shaped = [k for k, g in enumerate(self.grids) if g is not None]
+        self.yw = white @ nu_hat
+        self.ncomp = len(self.names)
+        self._cols: dict[tuple[str, float], np.ndarray] = {}
+        self.cols = np.column_stack([self.col(k, 0.0) for k in range(self.ncomp)])
+        # positivity floors of each scale coefficient (share 1e-3 of the WV at its best scale)
+        self.floor = np.zeros(self.ncomp)
+
+    def col(self, k: int, u: float) -> np.ndarray:
+        key = (self.names[k], float(u))
+        c = self._cols.get(key)
+        if c is None:
+            c = self.white @ _unit_columns(self.names[k], np.array([u]), self.tau)[:, 0]
+            self._cols[key] = c
+        return c
+
+    def floors(self, shapes: list[float]) -> np.ndarray:
+        out = np.empty(self.ncomp)
+        for k in range(self.ncomp):
+            c = _unit_columns(self.names[k], np.array([shapes[k]]), self.tau)[:, 0]
+            with np.errstate(divide="ignore"):
+                out[k] = 1e-3 * np.min(self.nu_hat / np.where(c > 0, c, np.inf))
+        return out
+
+    def cost(self, active: list[int] | None = None) -> tuple[float, np.ndarray]:
+        keep = list(range(self.ncomp)) if active is None else active
+        X = self.cols[:, keep]
+        norm_ = np.linalg.norm(X, axis=0)
+        norm_[norm_ == 0] = 1.0
+        coef, rnorm = nnls(X / norm_, self.yw, maxiter=50 * X.shape[1])
+        full = np.zeros(self.ncomp)
+        full[keep] = coef / norm_
+        return rnorm**2, full
+
+    def profile_gain(self, G: np.ndarray, others: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        """Drop in LS cost from adding each column of G to the others (Frisch-Waugh); only
+        columns entering with a positive coefficient count."""
+        if others:
+            Q, _ = np.linalg.qr(self.cols[:, others])
+            y = self.yw - Q @ (Q.T @ self.yw)
+            G = G - Q @ (Q.T @ G)
+        else:
+            y = self.yw
+        num = G.T @ y
+        den = np.einsum("jg,jg->g", G, G)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ok = (num > 0) & (den > 0)
+            return np.where(ok, num**2 / den, 0.0), np.where(ok, num / den, 0.0)
+
+    def best_along(self, shapes: list[float], k: int, refine: bool,
+                   active: list[int] | None = None) -> None:
+        """Move shape k to its best value given the others (grid scan, then 1-D refinement)."""
+        grid, G = self.grids[k], self.gcols[k]
+        others = [i for i in (range(self.ncomp) if active is None else active) if i != k]
+        gain, coef = self.profile_gain(G, others)
+        top = np.argsort(-gain)[:3]
+        values, step = grid[top], self.STEP
+        if self.names[k] == "SIN" and refine:
+            # the SIN WV oscillates in beta at long scales (nulls at beta tau / 4 = k pi): its
+            # basins are ~1/(beta tau_J) wide, so scan finely around the best coarse points
+            # (0.5 rad of phase per step at the longest scale where the SIN still reaches 1 %)
+            fine = []
+            for i in top:
+                lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+                share = coef[i] * _sin_envelope_columns(grid[i:i + 1], self.tau)[:, 0] / self.nu_hat
+                tau_eff = self.tau[share >= 0.01].max(initial=self.tau[0])
+                n = int(np.clip(np.exp(hi) * tau_eff * (hi - lo) / 2, 16, 3000))
+                fine.append(np.linspace(lo, hi, n))
+            fv = np.concatenate(fine)
+            gain_f, _ = self.profile_gain(self.white @ _unit_columns("SIN", fv, self.tau), others)
+            values = fv[np.argsort(-gain_f)[:3]]
+            step = float(fine[0][1] - fine[0][0])
+        if refine:
+            # a local scan of 17 points over +-1 step around each candidate, profiled in one
+            # projection, with a parabolic vertex; the final trust-region solve polishes it
+            lo_b, hi_b = grid[0], grid[-1]
+            local = np.clip((values[:, None] + step * np.linspace(-1, 1, 17)[None, :]).ravel(),
+                            lo_b, hi_b)
+            g_loc, _ = self.profile_gain(self.white @ _unit_columns(self.names[k], local,
+                                                                     self.tau), others)
+            g_loc = g_loc.reshape(values.size, 17)
+            refined = []
+            for row, v in zip(g_loc, values, strict=True):
+                i = int(np.argmax(row))
+                u = v + step * (i / 8 - 1)
+                if 0 < i < 16:
+                    den = row[i - 1] - 2 * row[i] + row[i + 1]
+                    if den < 0:
+                        u += step / 8 * 0.5 * (row[i - 1] - row[i + 1]) / den
+                refined.append(float(np.clip(u, lo_b, hi_b)))
+            values = np.concatenate([values, refined])
+        exact = []
+        for v in values:
+            self.cols[:, k] = self.col(k, v)
+            exact.append(self.cost(active)[0])
+        best = float(values[int(np.argmin(exact))])
+        shapes[k] = best
+        self.cols[:, k] = self.col(k, best)
+
+    def set_shapes(self, shapes: list[float]) -> None:
+        for k in self.shaped:
+            self.cols[:, k] = self.col(k, shapes[k])
+
+    def descend(self, shapes: list[float], refine: bool) -> tuple[list[float], float, np.ndarray]:
+        self.set_shapes(shapes)
+        best = self.cost()
+        for _ in range(6 if refine else 3):
+            previous = best[0]
+            for k in self.shaped:
+                self.best_along(shapes, k, refine)
+            best = self.cost()
+            if best[0] >= previous * (1 - 1e-6):
+                break
+        return shapes, best[0], best[1]
+
+    def theta(self, shapes: list[float], coef: np.ndarray) -> np.ndarray:
+        return self.model.canonical(_theta_from_vp(self.model, shapes, coef, self.drift_sign,
+                                                   self.floors(shapes)))
+
+    def starts(self, n_starts: int) -> list[tuple[float, np.ndarray]]:
+        """Distinct good starts (VP cost, theta), best first."""
+        found: list[tuple[float, np.ndarray]] = []
+
+        def add(c: float, th: np.ndarray) -> None:
+            if not any(np.allclose(th, t, rtol=1e-3) for _, t in found):
+                found.append((c, th))
+
+        if not self.shaped:
+            c, coef = self.cost()
+            return [(c, self.theta([0.0] * self.ncomp, coef))]
+        # greedy: add shaped components one at a time at their best place, then refine all
+        shapes = [0.0] * self.ncomp
+        active = [k for k in range(self.ncomp) if k not in self.shaped]
+        for k in self.shaped:
+            active.append(k)
+            self.best_along(shapes, k, True, sorted(active))
+        shapes, c, coef = self.descend(shapes, refine=True)
+        add(c, self.theta(shapes, coef))
+        # random placements: cheap coarse descents, the best few refined
+        coarse = []
+        for _ in range(max(self.N_INIT, n_starts)):
+            sh = [0.0] * self.ncomp
+            for k in self.shaped:
+                sh[k] = float(self.rng.choice(self.grids[k]))
+            sh, c, coef = self.descend(sh, refine=False)
+            coarse.append((c, list(sh)))
+        coarse.sort(key=lambda x: x[0])
+        for c, sh in coarse[:max(n_starts, 2)]:
+            sh, c, coef = self.descend(list(sh), refine=True)
+            add(c, self.theta(sh, coef))
+        self.pair_moves(found[0][1] if found else None, add)
+        found.sort(key=lambda x: x[0])
+        return found
+
+    def pair_moves(self, theta_best: np.ndarray | None, add) -> None:
+        """A SIN bump hidden under another component (e.g. a slow SIN under a slow AR1) is
+        invisible to one-at-a-time moves: scan (SIN shape, other shape) jointly."""
+        sins = [k for k in self.shaped if self.names[k] == "SIN"]
+        if not sins or len(self.shaped) < 2 or theta_best is None:
+            return
+        base = _shapes_of(self.model, theta_best, self.tau)
+        sg = self.grids[sins[0]]
+        sin_grid = np.linspace(sg[0], sg[-1], 4 * sg.size)
+        sin_cols = self.white @ _unit_columns("SIN", sin_grid, self.tau)
+        moved = []
+        for k in sins:
+            for j in self.shaped:
+                if j == k:
+                    continue
+                shapes = list(base)
+                self.set_shapes(shapes)
+                others = [i for i in range(self.ncomp) if i != k]
+                best_pair, best_cost = None, np.inf
+                for gj in range(self.grids[j].size):
+                    self.cols[:, j] = self.col(j, self.grids[j][gj])
+                    gain, _ = self.profile_gain(sin_cols, others)
+                    Q, _ = np.linalg.qr(self.cols[:, others])
+                    y = self.yw - Q @ (Q.T @ self.yw)
+                    gk = int(np.argmax(gain))
+                    if y @ y - gain[gk] < best_cost:
+                        best_cost, best_pair = y @ y - gain[gk], (gj, gk)
+                shapes[j] = float(self.grids[j][best_pair[0]])
+                shapes[k] = float(sin_grid[best_pair[1]])
+                self.set_shapes(shapes)
+                self.best_along(shapes, k, True)
+                self.best_along(shapes, j, True)
+                shapes, c, coef = self.descend(shapes, refine=True)
+                moved.append((c, self.theta(shapes, coef)))
+        c, th = min(moved, key=lambda x: x[0])
+        add(c, th)
+
+    def extend(self, theta_sub: np.ndarray, k_new: int) -> tuple[float, np.ndarray]:
+        """Start from a submodel optimum (shapes of ``theta_sub``, embedded in this model, with
+        component ``k_new`` off) and place component k_new at its best shape."""
+        shapes = _shapes_of(self.model, theta_sub, self.tau)
+        self.set_shapes(shapes)
+        if k_new in self.shaped:
+            self.best_along(shapes, k_new, True)
+        shapes, c, coef = self.descend(shapes, refine=True)
+        return c, self.theta(shapes, coef)
+
+
+# -- nested submodels ---------------------------------------------------------------------------
+def _drop_one(model: Model) -> list[tuple[Model, int]]:
+    """Distinct submodels with one component fewer, with the index of a dropped component."""
+    out: dict[str, tuple[Model, int]] = {}
+    for k, c in enumerate(model.components):
+        counts: dict[str, int] = {}
+        for cc in model.components:
+            counts[cc.process.name] = counts.get(cc.process.name, 0) + 1
+        counts[c.process.name] -= 1
+        spec = "+".join(f"{n}*{name}" if n > 1 else name for name, n in counts.items() if n)
+        if spec and spec not in out:
+            out[spec] = (Model(spec, model.freq), k)
+    return list(out.values())
+
+
+def _embed(model: Model, sub: Model, theta_sub: np.ndarray, k_drop: int,
+           tau: np.ndarray) -> np.ndarray:
+    """Parameters of ``model`` equal to the submodel's, with component ``k_drop`` at zero
+    (scale 0; its shape at the middle of its range)."""
+    theta = np.zeros(model.n_params)
+    used = {c.name: False for c in sub.components}
+    for k, c in enumerate(model.components):
+        if k == k_drop:
+            if c.process.name == "AR1":
+                theta[c.slice] = [0.5, 0.0]
+            elif c.process.name == "GM":
+                theta[c.slice] = [model.freq * 0.1, 0.0]
+            elif c.process.name == "SIN":
+                theta[c.slice] = [0.0, 1.0]
+            continue
+        sc = next(s for s in sub.components
+                  if s.process.name == c.process.name and not used[s.name])
+        used[sc.name] = True
+        theta[c.slice] = theta_sub[sc.slice]
+    return theta
+
+
+# -- main entry -----------------------------------------------------------------------------------
+def _prepare(data, levels: int | None, freq: float | None,
+             alpha: float) -> tuple[WaveletVariance, float, float]:
+    """WV of the input (computed if a signal), the drift sign and the seconds spent."""
+    if isinstance(data, WaveletVariance):
+        wv = data if levels is None else data.subset(np.arange(1, levels + 1))
+        return wv, 1.0, 0.0
+    x = np.asarray(data, dtype=float)
+    t0 = time.perf_counter()
+    wv = wvar(x, levels=levels, alpha=alpha, freq=1.0 if freq is None else freq)
+    seconds = time.perf_counter() - t0
+    drift = (x[-1] - x[0]) / max(x.size - 1, 1)
+    return wv, (1.0 if drift >= 0 else -1.0), seconds
+
+
+@dataclass
+class _Node:
+    theta: np.ndarray
+    objective: float
+    converged: bool
+    message: str
+    edge: list[str]
+    n_refined: int
+    from_submodel: str | None = None
+
+
+def _node_seed(seed: int, spec: str) -> np.random.Generator:
+    """Per-model stream: a submodel's search is identical whether fitted alone or nested."""
+    return np.random.default_rng([int(seed), zlib.crc32(spec.encode())])
+
+
+def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign: float,
+            max_nfev: int, nested: bool, cache: dict[str, _Node],
+            extra_starts: list[np.ndarray] | None = None) -> _Node:
+    """Global search for ``model`` on ``problem``'s objective (memoised per model spec)."""
+    if model.spec in cache and not extra_starts:
+        return cache[model.spec]
+    prob = problem if problem.model == model else Problem(model, problem.wv, problem.omega,
+                                                         problem.method)
+    tau, nu_hat = prob.tau, prob.nu_hat
+    # starts always come from the GMWM-form (linear) problem; for ARMAV too
+    if prob.method == "armav":
+        gw = Whitener(weight_matrix(prob.wv, "gaussian", "gmwm"))
+    else:
+        gw = prob.white
+    vp = _VP(model, tau, nu_hat, gw, drift_sign, _node_seed(seed, model.spec))
+
+    if model.is_linear and prob.method == "gmwm":
+        # closed form: NNLS on the whitened system is the exact minimiser
+        c, coef = vp.cost()
+        theta = _theta_from_vp(model, [0.0] * vp.ncomp, coef, drift_sign)
+        node = _Node(theta, prob.objective(theta), True,
+                     "closed-form non-negative weighted least squares", [], 0)
+        cache[model.spec] = node
+        return node
+
+    starts = vp.starts(n_starts)
+    best_vp = starts[0][0]
+    # the projected cost is already optimal over the linear parameters and the refinement only
+    # polishes shapes: starts far above the best never win and are not refined
+    cand = [t for c, t in starts if c <= best_vp + max(25.0, best_vp)][:max(n_starts, 1)]
+    cand += list(extra_starts or [])
+    subs: list[tuple[str, np.ndarray]] = []
+    if nested and len(model.components) > 1:
+        for sub, k in _drop_one(model):
+            node = _search(problem, sub, n_starts, seed, drift_sign, max_nfev, nested, cache)
+            emb = _embed(model, sub, node.theta, k, tau)
+            subs.append((sub.spec, emb))
+            _, th = vp.extend(emb, k)
+            cand.append(th)
+    runs: list[tuple[float, np.ndarray, str, bool, list[str], str | None]] = []
+    for theta0 in cand:
+        sol = prob.solve(theta0, max_nfev=max_nfev)
+        runs.append((sol.objective, model.canonical(sol.theta), sol.message, sol.ok, sol.edge,
+                     None))
+    for spec, emb in subs:  # the submodel's optimum itself (component exactly 0)
+        sub_node = cache[spec]
+        runs.append((prob.objective(emb), model.canonical(emb), sub_node.message,
+                     sub_node.converged, list(sub_node.edge), spec))
+    i = int(np.argmin([r[0] for r in runs]))
+    obj, theta, msg, ok, edge, from_sub = runs[i]
+    node = _Node(theta, obj, bool(ok and np.isfinite(obj)), msg, edge, len(cand), from_sub)
+    if not extra_starts:
+        cache[model.spec] = node
+    return node
+
+
+def fit(data: np.ndarray | WaveletVariance, model: str | Model, *, levels: int | None = None,
+        freq: float | None = None, weights: str | np.ndarray = "ci", method: str = "gmwm",
+        n_starts: int = 4, seed: int = 0, reweight: int = 0, alpha: float = 0.05,
+        max_nfev: int = 1000, se_cov: str | np.ndarray = "model",
+        nested: bool = True) -> GMWMResult:
+    """Estimate ``model`` by GMWM (or ARMAV) from a signal or a precomputed wavelet variance.
+
+    Parameters
+    ----------
+    data : 1-D signal (per-sample units) or a :class:`~gmwm.wv.WaveletVariance`.
+    model : model string such as ``"WN+RW+AR1+SIN"`` or a :class:`~gmwm.model.Model`.
+    levels : number of dyadic levels J (default: all of a given WV, or floor(log2 T) - 1).
+    freq : sampling frequency [Hz] of a raw signal (GM parameters and scales in seconds use it).
+    weights : ``"ci"`` (inverse squared CI width, default), ``"gaussian"`` (eta_j / (2 nu_j^2)),
+        ``"identity"``, ``"efficient"`` (two-step: CI weights, then the inverse of the model
+        covariance of the WV estimate at the first estimate), or a (J, J) covariance of
+        ``nu_hat`` (e.g. from a bootstrap), whose inverse is the weight and which also feeds
+        the standard errors.
+    method : ``"gmwm"`` (f(x) = x) or ``"armav"`` (f = log10 of the Allan variance).
+    n_starts : distinct starting points refined by the optimiser (per model and submodel).
+    seed : seed of the randomised start placements (results are deterministic given it).
+    reweight : extra passes re-weighting with the fitted model's WV (Gaussian weights).
+    alpha : CI level of a WV computed here.
+    max_nfev : evaluation budget per start.
+    se_cov : covariance V of the WV estimate behind the standard errors: ``"model"`` (default;
+        under the fitted model, with the between-scale correlation), ``"gaussian"`` (the
+        diagonal 2 nu_hat^2 / eta) or a (J, J) matrix. A covariance given as ``weights``
+        is used for both.
+    nested : include the fits of the submodels (one component dropped, recursively) so that the
+        result is never worse than any submodel's.
+
+    Returns
+    -------
+    GMWMResult with estimates in canonical component order; ``diagnostics["warnings"]`` lists
+    boundary estimates, weak identification and non-convergence.
+    """
+    if method not in METHODS:
+        raise InputError(f"unknown method {method!r}; use one of {', '.join(METHODS)} "
+                         "(the slope method is gmwm.avsm.fit_avsm)")
+    if not isinstance(reweight, (int, np.integer)) or reweight < 0:
+        raise InputError(f"reweight must be a non-negative integer, got {reweight!r}")
+    if not isinstance(n_starts, (int, np.integer)) or n_starts < 1:
+        raise InputError(f"n_starts must be a positive integer, got {n_starts!r}")
+    if freq is None and isinstance(model, Model):
+        freq = model.freq
+    if freq is None and isinstance(data, WaveletVariance):
+        freq = data.freq
+    wv, drift_sign, seconds_wv = _prepare(data, levels, freq, alpha)
+    if freq is not None and wv.freq != freq:
+        wv = dataclasses.replace(wv, freq=float(freq))
+    model = as_model(model, wv.freq)
+    if model.n_params > wv.n_levels:
+        raise IdentifiabilityError(
+            f"model {model.spec} has {model.n_params} parameters but only {wv.n_levels} wavelet "
+            "scales are available; use a longer signal, more levels or a smaller model")
+    if np.any(wv.variance <= 0) or not np.all(np.isfinite(wv.variance)):
+        raise InputError("wavelet variance must be positive and finite at every level "
+                         "(constant signal?)")
+    user_cov = not isinstance(weights, str)
+    if user_cov:
+        weights = check_cov(weights, wv.n_levels)
+    elif weights not in ("ci", "gaussian", "identity", "efficient"):
+        raise InputError(f"unknown weights {weights!r}; use ci, gaussian, identity, efficient "
+                         "or a covariance matrix")
+    efficient = isinstance(weights, str) and weights == "efficient"
+    t0 = time.perf_counter()
+    with np.errstate(all="ignore"):
+        omega = weight_matrix(wv, "ci" if efficient else weights, method)
+        prob = Problem(model, wv, omega, method)
+        node = _search(prob, model, n_starts, seed, drift_sign, max_nfev, nested, {})
+        for _ in range(0 if user_cov or efficient else reweight):
+            omega = weight_matrix(wv, "gaussian", method, model_wv=model.wv(node.theta, prob.tau))
+            prob = Problem(model, wv, omega, method)
+            node = _search(prob, model, n_starts, seed, drift_sign, max_nfev, nested, {},
+                           extra_starts=[node.theta])
+        if efficient:
+            V1 = wv_cov("model", model, node.theta, wv)
+            omega = omega_from_cov(V1, wv.variance, method)
+            prob = Problem(model, wv, omega, method)
+            node = _search(prob, model, n_starts, seed, drift_sign, max_nfev, nested, {},
+                           extra_starts=[node.theta])
+    seconds_fit = time.perf_counter() - t0
+    theta = node.theta
+    with np.errstate(all="ignore"):
+        comp_wv = model.component_wv(theta, prob.tau)
+    vanished = [k for k, v in comp_wv.items() if np.max(v / wv.variance) < VANISH_SHARE]
+    fixed = np.zeros(model.n_params, bool)
+    for c in model.components:
+        if c.name in vanished:
+            fixed[c.slice] = True
+            # the scale parameter (last for AR1/GM, first otherwise) is 0
+            i = c.start + (c.process.n_params - 1 if c.process.name in ("AR1", "GM") else 0)
+            theta[i] = 0.0
+    V = weights if user_cov else wv_cov(se_cov, model, theta, wv)
+    cov, se, cond = prob.sandwich(theta, V, fixed)
+    warnings = _warnings(model, theta, se, cond, vanished, node, wv, data)
+    settings = {"weights": "covariance" if user_cov else weights, "method": method,
+                "n_starts": int(n_starts), "reweight": int(reweight), "seed": int(seed),
+                "levels": int(wv.n_levels), "max_nfev": int(max_nfev), "nested": bool(nested),
+                "se_cov": "covariance" if not isinstance(se_cov, str) else se_cov}
+    if user_cov:
+        settings["weights_cov"] = weights
+    diagnostics = {"warnings": warnings, "condition_number": cond, "at_boundary": vanished,
+                   "n_refined": node.n_refined, "from_submodel": node.from_submodel,
+                   "settings": settings}
+    converged = node.converged and not node.edge
+    message = node.message if not node.edge else (
+        "parameter(s) at the edge of the search region: " + ", ".join(node.edge))
+    if not converged:
+        warnings.insert(0, f"the optimiser did not converge ({message})")
+    return GMWMResult(model=model, params=theta, se=se, cov=cov, objective=node.objective,
+                      weights=omega, converged=converged, message=message, wv=wv,
+                      method=method, diagnostics=diagnostics, seconds_wv=seconds_wv,
+                      seconds_fit=seconds_fit, wv_cov=V, settings=settings)
+
+
+def _warnings(model: Model, theta: np.ndarray, se: np.ndarray, cond: float,
+              vanished: list[str], node: _Node, wv: WaveletVariance, data: Any) -> list[str]:
+    """Human-readable problems of a fit (boundary, weak identification, missing SEs)."""
+    out: list[str] = []
+    if vanished:
+        out.append("component(s) " + ", ".join(vanished) + " contribute less than "
+                   f"{VANISH_SHARE:g} of the WV at every scale: estimate at the boundary 0 "
+                   "(no standard error); a smaller model fits as well")
+    for c in model.components:
+        if c.name in vanished:
+            continue
+        p = theta[c.slice]
+        name = c.process.name
+        if name == "AR1" and abs(p[0]) > 1 - 1e-6:
+            out.append(f"{c.name}.phi = {p[0]:.8g} is at the edge of the stationary domain "
+                       f"(|phi| -> 1): {'a random walk' if p[0] > 0 else 'an alternating process'}"
+                       " over the observed scales, not an AR1")
+        if name == "SIN" and p[1] > np.pi * (1 - 1e-6):
+            out.append(f"{c.name}.beta = {p[1]:.6g} is at the Nyquist bound pi")
+    if np.isfinite(cond) and cond > COND_WARN or not np.isfinite(cond):
+        out.append(f"the WV Jacobian is ill-conditioned (condition number {cond:.3g}): more "
+                   "parameters than the WV can identify; try a smaller model or `--check`")
+    bad_se = [n for n, s, c_fixed in zip(model.param_names, se, _fixed_names(model, vanished),
+                                         strict=True) if not np.isfinite(s) and not c_fixed]
+    if bad_se:
+        out.append("standard errors could not be computed for " + ", ".join(bad_se)
+                   + " (singular sandwich)")
+    weak = []
+    for c in model.components:
+        if c.name in vanished:
+            continue
+        i = c.start + (0 if c.process.name in ("SIN",) or c.process.linear
+                       else c.process.n_params - 1)
+        if np.isfinite(se[i]) and abs(theta[i]) < 1.96 * se[i]:
+            weak.append(c.name)
+    if weak:
+        out.append("component(s) " + ", ".join(weak) + " not distinguishable from zero "
+                   "(estimate below 1.96 standard errors)")
+    if isinstance(data, WaveletVariance) and model.count("DR"):
+        out.append("drift sign is not identified from a WV; reported positive")
+    return out
+
+
+def _fixed_names(model: Model, vanished: list[str]) -> list[bool]:
+    return [n.split(".")[0] in vanished for n in model.param_names]

@@ -1,0 +1,389 @@
+"""The GMWM inference core: one place for the objective, its weights and whitening, the analytic
+Jacobian, the bounded solve, the covariance of the WV estimate and the sandwich covariance.
+
+Every estimator path (:func:`gmwm.fit`, :mod:`gmwm.identify`, :mod:`gmwm.bootstrap`, the paper
+studies) builds a :class:`Problem` and calls it; nothing else re-implements these formulas.
+
+Conventions. ``f(x) = x`` (GMWM) or ``f = log10`` (ARMAV, the GMWFM class of paper 004). The
+objective is ``Q(theta) = (f(nu_hat) - f(nu(theta)))' Omega (f(nu_hat) - f(nu(theta)))``. The
+covariance ``V`` of ``nu_hat`` (not of ``sqrt(T) nu_hat``) feeds the finite-sample sandwich of
+SPEC 5.5, ``(A'WA)^-1 A'W V_f W A (A'WA)^-1`` with ``A = d f(nu) / d theta`` and
+``V_f = F V F'``, ``F = d f / d nu``.
+
+Kinds of ``V`` (``se_cov``):
+
+* ``"model"`` (default): the covariance of the boundary-free Haar WV estimator under the fitted
+  model (:func:`gmwm.wvcov.wv_covariance`) with the correlation between scales. SIN components
+  enter only through their cross term with the noise (their own term is O(T^-2), paper 000
+  Theorem 1), see :func:`sin_cross_covariance`.
+* ``"gaussian"``: the diagonal ``2 nu_hat_j^2 / eta_j`` (ignores the between-scale correlation
+  and counts the SIN's WV; kept for comparison).
+* a (J, J) matrix: the caller's covariance (e.g. a bootstrap's).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .errors import InputError
+from .model import Model
+from .wv import WaveletVariance
+
+_LOG10E = np.log10(np.e)
+METHODS = ("gmwm", "armav")
+WEIGHT_KINDS = ("ci", "gaussian", "identity", "efficient")
+#: Half-width of the bounded search box in free coordinates around a start (a factor e^40).
+BOX = 40.0
+
+
+# -- weights --------------------------------------------------------------------------------------
+def gaussian_wv_cov(nu: np.ndarray, edof: np.ndarray) -> np.ndarray:
+    """Diagonal Gaussian covariance ``2 nu_j^2 / eta_j`` of the WV estimate."""
+    return np.diag(2 * np.asarray(nu, float) ** 2 / np.asarray(edof, float))
+
+
+def f_jacobian(nu: np.ndarray, method: str) -> np.ndarray:
+    """Diagonal of ``F = d f / d nu`` at ``nu``."""
+    if method == "armav":
+        return _LOG10E / np.maximum(np.asarray(nu, float), 1e-300)
+    return np.ones(np.asarray(nu).shape)
+
+
+def check_cov(V: Any, J: int, what: str = "weight covariance") -> np.ndarray:
+    """A caller's (J, J) covariance of nu_hat, validated."""
+    V = np.asarray(V, dtype=float)
+    if V.shape != (J, J):
+        raise InputError(f"{what} must be {J}x{J} (one row per level), got {V.shape}")
+    if not np.all(np.isfinite(V)) or np.any(np.diag(V) <= 0):
+        raise InputError(f"{what} must be finite with a positive diagonal")
+    return V
+
+
+def omega_from_cov(V: np.ndarray, nu_hat: np.ndarray, method: str) -> np.ndarray:
+    """Efficient weight ``(F V F')^-1`` for a covariance V of nu_hat (pseudo-inverse; symmetric)."""
+    F = f_jacobian(nu_hat, method)
+    Vf = V * np.outer(F, F)
+    # scale to unit diagonal first: V spans many orders of magnitude across scales
+    d = np.sqrt(np.diag(Vf))
+    W = np.linalg.pinv(Vf / np.outer(d, d), hermitian=True, rcond=1e-12) / np.outer(d, d)
+    return (W + W.T) / 2
+
+
+def weight_matrix(wv: WaveletVariance, weights: str | np.ndarray, method: str = "gmwm",
+                  model_wv: np.ndarray | None = None) -> np.ndarray:
+    """Weight matrix Omega for ``f(nu_hat)``.
+
+    ``"ci"``: inverse squared CI width (``simts`` "fast"); ``"gaussian"``: ``eta_j / (2 nu_j^2)``
+    with ``nu = model_wv`` if given (re-weighting with the fitted model) else ``nu_hat``;
+    ``"identity"``; a (J, J) covariance V of nu_hat: ``(F V F')^-1``. ARMAV's named kinds use
+    the delta method ``Var(log10 nu_hat_j) ~ 2 (log10 e)^2 / eta_j`` (``"ci"``/``"gaussian"``).
+    ``"efficient"`` is a two-step procedure of :func:`gmwm.fit`, not a fixed matrix.
+    """
+    J = wv.n_levels
+    if not isinstance(weights, str):
+        return omega_from_cov(check_cov(weights, J), wv.variance, method)
+    if weights not in WEIGHT_KINDS or weights == "efficient":
+        raise InputError(f"unknown weights {weights!r}; use one of {', '.join(WEIGHT_KINDS)} "
+                         "or a covariance matrix")
+    if weights == "identity":
+        return np.eye(J)
+    if method == "armav":
+        return np.diag(wv.edof / (2 * _LOG10E**2))
+    if weights == "ci" and model_wv is None:
+        width = wv.ci_high - wv.ci_low
+        return np.diag(1.0 / width**2)
+    nu = wv.variance if model_wv is None else model_wv
+    return np.diag(wv.edof / (2 * nu**2))
+
+
+def whitener(omega: np.ndarray) -> np.ndarray:
+    """L with ``Omega = L L'`` (Cholesky; eigen-factor when Omega is only semi-definite)."""
+    omega = np.asarray(omega, dtype=float)
+    if np.count_nonzero(omega - np.diag(np.diag(omega))) == 0:
+        return np.diag(np.sqrt(np.clip(np.diag(omega), 0, None)))
+    try:
+        return np.linalg.cholesky(omega)
+    except np.linalg.LinAlgError:
+        w, U = np.linalg.eigh(omega)
+        return U * np.sqrt(np.clip(w, 0, None))
+
+
+class Whitener:
+    """Multiply by ``L'`` (``Omega = L L'``); elementwise when Omega is diagonal."""
+
+    def __init__(self, omega: np.ndarray):
+        self.L = whitener(omega)
+        lt = self.L.T
+        self.diag = np.diag(lt).copy() if np.count_nonzero(lt - np.diag(np.diag(lt))) == 0 \
+            else None
+        self.lt = lt
+
+    def __matmul__(self, other: np.ndarray) -> np.ndarray:
+        if self.diag is None:
+            return self.lt @ other
+        return (self.diag * np.asarray(other).T).T
+
+
+# -- covariance of the WV estimate ---------------------------------------------------------------
+def noise_spectrum(model: Model, theta: np.ndarray, omega: float,
+                   exclude: tuple[str, ...] = ("SIN", "DR")) -> float:
+    """Spectral density ``sum_h gamma(h) cos(omega h)`` of the stochastic (Gaussian) part of the
+    model at angular frequency omega [rad/sample] (RW: of its generalised spectrum, finite for
+    omega > 0)."""
+    s = 0.0
+    c = np.cos(omega)
+    for comp in model.components:
+        name = comp.process.name
+        if name in exclude:
+            continue
+        p = theta[comp.slice]
+        if name == "WN":
+            s += p[0]
+        elif name == "QN":
+            s += p[0] * 2 * (1 - c)
+        elif name == "RW":
+            s += p[0] / (2 * (1 - c))
+        elif name in ("AR1", "GM"):
+            if name == "GM":
+                a = p[0] / model.freq
+                phi, s2 = np.exp(-a), p[1] * -np.expm1(-2 * a)
+            else:
+                phi, s2 = p[0], p[1]
+            s += s2 / (1 - 2 * phi * c + phi**2)
+    return float(s)
+
+
+def sin_cross_covariance(model: Model, theta: np.ndarray, wv: WaveletVariance) -> np.ndarray:
+    """Covariance of the WV estimate from the cross term of each SIN with the Gaussian noise.
+
+    With ``W = W_sin + W_noise``, ``nu_hat_j`` holds ``(2/M_j) sum_t W_sin W_noise``, whose
+    covariance over the random phase and the noise is, for large M,
+    ``8 nu_sin,j nu_sin,k S(beta) / (alpha^2 max(M_j, M_k))`` with ``S`` the noise spectral
+    density at the SIN's frequency (:func:`noise_spectrum`): a rank-one term per sinusoid.
+    """
+    tau = wv.scales.astype(float)
+    J = tau.size
+    out = np.zeros((J, J))
+    M = np.maximum(wv.n_samples - tau + 1, 1.0)
+    Mmax = np.maximum.outer(M, M)
+    for comp in model.components:
+        if comp.process.name != "SIN":
+            continue
+        alpha, beta = theta[comp.slice]
+        if alpha <= 0:
+            continue
+        nus = comp.process.wv(theta[comp.slice], tau, model.freq)
+        S = noise_spectrum(model, theta, beta)
+        out += 8 * np.outer(nus, nus) * S / (alpha**2 * Mmax)
+    return out
+
+
+def model_wv_cov(model: Model, theta: np.ndarray, wv: WaveletVariance) -> np.ndarray:
+    """Covariance of the boundary-free Haar WV estimate at ``wv``'s scales and length under the
+    model at ``theta``: the Gaussian components' exact covariance (between-scale correlation
+    included) plus the SIN-noise cross terms; SINs' own terms are O(T^-2) and left out."""
+    from .wvcov import wv_covariance
+
+    theta = np.asarray(theta, dtype=float)
+    sub, sub_theta = nonzero_part(model, theta, exclude=("SIN",))
+    if sub is None:
+        V = np.zeros((wv.n_levels, wv.n_levels))
+    else:
+        V = wv_covariance(sub, sub_theta, wv.scales, int(wv.n_samples))
+    V = V + sin_cross_covariance(model, theta, wv)
+    # a model whose Gaussian part vanishes at some scale would make V singular there: floor the
+    # diagonal at a tiny share of the Gaussian WV-estimate variance
+    floor = 1e-12 * np.diag(gaussian_wv_cov(wv.variance, wv.edof))
+    return V + np.diag(np.where(np.diag(V) < floor, floor, 0.0))
+
+
+def nonzero_part(model: Model, theta: np.ndarray, exclude: tuple[str, ...] = ()
+                 ) -> tuple[Model | None, np.ndarray]:
+    """The submodel of components with a non-zero scale parameter (not in ``exclude``) and its
+    parameters (a component at the boundary 0 adds nothing to the WV or its covariance)."""
+    keep = []
+    for c in model.components:
+        p = theta[c.slice]
+        scale = p[-1] if c.process.name in ("AR1", "GM") else p[0]
+        if c.process.name not in exclude and scale != 0 and np.all(np.isfinite(p)):
+            keep.append(c)
+    if not keep:
+        return None, np.zeros(0)
+    counts: dict[str, int] = {}
+    for c in keep:
+        counts[c.process.name] = counts.get(c.process.name, 0) + 1
+    sub = Model("+".join(f"{n}*{k}" if n > 1 else k for k, n in counts.items()), model.freq)
+    # components of one type keep their relative (canonical) order
+    order = [c.process.name for c in sub.components]
+    grouped = {name: [theta[c.slice] for c in keep if c.process.name == name] for name in counts}
+    sub_theta = np.concatenate([grouped[n].pop(0) for n in order])
+    return sub, sub_theta
+
+
+def wv_cov(kind: str | np.ndarray, model: Model, theta: np.ndarray,
+           wv: WaveletVariance) -> np.ndarray:
+    """Covariance V of nu_hat of a given kind (module docstring)."""
+    if not isinstance(kind, str):
+        return check_cov(kind, wv.n_levels)
+    if kind == "gaussian":
+        return gaussian_wv_cov(wv.variance, wv.edof)
+    if kind == "model":
+        return model_wv_cov(model, theta, wv)
+    raise InputError(f"unknown se_cov {kind!r}; use 'model', 'gaussian' or a covariance matrix")
+
+
+# -- the problem ----------------------------------------------------------------------------------
+@dataclass
+class Solution:
+    """Outcome of one bounded solve: raw (not relabelled) parameters, objective and status."""
+
+    theta: np.ndarray
+    eta: np.ndarray
+    objective: float
+    ok: bool
+    message: str
+    edge: list[str]
+
+
+class Problem:
+    """The GMWM (or ARMAV) problem for one WV, model, method and weight matrix."""
+
+    def __init__(self, model: Model, wv: WaveletVariance, omega: np.ndarray,
+                 method: str = "gmwm"):
+        if method not in METHODS:
+            raise InputError(f"unknown method {method!r}; use one of {', '.join(METHODS)}")
+        self.model, self.wv, self.method = model, wv, method
+        self.omega = np.asarray(omega, dtype=float)
+        self.tau = wv.scales.astype(float)
+        self.nu_hat = np.asarray(wv.variance, dtype=float)
+        self.target = self.f(self.nu_hat)
+        self.white = Whitener(self.omega)
+        # residual normalisation for the optimiser only (the argmin is unchanged)
+        self.scale = float(np.linalg.norm(self.white @ self.target)) or 1.0
+
+    @classmethod
+    def of(cls, result: Any) -> Problem:
+        """The problem a fit result was solved on (its own weights and method)."""
+        return cls(result.model, result.wv, result.weights, result.method)
+
+    def f(self, nu: np.ndarray) -> np.ndarray:
+        if self.method == "armav":
+            return np.log10(np.maximum(nu, 1e-300))
+        return nu
+
+    # objective and derivatives in theta
+    def residual(self, theta: np.ndarray) -> np.ndarray:
+        """Whitened residual ``L' (f(nu_hat) - f(nu(theta)))`` (unnormalised)."""
+        return self.white @ (self.target - self.f(self.model.wv(theta, self.tau)))
+
+    def objective(self, theta: np.ndarray) -> float:
+        with np.errstate(all="ignore"):
+            r = self.residual(np.asarray(theta, dtype=float))
+        return float(r @ r)
+
+    def objective_many(self, thetas: np.ndarray, omega: np.ndarray | None = None) -> np.ndarray:
+        """Objective of many parameter rows at once (posterior sampling)."""
+        with np.errstate(all="ignore"):
+            R = self.target - self.f(self.model.wv_many(thetas, self.tau))
+            W = self.omega if omega is None else omega
+            return np.einsum("ij,jk,ik->i", R, W, R)
+
+    def jac_theta(self, theta: np.ndarray) -> np.ndarray:
+        """``d f(nu(theta)) / d theta``, shape (J, p)."""
+        A = self.model.jacobian(theta, self.tau)
+        if self.method == "armav":
+            A = A * f_jacobian(self.model.wv(theta, self.tau), "armav")[:, None]
+        return A
+
+    # free coordinates (what the optimiser sees)
+    def free_residual(self, eta: np.ndarray) -> np.ndarray:
+        return self.residual(self.model.from_free(eta)) / self.scale
+
+    def free_jac(self, eta: np.ndarray) -> np.ndarray:
+        theta = self.model.from_free(eta)
+        return -(self.white @ self.jac_theta(theta)) * self.model.dtheta_deta(eta) / self.scale
+
+    def solve(self, theta0: np.ndarray, *, max_nfev: int = 1000, box: float = BOX,
+              center: np.ndarray | None = None) -> Solution:
+        """Bounded trust-region least squares in free coordinates from ``theta0`` within
+        ``center +- box`` (default: around the start), with the analytic Jacobian. ``edge``
+        names parameters that ended within 1e-3 of the box (a variance running to the boundary
+        0, i.e. a vanishing component, is not counted)."""
+        model = self.model
+        with np.errstate(all="ignore"):
+            eta0 = model.to_free(theta0)
+        eta0 = np.clip(np.nan_to_num(eta0, nan=0.0, posinf=30.0, neginf=-30.0), -60, 60)
+        c = eta0 if center is None else center
+        lo, hi = c - box, c + box
+        try:
+            with np.errstate(all="ignore"):
+                sol = least_squares(self.free_residual, np.clip(eta0, lo + 1e-9, hi - 1e-9),
+                                    jac=self.free_jac, method="trf", bounds=(lo, hi),
+                                    x_scale="jac", xtol=1e-10, ftol=1e-12, gtol=1e-10,
+                                    max_nfev=max_nfev)
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError) as err:
+            return Solution(np.asarray(theta0, float), eta0, np.inf, False,
+                            f"optimiser failed: {err}", [])
+        raw = model.from_free(sol.x)
+        obj = self.objective(raw)
+        ok = bool(sol.status > 0 and np.all(np.isfinite(raw)) and np.isfinite(obj))
+        vanished = {k for k, v in model.component_wv(raw, self.tau).items()
+                    if np.max(v / self.nu_hat) < 1e-6}
+        edge = [n for n, e, a, b in zip(model.param_names, sol.x, lo, hi, strict=True)
+                if min(e - a, b - e) < 1e-3
+                and not (n.split(".")[0] in vanished and e - a < 1e-3)]
+        return Solution(raw, sol.x, obj if np.isfinite(obj) else np.inf, ok,
+                        str(sol.message) if ok else f"stopped: {sol.message}", edge)
+
+    # covariance of the estimate
+    def sandwich(self, theta: np.ndarray, V: np.ndarray,
+                 fixed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+        """Sandwich covariance of theta_hat (SPEC 5.5) for a covariance V of nu_hat, its SEs and
+        the condition number of the whitened Jacobian in free coordinates. Parameters flagged
+        in ``fixed`` (at the boundary) are held fixed: their rows/columns are NaN."""
+        theta = np.asarray(theta, dtype=float)
+        p = theta.size
+        keep = np.ones(p, bool) if fixed is None else ~np.asarray(fixed, bool)
+        cov = np.full((p, p), np.nan)
+        se = np.full(p, np.nan)
+        cond = np.inf
+        if not keep.any():
+            return cov, se, cond
+        with np.errstate(all="ignore"):
+            A = self.jac_theta(theta)[:, keep]
+            F = f_jacobian(self.nu_hat, self.method)
+            Vf = V * np.outer(F, F)
+            W = self.omega
+            # scale the columns first: parameters live on scales from 1e-13 to 1, and an
+            # unscaled pseudo-inverse would cut the small-scale directions to zero variance
+            d = np.linalg.norm(self.white @ A, axis=0)
+            d[~np.isfinite(d) | (d == 0)] = 1.0
+            As = A / d
+            try:
+                Binv = np.linalg.pinv(As.T @ W @ As, hermitian=True)
+                G = (Binv @ As.T @ W) / d[:, None]
+                ck = G @ Vf @ G.T
+                cov[np.ix_(keep, keep)] = ck
+                se[keep] = np.sqrt(np.clip(np.diag(ck), 0, None))
+            except np.linalg.LinAlgError:
+                pass
+            eta = self.model.to_free(np.where(theta == 0, np.nan, theta))
+            Aeta = (self.white @ self.jac_theta(theta)) * self.model.dtheta_deta(eta)
+            cond = condition_number(Aeta[:, keep])
+        return cov, se, cond
+
+
+def condition_number(A: np.ndarray) -> float:
+    """2-norm condition number of A with unit-norm columns (inf if singular or non-finite)."""
+    norms = np.linalg.norm(A, axis=0)
+    if A.size == 0 or not np.all(np.isfinite(A)) or np.any(norms == 0):
+        return np.inf
+    try:
+        sv = np.linalg.svd(A / norms, compute_uv=False)
+    except np.linalg.LinAlgError:
+        return np.inf
+    return float(sv[0] / sv[-1]) if sv[-1] > 0 else np.inf

@@ -1,0 +1,62 @@
+"""Boundary, degenerate and over-parameterised fits carry warnings a user sees."""
+
+import json
+import warnings as pywarnings
+
+import numpy as np
+
+import gmwm
+from gmwm import identify
+from gmwm.model import Model
+
+
+def test_vanishing_component_is_warned_in_summary_and_json():
+    x = np.random.default_rng(3).standard_normal(2**14)  # NNLS puts RW at 0 for this seed
+    res = gmwm.fit(x, "WN+RW")
+    assert res.converged
+    assert "RW[1]" in res.diagnostics["at_boundary"]
+    assert np.isnan(res.se[1]) and res.params[1] == 0.0
+    assert any("RW[1]" in w and "boundary 0" in w for w in res.warnings)
+    assert "warning: " in res.summary()
+    js = json.loads(json.dumps(res.to_json_dict()))
+    assert any("RW[1]" in w for w in js["warnings"])
+
+
+def test_overparameterised_sinusoids_on_white_noise_are_flagged():
+    x = np.random.default_rng(2).standard_normal(4096)
+    res = gmwm.fit(x, "3*SIN+WN")
+    text = " ".join(res.warnings)
+    assert res.warnings, "a 7-parameter SIN model on pure white noise must not pass silently"
+    assert "SIN" in text
+
+
+def test_phi_at_minus_one_is_not_called_white_noise():
+    m = Model("WN+AR1")
+    wv = gmwm.wvar(m.simulate(m.theta({"WN[1].sigma2": 1.0, "AR1[1].phi": 0.5,
+                                       "AR1[1].sigma2": 0.5}), 2**14, 3))
+    theta = m.theta({"WN[1].sigma2": 1.0, "AR1[1].phi": -0.9999999, "AR1[1].sigma2": 1e-3})
+    notes = identify.degeneracies(m, theta, wv)
+    assert any("phi -> -1" in n for n in notes)
+    assert not any("collapses into white noise" in n for n in notes)
+
+
+def test_no_numpy_warnings_escape_a_fit():
+    x = np.random.default_rng(4).standard_normal(4096)
+    with pywarnings.catch_warnings():
+        pywarnings.simplefilter("error")
+        gmwm.fit(x, "QN+WN+AR1+RW")
+        gmwm.fit(x, "2*SIN+WN")
+
+
+def test_global_check_reports_a_better_optimum_honestly():
+    # a deliberately poor estimate: the global check must say a better optimum exists
+    m = Model("WN+AR1+RW")
+    x = m.simulate(m.theta({"WN[1].sigma2": 1.0, "AR1[1].phi": 0.99, "AR1[1].sigma2": 0.01,
+                            "RW[1].gamma2": 1e-6}), 2**15, 5)
+    res = gmwm.fit(x, m)
+    bad = res.params.copy()
+    bad[m.param_names.index("AR1[1].phi")] = 0.5
+    poor = identify.global_check((m, bad, res.wv, res.weights), n_starts=8)
+    assert poor.better_found and any("better optimum" in r for r in poor.reasons)
+    good = identify.global_check(res, n_starts=8)
+    assert not good.better_found
