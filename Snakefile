@@ -26,6 +26,7 @@ include: "workflow/rules/navchip.smk"
 include: "workflow/rules/uncertainty.smk"
 include: "workflow/rules/misspec.smk"
 include: "workflow/rules/navigation.smk"
+include: "workflow/rules/svo.smk"
 include: "workflow/rules/report.smk"
 
 

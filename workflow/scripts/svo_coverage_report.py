@@ -1,0 +1,24 @@
+"""Rule svo_coverage_report: coverage table (Wilson MC intervals) and figure of one SVO case."""
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from wflog import get_logger
+
+from gmwm.io import save_figure
+from gmwm.studies import format_markdown_table
+from gmwm_studies.svo_study import coverage_table, figure_coverage, merge
+
+snakemake = globals()["snakemake"]  # injected by Snakemake
+log = get_logger(snakemake)
+out = snakemake.output
+res = merge([dict(np.load(f)) for f in snakemake.input])
+rows = coverage_table(res, 1.0 - snakemake.params.alpha)
+df = pd.DataFrame(rows)
+df.to_csv(out.csv, index=False)
+Path(out.md).write_text(format_markdown_table(df) + "\n", encoding="utf-8")
+written = save_figure(figure_coverage(rows, 1.0 - snakemake.params.alpha),
+                      Path(out.fig).with_suffix(""), formats=snakemake.params.formats)
+log.info("wrote %s; %d replicates, block %d, %.2f s per replicate", ", ".join(map(str, written)),
+         len(res["coef"]), int(res["block"]), float(np.mean(res["seconds"])))

@@ -1,0 +1,27 @@
+"""Rule svo_report: figures and tables of one SVO case from its training chunks."""
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from wflog import get_logger
+
+from gmwm.io import save_figure
+from gmwm.studies import format_markdown_table
+from gmwm_studies.svo_study import coef_table, figure_coefs, figure_gmwm, figure_wv, merge, wv_table
+
+snakemake = globals()["snakemake"]  # injected by Snakemake
+log = get_logger(snakemake)
+p, out, case = snakemake.params, snakemake.output, snakemake.wildcards.svo_case
+res = merge([dict(np.load(f)) for f in snakemake.input.train])
+for rows, csv, md in ((coef_table(res, case, p.levels), out.coefs_csv, out.coefs_md),
+                      (wv_table(res, p.freq), out.wv_csv, out.wv_md)):
+    df = pd.DataFrame(rows)
+    df.to_csv(csv, index=False)
+    Path(md).write_text(format_markdown_table(df) + "\n", encoding="utf-8")
+folder = Path(out[0]).parent
+for fig, stem in ((figure_wv(res, p.freq, case), "fig_wv"),
+                  (figure_coefs(res, case, p.levels), "fig_coefs"), (figure_gmwm(res), "fig_gmwm")):
+    log.info("wrote %s", ", ".join(map(str, save_figure(fig, folder / stem, formats=p.formats))))
+log.info("%s: %d training arrays, %.2f s per training replicate", case, res["coef"].shape[0],
+         float(np.mean(res["seconds"])))
