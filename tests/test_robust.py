@@ -112,7 +112,9 @@ def test_cli_robust_fit_and_wv(tmp_path, capsys) -> None:
     out = json.loads(capsys.readouterr().out)
     assert 0.95 < out["params"]["WN[1].sigma2"] < 1.12
     assert main(["wv", str(path), "--robust", "--eff", "0.5", "--json"]) == 0
-    robust = json.loads(capsys.readouterr().out)["variance"]
+    d = json.loads(capsys.readouterr().out)
+    robust = d["variance"]
+    assert d["robust"] is True and d["efficiency"] == 0.5
     assert main(["wv", str(path), "--json"]) == 0
     classical = json.loads(capsys.readouterr().out)["variance"]
     assert robust[0] < 0.2 * classical[0]
