@@ -7,9 +7,21 @@ import pytest
 
 import gmwm
 from gmwm.errors import InputError, ModelError
-from gmwm.svo import (PAPER_OMEGA_LONG, PAPER_OMEGA_SHORT, _mbb_kernel, _unpack, equal,
-                      mbb_svo_draws, mbb_wccv, rdvg, svo, svo_coef, svo_jacobian, svo_weights,
-                      wccv)
+from gmwm.svo import (
+    PAPER_OMEGA_LONG,
+    PAPER_OMEGA_SHORT,
+    _mbb_kernel,
+    _unpack,
+    equal,
+    mbb_svo_draws,
+    mbb_wccv,
+    rdvg,
+    svo,
+    svo_coef,
+    svo_jacobian,
+    svo_weights,
+    wccv,
+)
 from gmwm_studies.svo_study import case, true_coefs
 
 

@@ -25,7 +25,6 @@ weighted least squares of ``A_j[i, k]`` on the Haar WN and RW columns ``1/tau_j`
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -508,7 +507,7 @@ def block_length(T: int, const: float = 1.0) -> int:
     """MBB block length ``l = max(1, round(const * T^(1/3)))`` (SPEC 6.2)."""
     if not (np.isfinite(const) and const > 0):
         raise InputError(f"block constant must be positive, got {const}")
-    return max(1, int(round(const * T ** (1.0 / 3.0))))
+    return max(1, round(const * T ** (1.0 / 3.0)))
 
 
 def _mbb_draws(T: int, J: int, H: int, block: int, rng: np.random.Generator
@@ -653,8 +652,8 @@ class SVOResult:
         lvl = f"{100 * (1 - self.alpha):g}%"
         head = {"svo": "Scale-wise Variance Optimisation", "rdvg": "RDVG (min. RW variance)",
                 "equal": "equal weights"}.get(self.method, self.method)
-        lines = [f"Virtual gyroscope: {head}; T = {self.wccv.n_samples}, J = "
-                 f"{self.wccv.n_levels}, p = {self.coef.size}"]
+        lines = [(f"Virtual gyroscope: {head}; T = {self.wccv.n_samples}, J = "
+                  f"{self.wccv.n_levels}, p = {self.coef.size}")]
         if self.cov is not None:
             lines.append(f"CIs: moving-block bootstrap, {self.n_boot} draws, block length "
                          f"{self.block} samples")

@@ -28,8 +28,17 @@ from scipy.stats import norm
 
 from gmwm.errors import InputError
 from gmwm.processes import ar1_unit_wv
-from gmwm.svo import (PAPER_OMEGA_LONG, PAPER_OMEGA_SHORT, WaveletCrossCovariance, equal, rdvg,
-                      svo, svo_coef, svo_weights, wccv)
+from gmwm.svo import (
+    PAPER_OMEGA_LONG,
+    PAPER_OMEGA_SHORT,
+    WaveletCrossCovariance,
+    equal,
+    rdvg,
+    svo,
+    svo_coef,
+    svo_weights,
+    wccv,
+)
 
 METHODS = ("svo_w1", "svo_w2", "rdvg", "equal")
 METHOD_LABELS = {"svo_w1": "SVO $\\omega_1$", "svo_w2": "SVO $\\omega_2$", "rdvg": "RDVG",

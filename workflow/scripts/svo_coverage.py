@@ -12,8 +12,7 @@ p, wc = snakemake.params, snakemake.wildcards
 reps = list(range(int(wc.a), int(wc.b)))
 res = coverage_chunk(wc.svo_case, reps, p.n_samples, p.levels, p.n_boot, p.block_const, p.alpha,
                      p.seed)
-with atomic_path(snakemake.output[0]) as tmp:
-    with open(tmp, "wb") as fh:
-        np.savez(fh, **res)
+with atomic_path(snakemake.output[0]) as tmp, open(tmp, "wb") as fh:
+    np.savez(fh, **res)
 log.info("%s replicates %s: %.2f s per replicate, block %d", wc.svo_case, reps,
          float(np.mean(res["seconds"])), int(res["block"]))

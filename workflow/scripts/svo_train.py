@@ -11,8 +11,7 @@ log = get_logger(snakemake)
 p, wc = snakemake.params, snakemake.wildcards
 reps = list(range(int(wc.a), int(wc.b)))
 res = train_chunk(wc.svo_case, reps, p.n_samples, p.levels, p.n_test, p.seed)
-with atomic_path(snakemake.output[0]) as tmp:
-    with open(tmp, "wb") as fh:
-        np.savez(fh, **res)
+with atomic_path(snakemake.output[0]) as tmp, open(tmp, "wb") as fh:
+    np.savez(fh, **res)
 log.info("%s replicates %s: %.2f s per training replicate (%d test arrays each)", wc.svo_case,
          reps, float(np.mean(res["seconds"])), p.n_test)
