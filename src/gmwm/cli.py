@@ -28,8 +28,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn, TextIO
 
-import numpy as np
-
 from gmwm import __version__
 from gmwm.errors import GMWMError, IdentifiabilityError, InputError, ModelError
 
@@ -48,6 +46,18 @@ _NEGATIVE_COUNT = re.compile(r"^-\d+(\.\d*)?\s*\*\s*[A-Za-z]")
 MAX_MODEL_LEVELS = 60
 #: samples of the warm-up call that loads the compiled WV kernel (reported as the first-call cost)
 _WARMUP_SAMPLES = 1024
+
+
+class _LazyNumpy:
+    """NumPy, imported on first attribute access: ``gmwm --help`` and usage errors never load it."""
+
+    def __getattr__(self, name: str) -> Any:
+        import numpy
+
+        return getattr(numpy, name)
+
+
+np: Any = _LazyNumpy()
 
 
 class UsageError(Exception):
@@ -609,6 +619,7 @@ def _wv_dict(wv: Any) -> dict[str, Any]:
         "n_samples": int(wv.n_samples),
         "freq": float(wv.freq),
         "alpha": float(wv.alpha),
+        **({"robust": True, "efficiency": wv.efficiency} if getattr(wv, "robust", False) else {}),
     }
 
 
