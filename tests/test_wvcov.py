@@ -81,7 +81,7 @@ DENSE_CASES = [
 def test_matches_dense_matrices(spec: str, values: dict, freq: float) -> None:
     model = Model(spec, freq=freq)
     theta = model.theta(values)
-    T = 150
+    T = 100
     scales = 2.0 ** np.arange(1, 7)
     V = wv_covariance(model, theta, scales, T)
     ref = _dense_cov(model, theta, scales, T)
