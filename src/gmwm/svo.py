@@ -1,5 +1,8 @@
 """Virtual gyroscope by Scale-wise Variance Optimisation (SVO, paper 003; SPEC section 6).
 
+(``gmwm.svo`` is also the name of the main function, so import from this module with
+``from gmwm.svo import wccv, ...``; ``import gmwm.svo as m`` yields the function.)
+
 ``p`` signals of one axis ``X_t`` (columns of a ``(T, p)`` array) are combined into a virtual
 signal ``S_t = c'X_t`` with ``c'1 = 1``. With ``A_j`` the Haar wavelet cross-covariance (WCCV)
 matrix at level ``j`` (``A_j[i, k] = E[W_{i,j,t} W_{k,j,t}]``, lag 0, same conventions as
@@ -53,28 +56,33 @@ PAPER_OMEGA_SHORT = (0.118, 0.118, 0.117, 0.117, 0.116, 0.112, 0.104, 0.086, 0.0
 # numba kernels: the pyramid of gmwm.wv for p interleaved signals (rows = times, columns = signals)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"reassoc", "contract"})
 def _step_p(src: np.ndarray, dst: np.ndarray, lo: int, hi: int, lag: int, sums: np.ndarray,
-            row: int) -> None:
+            row: int, dbuf: np.ndarray) -> None:
     """One level on rows ``[lo, hi)``: ``dst[t] = (src[t] + src[t-lag]) / 2`` and add the packed
-    upper triangle of ``d d'`` (``d = src[t] - src[t-lag] = 2 W_t``) to ``sums[row]``."""
+    upper triangle of ``sum_t d_t d_t'`` (``d = src[t] - src[t-lag] = 2 W_t``) to ``sums[row]``.
+
+    The differences go to ``dbuf`` (one contiguous row per signal) first so that every pair's sum
+    is a contiguous dot product; ``reassoc`` lets LLVM split it into vector lanes (values of
+    ``dst`` are unaffected)."""
     p = src.shape[1]
-    d = np.empty(p)
-    acc = np.zeros(sums.shape[1])
+    n = hi - lo
     for t in range(lo, hi):
         for i in range(p):
             a = src[t, i]
             b = src[t - lag, i]
-            d[i] = a - b
+            dbuf[i, t - lo] = a - b
             dst[t, i] = 0.5 * (a + b)
-        q = 0
-        for i in range(p):
-            di = d[i]
-            for k in range(i, p):
-                acc[q] += di * d[k]
-                q += 1
-    for q in range(acc.shape[0]):
-        sums[row, q] += acc[q]
+    q = 0
+    for i in range(p):
+        di = dbuf[i]
+        for k in range(i, p):
+            dk = dbuf[k]
+            acc = 0.0
+            for t in range(n):
+                acc += di[t] * dk[t]
+            sums[row, q] += acc
+            q += 1
 
 
 @njit(cache=True)
@@ -87,7 +95,7 @@ def _avg_p(src: np.ndarray, dst: np.ndarray, lo: int, hi: int, lag: int) -> None
 
 @njit(cache=True)
 def _pyramid_p(a: np.ndarray, b: np.ndarray, n: int, n_levels: int, unit: int, acc_from: int,
-               sums: np.ndarray, first: int) -> int:
+               sums: np.ndarray, first: int, dbuf: np.ndarray) -> int:
     """``gmwm.wv._pyramid`` for p signals: levels ``1..n_levels`` on rows ``[0, n)`` with lags in
     multiples of ``unit`` rows; products at rows ``>= acc_from`` go to ``sums[first + j - 1]``."""
     src, dst = a, b
@@ -101,7 +109,7 @@ def _pyramid_p(a: np.ndarray, b: np.ndarray, n: int, n_levels: int, unit: int, a
         if acc_lo > lo:
             _avg_p(src, dst, lo, min(acc_lo, n), lag)
         if acc_lo < n:
-            _step_p(src, dst, acc_lo, n, lag, sums, first + j - 1)
+            _step_p(src, dst, acc_lo, n, lag, sums, first + j - 1, dbuf)
         src, dst = dst, src
         which = 1 - which
     return which
@@ -109,7 +117,8 @@ def _pyramid_p(a: np.ndarray, b: np.ndarray, n: int, n_levels: int, unit: int, a
 
 @njit(cache=True)
 def _wccv_sums(x: np.ndarray, n_levels: int, n_block: int, sums: np.ndarray, buf_a: np.ndarray,
-               buf_b: np.ndarray, v_l: np.ndarray, pan_a: np.ndarray, pan_b: np.ndarray) -> None:
+               buf_b: np.ndarray, v_l: np.ndarray, pan_a: np.ndarray, pan_b: np.ndarray,
+               dbuf: np.ndarray) -> None:
     """Add ``sum_t (2 W_{i,j,t})(2 W_{k,j,t})`` (packed ``i <= k``) to ``sums[j-1]``: the two-phase
     layout of ``gmwm.wv._wv_sums`` (time blocks with a recomputed halo for levels ``1..L``, then
     interleaved sub-series of ``V_L`` for the levels above), every row holding the p signals."""
@@ -127,7 +136,7 @@ def _wccv_sums(x: np.ndarray, n_levels: int, n_block: int, sums: np.ndarray, buf
         for r in range(n):
             for i in range(p):
                 buf_a[r, i] = x[s0 + r, i] - x0[i]
-        which = _pyramid_p(buf_a, buf_b, n, L, 1, b0 - s0, sums, 0)
+        which = _pyramid_p(buf_a, buf_b, n, L, 1, b0 - s0, sums, 0, dbuf)
         if n_levels > L:
             src = buf_a if which == 0 else buf_b
             for t in range(max(b0, halo), b1):
@@ -153,7 +162,7 @@ def _wccv_sums(x: np.ndarray, n_levels: int, n_block: int, sums: np.ndarray, buf
         for ci in range(last):
             for i in range(p):
                 pan_a[(rows - 1) * c + ci, i] = v_l[base + ci, i]
-        _pyramid_p(pan_a, pan_b, (rows - 1) * c + last, n_levels - L, c, 0, sums, L)
+        _pyramid_p(pan_a, pan_b, (rows - 1) * c + last, n_levels - L, c, 0, sums, L, dbuf)
         r0 += c
 
 
@@ -175,7 +184,8 @@ def _wccv_raw(x: np.ndarray, J: int) -> np.ndarray:
     else:
         v_l = pan_a = pan_b = np.empty((0, p))
     sums = np.zeros((J, p * (p + 1) // 2))
-    _wccv_sums(x, J, n_block, sums, buf_a, buf_b, v_l, pan_a, pan_b)
+    dbuf = np.empty((p, max(buf_a.shape[0], pan_a.shape[0])))
+    _wccv_sums(x, J, n_block, sums, buf_a, buf_b, v_l, pan_a, pan_b, dbuf)
     return sums
 
 
