@@ -20,7 +20,7 @@ import numpy as np
 
 import gmwm
 from gmwm.model import Model, parse_model
-from gmwm.select import auto_candidates, rank_models
+from gmwm.select import auto_candidates, rank_models, rerank
 
 SCENARIOS = {
     "WN+RW": {"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-4},
@@ -53,9 +53,8 @@ def run(spec: str, truth: dict, k: int, reps: int, ring: int, sid: int) -> dict:
         ranking = rank_models(gmwm.wvar(x), cands)
         secs.append(time.perf_counter() - t0)
         failed += len(ranking.skipped)
-        for crit, factor in (("wic", 2.0), ("wic-log", np.log(T))):
-            best = min(ranking.ranked, key=lambda e: (e.objective + factor * e.penalty,
-                                                      e.n_params))
+        for crit in ("wic", "wic-log"):
+            best = rerank(ranking, crit).best
             if best.model == model.spec:
                 hits[crit] += 1
             else:

@@ -16,7 +16,7 @@ import gmwm
 from gmwm.cli import main
 from gmwm.errors import InputError, ModelError
 from gmwm.model import Model
-from gmwm.select import auto_candidates, optimism, rank_models, select_model
+from gmwm.select import auto_candidates, optimism, rank_models, rerank, select_model
 
 WN_RW = Model("WN+RW")
 THETA_WN_RW = WN_RW.theta({"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-4})
@@ -93,6 +93,19 @@ def test_rank_picks_ar1_over_rw() -> None:
     assert ranking.factor == pytest.approx(np.log(2**14))
 
 
+def test_superset_with_a_zero_component_ties_and_loses() -> None:
+    """WN+RW+DR with DR estimated at 0 has WN+RW's objective and a zero DR Jacobian column (no
+    extra penalty): the tie goes to the smaller model under both criteria."""
+    ranking = rank_models(_signal(2), ["WN+RW+DR", "WN+RW"])
+    top = ranking.ranked
+    if top[1].objective == pytest.approx(top[0].objective, rel=1e-7):
+        assert top[0].model == "WN+RW"
+    other = rerank(ranking, "wic-log")
+    assert other.best.model == "WN+RW" and other.factor == pytest.approx(np.log(2**14))
+    for e in other.ranked:
+        assert e.criterion == pytest.approx(e.objective + other.factor * e.penalty)
+
+
 def test_skipped_candidates_and_json() -> None:
     ranking = rank_models(_signal(0), ["WN+RW", "QN+WN+RW+DR"], levels=3)
     assert [e.model for e in ranking.skipped] == ["QN+WN+RW+DR"]
@@ -128,11 +141,15 @@ def test_cli_select_json_columns_auto_and_progress(tmp_path, capsys, monkeypatch
 
     csv = tmp_path / "imu.csv"
     csv.write_text("gx,gy\n" + "\n".join(f"{a:.17g},{b:.17g}" for a, b in zip(x0, x1)) + "\n")
-    assert main(["select", str(csv), "WN+RW", "--auto", "--columns", "gx,gy", "--json"]) == 0
+    assert main(["select", str(csv), "WN", "WN+RW", "QN+WN+RW", "--columns", "gx,gy",
+                 "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert set(d["rankings"]) == {"gx", "gy"}
     assert d["rankings"]["gx"][0]["model"] == "WN+RW"
-    assert len(d["candidates"]) == len(auto_candidates("WN+RW"))
+    assert main(["select", str(npy), "WN+RW", "--auto", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["candidates"] == auto_candidates("WN+RW")
+    assert d["ranking"][0]["model"] == "WN+RW"
 
     # progress lines only on a terminal and without --quiet
     tty = _Tty()

@@ -55,7 +55,7 @@ from .model import Model, as_model, parse_model
 from .wv import WaveletVariance, wvar
 
 __all__ = ["CRITERIA", "RankedModel", "Ranking", "auto_candidates", "optimism", "rank_models",
-           "select_model"]
+           "rerank", "select_model"]
 
 CRITERIA = ("wic", "wic-log")
 _LOG10E = np.log10(np.e)
@@ -336,12 +336,36 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = "w
         entries.append(RankedModel(spec, crit if np.isfinite(crit) else np.inf,
                                    float(res.objective), pen, model.n_params,
                                    bool(res.converged), res))
-    ok = sorted((e for e in entries if e.error is None), key=lambda e: (e.criterion, e.n_params))
     bad = [e for e in entries if e.error is not None]
-    if not ok:
+    if len(bad) == len(entries):
         raise GMWMError("no candidate model could be fitted: " + "; ".join(
             f"{e.model}: {e.error}" for e in bad))
-    return Ranking(ok + bad, criterion, factor, wv)
+    return Ranking(_order([e for e in entries if e.error is None]) + bad, criterion, factor, wv)
+
+
+def _order(entries: list[RankedModel]) -> list[RankedModel]:
+    """Best first; criteria equal up to the optimiser's precision (relative 1e-7: a superset
+    whose extra component sits at 0 reproduces the submodel's fit, and a variance-like
+    parameter at 0 has a zero Jacobian column) count as ties, won by fewer parameters."""
+    ranked = sorted(entries, key=lambda e: e.criterion)
+    out: list[RankedModel] = []
+    i = 0
+    while i < len(ranked):
+        tol = 1e-7 * abs(ranked[i].criterion) + 1e-300
+        j = i + 1
+        while j < len(ranked) and ranked[j].criterion - ranked[i].criterion <= tol:
+            j += 1
+        out += sorted(ranked[i:j], key=lambda e: e.n_params)
+        i = j
+    return out
+
+
+def rerank(ranking: Ranking, criterion: str) -> Ranking:
+    """The same fits ranked by another criterion (no refitting)."""
+    factor = _factor(criterion, ranking.wv.n_samples)
+    entries = [dataclasses.replace(e, criterion=e.objective + factor * e.penalty)
+               for e in ranking.ranked]
+    return Ranking(_order(entries) + ranking.skipped, criterion, factor, ranking.wv)
 
 
 def select_model(data: Any, models: Sequence[str | Model] | str | Model, **kwargs: Any) -> Any:
