@@ -239,8 +239,8 @@ def datasheet(result: Any, units: str | None = None, alpha: float = 0.05) -> dic
 
 def _line_reading(tau: np.ndarray, adev: np.ndarray, lo: np.ndarray, hi: np.ndarray, w: np.ndarray,
                   slope: float, tau_read: float, tol: float) -> dict[str, Any] | None:
-    """Fixed-slope line through the longest-weighted run of points whose local log-log slope is
-    within ``tol`` of ``slope``, read at ``tau_read`` [s]. CI: the same line through the points'
+    """Fixed-slope line through the heaviest (by edof) run of at least 2 adjacent points whose local
+    log-log slope is within ``tol`` of ``slope``, read at ``tau_read`` [s]. CI: the same line through the points'
     CI bounds (edof-weighted), i.e. about one point's uncertainty (conservative)."""
     lt, ld = np.log10(tau), np.log10(adev)
     if tau.size < 3:
@@ -254,6 +254,7 @@ def _line_reading(tau: np.ndarray, adev: np.ndarray, lo: np.ndarray, hi: np.ndar
         elif not flag and start is not None:
             runs.append((start, i))
             start = None
+    runs = [r for r in runs if r[1] - r[0] >= 2]  # one point is no slope region
     if not runs:
         return None
     a, b = max(runs, key=lambda r: float(w[r[0]:r[1]].sum()))
