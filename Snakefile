@@ -1,23 +1,34 @@
 # gmwm reproducible pipeline. Run from the repository root:
-#   snakemake -j2                                  # full scale (config/config.yaml)
-#   snakemake -j2 --configfile config/quick.yaml   # quick profile (CI, ~1-2 min)
+#   snakemake -j2                                  # full scale (config/config.yaml) -> reports/
+#   snakemake -j2 --configfile config/quick.yaml   # quick profile (CI) -> results/quick/ (untracked)
 #   snakemake --profile profiles/slurm             # full scale on a SLURM cluster
-# See docs/pipeline.md. This file only validates the config and includes the rule files.
+# The same command resumes a killed run (workflow/rules/runlock.smk). See docs/pipeline.md.
+# This file only validates the config, moves to the output directory and includes the rule files.
 
 from snakemake.utils import min_version, validate
 
 min_version("8.0")
 
 
-configfile: "config/config.yaml"
+import os
+
+# Paths from the Snakefile's directory: cluster jobs re-read this file from another directory.
+configfile: os.path.join(workflow.basedir, "config/config.yaml")
 
 
 validate(config, "workflow/schemas/config.schema.yaml")
 
 
+# Every relative path below (results/, reports/, logs/, .snakemake/) lives under `outdir`:
+# "." for the full run (the tracked reports/), results/quick for the quick profile, so a quick run
+# never touches a tracked file and has its own Snakemake metadata and locks.
+workdir: os.path.join(workflow.basedir, config["outdir"])
+
+
 report: "workflow/report/workflow.rst"
 
 
+include: "workflow/rules/runlock.smk"
 include: "workflow/rules/common.smk"
 include: "workflow/rules/montecarlo.smk"
 include: "workflow/rules/sim1.smk"

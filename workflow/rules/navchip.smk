@@ -7,6 +7,8 @@
 # missing data file stops only these rules (keep-going): every study, the index and the archive
 # are still produced.
 
+import os
+
 NAVCHIP = {
     "enabled": True,
     "dataset": "navchip_wv",
@@ -18,6 +20,9 @@ NAVCHIP = {
     "gof_threshold": 0.6,
     **config.get("navchip", {}),
 }
+if NAVCHIP["data_dir"] is not None:  # relative to the repository root, not to `outdir`
+    _repo_root = os.path.dirname(os.path.dirname(workflow.current_basedir.get_path_or_uri(secret_free=True)))
+    NAVCHIP["data_dir"] = os.path.join(_repo_root, NAVCHIP["data_dir"])
 
 
 def navchip_targets():
