@@ -369,8 +369,23 @@ def rerank(ranking: Ranking, criterion: str) -> Ranking:
 
 
 def select_model(data: Any, models: Sequence[str | Model] | str | Model, **kwargs: Any) -> Any:
-    """The fit (:class:`~gmwm.fit.GMWMResult`) of the best candidate by :func:`rank_models`.
-    A single model string or Model is expanded with :func:`auto_candidates`."""
+    """The fit (:class:`~gmwm.fit.GMWMResult`) of the best candidate by :func:`rank_models`
+    (keywords as there). A single model string or Model is expanded with
+    :func:`auto_candidates`. The winner is refitted with :func:`gmwm.fit`'s own standard-error
+    covariance when the ranking skipped it (see ``fit_kwargs``), so the result is what
+    ``gmwm.fit`` returns for that model."""
+    from . import fit
+
     if isinstance(models, (str, Model)):
         models = auto_candidates(models)
-    return rank_models(data, models, **kwargs).best.result
+    ranking = rank_models(data, models, **kwargs)
+    best = ranking.best.result
+    if kwargs.get("fit_kwargs") is None and kwargs.get("cov", "gaussian") == "gaussian" \
+            and _default_fit_kwargs(fit):
+        options = {k: kwargs[k] for k in ("weights", "seed", "n_starts") if kwargs.get(k) is not None}
+        sign = None
+        if not isinstance(data, WaveletVariance):
+            x = np.asarray(data, dtype=float)
+            sign = 1.0 if x[-1] >= x[0] else -1.0
+        best = _fix_drift_sign(fit(ranking.wv, best.model, **options), sign)
+    return best
