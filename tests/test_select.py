@@ -64,7 +64,8 @@ def test_auto_candidates_bounded_and_complete() -> None:
               "WN+2*AR1+RW+DR", "WN+3*AR1+RW", "WN+2*AR1+SIN+RW"):
         assert m in got
     assert len(got) == len(set(got))
-    assert len(auto_candidates("QN+WN+3*AR1+2*SIN+RW+DR")) <= 30
+    assert len(auto_candidates("QN+WN+3*AR1+2*SIN+RW+DR")) <= 31
+    assert len(auto_candidates("QN+WN+AR1+GM+SIN+RW+DR")) == 31  # the largest set
     assert "WN+3*AR1+RW" not in auto_candidates("WN+3*AR1+RW")[1:]  # cap of 3 AR1
     assert "WN+2*GM" in auto_candidates("WN+GM")                      # GM base grows GM
     with pytest.raises(ModelError, match="caps"):

@@ -185,8 +185,9 @@ def auto_candidates(base: str | Model, *, max_ar: int = MAX_AR, max_sin: int = M
     removed, and every model with one component added (QN, WN, RW, DR if absent; one more AR1 -
     or GM if the base uses GM - while AR1 + GM < ``max_ar``; one more SIN while SIN < ``max_sin``).
 
-    Size: at most 1 + 6 + 17 + 6 = 30 (six component types), so a search costs a bounded number of
-    fits. The base itself comes first; the order of the rest is fixed (removals, then additions).
+    Size: at most 31 candidates over all admissible bases (QN+WN+AR1+GM+SIN+RW+DR; counted by
+    enumeration), so a search costs a bounded number of fits. The base itself comes first; the
+    order of the rest is fixed (removals, then additions).
     """
     spec = base.spec if isinstance(base, Model) else base
     counts = parse_model(spec)
