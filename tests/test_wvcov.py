@@ -95,7 +95,8 @@ def _filter(tau: int) -> np.ndarray:
 @pytest.mark.parametrize("phi", [0.95, -0.8, 0.9995])
 def test_matches_direct_lag_sum(phi: float) -> None:
     """Long lag ranges (summed by quadrature in the module) against an explicit sum over every lag,
-    gamma_jk(h) = sum_u c_jk(u) r(h - u), c_jk the filters' cross-correlation, r the autocovariance."""
+    gamma_jk(h) = sum_u c_jk(u) r(h - u), c_jk the filters' cross-correlation, r the
+    autocovariance."""
     model = Model("WN+AR1")
     theta = model.theta({"WN[1].sigma2": 0.3, "AR1[1].phi": phi, "AR1[1].sigma2": 1.0})
     T = 5000
