@@ -564,13 +564,15 @@ def _haar_step(v: np.ndarray, w: np.ndarray, n: int, m: int) -> int:
 
 
 @njit(cache=True)
-def _rho_terms(w: np.ndarray, n: int, inv: float) -> tuple[float, float]:
-    """``mean rho(u)`` and ``mean 3 u (1 - u)**2`` over ``u = w**2 * inv`` (``inv = 1 / (c**2 nu)``);
-    the second is ``-d mean rho / d log nu``."""
+def _rho_terms(v: np.ndarray, n: int, m: int, inv: float) -> tuple[float, float]:
+    """``mean rho(u)`` and ``mean 3 u (1 - u)**2`` over ``u = W_i**2 * inv`` (``inv = 1 / (c**2 nu)``),
+    ``W_i = (v[i + m] - v[i]) / 2``, ``i < n``, formed on the fly from the previous level's local
+    averages ``v`` (no coefficient array); the second is ``-d mean rho / d log nu``."""
     s0 = 0.0
     s1 = 0.0
     for i in range(n):
-        u = w[i] * w[i] * inv
+        wi = 0.5 * (v[i + m] - v[i])
+        u = wi * wi * inv
         if u < 1.0:
             q = 1.0 - u
             s0 += 1.0 - q * q * q
@@ -581,7 +583,7 @@ def _rho_terms(w: np.ndarray, n: int, inv: float) -> tuple[float, float]:
 
 
 @njit(cache=True)
-def _m_scale(w: np.ndarray, n: int, c: float, b: float, nu0: float) -> float:
+def _m_scale(v: np.ndarray, n: int, m: int, c: float, b: float, nu0: float) -> float:
     """Solve ``mean rho_c(w / sqrt(nu)) = b`` for nu: Newton in log nu from ``nu0`` (the left side
     decreases in nu), steps capped at a factor 4, bisection once a bracket is known and a step
     leaves it. Converges in ~4-6 passes from the MAD start."""
@@ -591,7 +593,7 @@ def _m_scale(w: np.ndarray, n: int, c: float, b: float, nu0: float) -> float:
     hi = np.inf
     cap = np.log(4.0)
     for _ in range(300):
-        g, d = _rho_terms(w, n, 1.0 / (c2 * np.exp(x)))
+        g, d = _rho_terms(v, n, m, 1.0 / (c2 * np.exp(x)))
         g -= b
         if g > 0.0:
             lo = x
@@ -613,14 +615,26 @@ def _m_scale(w: np.ndarray, n: int, c: float, b: float, nu0: float) -> float:
     return np.exp(x)
 
 
-def _start_scale(w: np.ndarray) -> float:
-    """Robust starting value (MAD of a strided subsample, at most ~65k values) for the M-scale."""
-    sub = np.abs(w[:: max(1, w.size // 65536)])
-    med = float(np.median(sub))
+def _start_scale(v: np.ndarray, n: int, m: int) -> float:
+    """Robust starting value for the M-scale: MAD of a strided subsample (at most ~65k) of the
+    coefficients ``W_i = (v[i + m] - v[i]) / 2``, ``i < n``."""
+    idx = np.arange(0, n, max(1, n // 65536))
+    w = 0.5 * (v[idx + m] - v[idx])
+    med = float(np.median(np.abs(w)))
     if med > 0:
         return (med / 0.6744897501960817) ** 2
     ms = float(np.mean(w * w))
     return ms if ms > 0 else 1.0
+
+
+@njit(cache=True)
+def _haar_average(v: np.ndarray, n: int, m: int) -> int:
+    """Next level's local averages in place, ``v[i] = (v[i] + v[i + m]) / 2`` for ``i < n - m``
+    (``v[i + m]`` is still the previous level's value when read)."""
+    k = n - m
+    for i in range(k):
+        v[i] = 0.5 * (v[i] + v[i + m])
+    return k
 
 
 def haar_coefficients(x: Any, level: int) -> np.ndarray:
@@ -642,8 +656,9 @@ def wvar_robust(x: Any, levels: int | None = None, alpha: float = 0.05, freq: fl
     """Robust Haar WV: per level, the Tukey-biweight M-estimate of scale of the boundary-free
     MODWT coefficients with Gaussian efficiency ``eff`` (default 0.6; see the notes above this
     function in the source for the estimator, its efficiency and the CI). CI: chi-square with
-    ``eff * eta_3`` edof (conservative for correlated coefficients). Cost: one in-place pass per
-    level for the coefficients plus ~5-10 passes for the M-estimate (about 20x the classical WV).
+    ``eff * eta_3`` edof (conservative for correlated coefficients). Cost: per level 3-5 passes for
+    the M-estimate (Newton) and one for the next averages, about 11x the classical WV's CPU time
+    at T = 1e6-1e7; memory: one copy of the signal.
     """
     arr = _as_signal(x)
     T = arr.shape[0]
@@ -651,14 +666,14 @@ def wvar_robust(x: Any, levels: int | None = None, alpha: float = 0.05, freq: fl
     _check_alpha_freq(alpha, freq)
     _check_finite(arr)
     c, b, _ = biweight_tuning(eff)
-    v = arr - arr[0]
-    w = np.empty_like(v)
+    v = arr - arr[0]  # the only work array: the levels' local averages, updated in place
     variance = np.empty(J)
     n = T
     with np.errstate(over="ignore", invalid="ignore"):
         for j in range(1, J + 1):
-            n = _haar_step(v, w, n, 1 << (j - 1))
-            nu = _m_scale(w, n, c, b, _start_scale(w[:n]))
+            m = 1 << (j - 1)
+            nu = _m_scale(v, n - m, m, c, b, _start_scale(v, n - m, m))
+            n = _haar_average(v, n, m)
             if not np.isfinite(nu):
                 raise InputError("signal is too large in magnitude: squared coefficients overflow "
                                  "float64")
