@@ -657,7 +657,7 @@ def wvar_robust(x: Any, levels: int | None = None, alpha: float = 0.05, freq: fl
     MODWT coefficients with Gaussian efficiency ``eff`` (default 0.6; see the notes above this
     function in the source for the estimator, its efficiency and the CI). CI: chi-square with
     ``eff * eta_3`` edof (conservative for correlated coefficients). Cost: per level 3-5 passes for
-    the M-estimate (Newton) and one for the next averages, about 11x the classical WV's CPU time
+    the M-estimate (Newton) and one for the next averages, 11-17x the classical WV's CPU time
     at T = 1e6-1e7; memory: one copy of the signal.
     """
     arr = _as_signal(x)
