@@ -9,7 +9,7 @@ from gmwm import studies as gs
 from gmwm.errors import ModelError
 from gmwm_studies import misspec as ms
 
-SETTINGS = {"method": "gmwm", "weights": "ci", "n_starts": 4, "reweight": 0}
+SETTINGS = {"method": "gmwm", "weights": "ci", "n_starts": 2, "reweight": 0}
 FITS = {"model1": "AR1+RW", "model2": "AR1+RW+2*SIN"}
 
 
@@ -18,7 +18,7 @@ def fits():
     # T = 2**17 (J = 16): the RW (gamma2 = 8.7e-10) is raised x 64 so that it dominates the top
     # levels as at the paper's T = 2.9e6; AR1 and SINs keep Table 5 values.
     truth = {**ms.TABLE5, "RW[1].gamma2": 64 * ms.TABLE5["RW[1].gamma2"]}
-    chunk = gs.simulate_wv_chunk("AR1+RW+2*SIN", truth, 2**17, range(12), study="misspec_test",
+    chunk = gs.simulate_wv_chunk("AR1+RW+2*SIN", truth, 2**17, range(8), study="misspec_test",
                                  base_seed=11)
     return {k: ms.fit_model_chunk(chunk, spec, k, SETTINGS) for k, spec in FITS.items()}
 
@@ -28,7 +28,7 @@ def test_true_model_recovers_table5_basic_parameters(fits):
     for name in ("AR1[1].phi", "AR1[1].sigma2", "SIN[1].alpha", "SIN[1].beta",
                  "SIN[2].alpha", "SIN[2].beta"):
         row = tab.loc[("model2", name)]
-        # bias within 4 Monte Carlo SEs (12 replicates) and below 10 % of the truth
+        # bias within 4 Monte Carlo SEs (8 replicates) and below 10 % of the truth
         assert abs(row["bias"]) <= 4 * row["mc_se_bias"] + 1e-12, name
         assert abs(row["rel_bias"]) < 0.1, name
     assert tab.loc[("model2", "AR1[1].phi"), "share_not_converged"] == 0.0

@@ -3,6 +3,8 @@ consistency (NEES against the Monte Carlo spread of the errors), ratio statistic
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -83,12 +85,10 @@ def test_filter_covariance_matches_monte_carlo_spread(consistency_runs):
     for err, cov in (("pos_err", "pos_cov"), ("att_err", "att_cov")):
         nees = _nees(r[err][:, 0], r[cov][:, 0])[keep]
         assert np.all(np.abs(nees - 3.0) < 4 * np.sqrt(6 / 200)), (err, nees.round(2))
-        print(err, "NEES range", nees.min().round(2), nees.max().round(2))
     # per-axis empirical position variance against the filter's in the outage (ratio near 1)
     k = np.argmin(np.abs(t - 24.0))
     emp = r["pos_err"][:, 0, k].var(axis=0, ddof=1)
     pred = np.diagonal(r["pos_cov"][:, 0, k], axis1=-2, axis2=-1).mean(0)
-    print("emp/pred", emp / pred)
     assert np.all(np.abs(emp / pred - 1) < 0.35), emp / pred  # chi2(199)/199: SD 0.1
 
 
@@ -96,7 +96,6 @@ def test_understated_gyro_noise_is_detected(consistency_runs):
     t, r = consistency_runs
     k = np.argmin(np.abs(t - 24.0))
     nees = _nees(r["att_err"][:, 1, k:k + 1], r["att_cov"][:, 1, k:k + 1])
-    print("understated NEES", nees)
     assert nees[0] > 5  # consistent: 3 +- 0.17
 
 
@@ -115,3 +114,34 @@ def test_ratio_ci_is_paired_delta_method():
     assert tab.loc["GNSS outage", "time_s"] == 170.0
     row = tab.loc["whole flight"]
     assert row["boot_max_lo"] <= row["max_ratio"] <= row["boot_max_hi"] + 0.01
+
+
+def _fake_fits(n: int) -> dict[str, xr.Dataset]:
+    """Gathered-estimate Datasets of two models for replicates 0..n-1 (Table 5 basic values)."""
+    names = ["AR1[1].phi", "AR1[1].sigma2", "RW[1].gamma2"]
+    out = {}
+    for m, scale in (("model1", 2.0), ("model2", 1.0)):
+        est = np.tile(TRUTH200 * [1.0, scale, 1.0], (n, 1))
+        out[m] = xr.Dataset({"estimate": (("replicate", "parameter"), est),
+                             "converged": ("replicate", np.ones(n, dtype=bool))},
+                            coords={"replicate": np.arange(n), "parameter": names})
+    out["model1"]["converged"][1] = False
+    out["model2"]["estimate"][3, 0] = -0.2
+    return out
+
+
+def test_run_chunk_drops_bad_fits_and_ignores_chunking():
+    cfg = {**CFG, "models": ["model1", "model2"], "seed": 4, "freq_calibration": 200.0,
+           "imu_rate": 100.0, "duration": 20.0, "gnss_rate": 1.0, "outage": [8.0, 15.0],
+           "gyro_unit": "deg/s", "record_rate": 10.0}
+    truth = dict(zip(["AR1[1].phi", "AR1[1].sigma2", "RW[1].gamma2"], TRUTH200, strict=True))
+    fits = _fake_fits(5)
+    whole = nv.run_chunk(cfg, fits, truth, range(5))
+    assert list(whole["iteration"].values) == [0, 2, 4]
+    assert set(json.loads(whole.attrs["dropped"])) == {"1", "3"}
+    parts = [nv.run_chunk(cfg, fits, truth, r) for r in ([0, 1, 2], [3, 4])]
+    joined = xr.concat(parts, dim="iteration")
+    np.testing.assert_array_equal(joined["pos_err_norm"].values, whole["pos_err_norm"].values)
+    # model1 assumes twice the gyro noise: a larger predicted position SD in the outage
+    sd = whole["pos_sd"].sel(time=14.0, method="nearest")
+    assert np.all(sd.sel(model="model1") > sd.sel(model="model2"))
