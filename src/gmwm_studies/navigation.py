@@ -93,7 +93,7 @@ def make_trajectory(duration: float = 235.0, rate: float = 100.0, speed: float =
     Built from analytic rates: heading and altitude are integrated on a 10x finer grid; the IMU
     increments are obtained by inverting the discrete mechanisation between epochs, so an error-free
     IMU reproduces the trajectory to rounding; positions are the trapezoidal integral of velocity."""
-    n = int(round(duration * rate))
+    n = round(duration * rate)
     if n < 2:
         raise InputError(f"trajectory needs at least 2 IMU samples, got duration {duration} s")
     dt = 1.0 / rate
@@ -127,7 +127,7 @@ def gnss_schedule(traj: Trajectory, rate: float = 1.0,
                   outage: tuple[float, float] = (160.0, 210.0)) -> np.ndarray:
     """IMU epoch indices of the GNSS fixes: every 1/``rate`` s from 1/``rate`` on, none strictly
     inside the outage (fixes at its two ends are kept: a 50 s gap for (160, 210))."""
-    step = int(round(1.0 / (rate * traj.dt)))
+    step = round(1.0 / (rate * traj.dt))
     steps = np.arange(step, len(traj.t), step)
     tt = traj.t[steps]
     return steps[~((tt > outage[0] + 1e-9) & (tt < outage[1] - 1e-9))]
@@ -306,7 +306,7 @@ def run_chunk(cfg: Mapping[str, Any], fits: Mapping[str, xr.Dataset], truth: Map
     models = list(cfg["models"])
     params, kept, dropped = filter_params_from_fits(fits, models, iterations, f_cal, rate)
     theta = convert_basic(np.array([float(truth[p]) for p in BASIC]), f_cal, rate)
-    every = max(1, int(round(rate / float(cfg["record_rate"]))))
+    every = max(1, round(rate / float(cfg["record_rate"])))
     attrs = {"study": study, "truth_basic_imu_rate": json.dumps(theta.tolist()),
              "dropped": json.dumps(dropped), "config": json.dumps(dict(cfg), sort_keys=True)}
     if not kept:
