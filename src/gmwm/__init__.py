@@ -10,15 +10,13 @@ Quick start::
     res = gmwm.fit(x, model)
     print(res.summary())
 
-The public names below are imported on first use, so ``gmwm --help`` starts fast.
+The public names below are imported on first use (``import gmwm`` loads neither SciPy nor
+Numba), so ``gmwm --help`` starts fast.
 """
 
 from importlib import import_module
 from typing import Any
 
-# Imported eagerly: importing the submodule gmwm.fit would otherwise rebind the package
-# attribute ``fit`` to the module instead of the function.
-from .fit import GMWMResult, fit
 # Same for gmwm.svo (module and function share the name).
 from .svo import svo
 
@@ -27,7 +25,7 @@ __version__ = "0.1.0"
 _EXPORTS = {
     "GMWMError": "errors", "IdentifiabilityError": "errors", "InputError": "errors",
     "ModelError": "errors", "DataUnavailableError": "errors",
-    "Model": "model",
+    "Model": "model", "fit": "estimator", "GMWMResult": "estimator",
     "wvar": "wv", "avar": "wv", "WaveletVariance": "wv", "AllanVariance": "wv",
     "fit_avsm": "avsm",
     "svo": "svo",

@@ -55,6 +55,8 @@ __all__ = ["GMWMResult", "fit", "weight_matrix"]
 
 #: A component whose WV share is below this at every scale is "at the boundary 0".
 VANISH_SHARE = 1e-6
+#: Evaluation budget of each exploratory trust-region solve (the winner continues to max_nfev).
+EXPLORE_NFEV = 150
 #: Condition number of the whitened free-coordinate Jacobian above which a fit is flagged.
 COND_WARN = 1e8
 
@@ -277,7 +279,7 @@ class _VP:
     """Variable-projection search over the shapes of one model on one whitened WV."""
 
     STEP = 0.45          # grid spacing in shape coordinates
-    N_INIT = 6           # random placements besides the greedy one
+    N_INIT = 4           # random placements besides the greedy one
 
     def __init__(self, model: Model, tau: np.ndarray, nu_hat: np.ndarray, white: Whitener,
                  drift_sign: float, rng: np.random.Generator):
@@ -401,7 +403,7 @@ class _VP:
     def descend(self, shapes: list[float], refine: bool) -> tuple[list[float], float, np.ndarray]:
         self.set_shapes(shapes)
         best = self.cost()
-        for _ in range(6 if refine else 3):
+        for _ in range(4 if refine else 3):
             previous = best[0]
             for k in self.shaped:
                 self.best_along(shapes, k, refine)
@@ -433,6 +435,9 @@ class _VP:
             self.best_along(shapes, k, True, sorted(active))
         shapes, c, coef = self.descend(shapes, refine=True)
         add(c, self.theta(shapes, coef))
+        if len(self.shaped) == 1:
+            # one shape: the profile over its whole grid was already exhaustive
+            return found
         # random placements: cheap coarse descents, the best few refined
         coarse = []
         for _ in range(max(self.N_INIT, n_starts)):
@@ -442,7 +447,7 @@ class _VP:
             sh, c, coef = self.descend(sh, refine=False)
             coarse.append((c, list(sh)))
         coarse.sort(key=lambda x: x[0])
-        for c, sh in coarse[:max(n_starts, 2)]:
+        for c, sh in coarse[:2]:
             sh, c, coef = self.descend(list(sh), refine=True)
             add(c, self.theta(sh, coef))
         self.pair_moves(found[0][1] if found else None, add)
@@ -493,7 +498,14 @@ class _VP:
         self.set_shapes(shapes)
         if k_new in self.shaped:
             self.best_along(shapes, k_new, True)
-        shapes, c, coef = self.descend(shapes, refine=True)
+        c, coef = self.cost()
+        for _ in range(2):  # a short descent: the submodel's shapes are already optimal
+            previous = c
+            for k in self.shaped:
+                self.best_along(shapes, k, True)
+            c, coef = self.cost()
+            if c >= previous * (1 - 1e-6):
+                break
         return c, self.theta(shapes, coef)
 
 
@@ -590,23 +602,36 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
         cache[model.spec] = node
         return node
 
-    starts = vp.starts(n_starts)
-    best_vp = starts[0][0]
-    # the projected cost is already optimal over the linear parameters and the refinement only
-    # polishes shapes: starts far above the best never win and are not refined
-    cand = [t for c, t in starts if c <= best_vp + max(25.0, best_vp)][:max(n_starts, 1)]
-    cand += list(extra_starts or [])
+    pool = list(vp.starts(n_starts))
     subs: list[tuple[str, np.ndarray]] = []
     if nested and len(model.components) > 1:
         for sub, k in _drop_one(model):
             node = _search(problem, sub, n_starts, seed, drift_sign, max_nfev, nested, cache)
             emb = _embed(model, sub, node.theta, k, tau)
             subs.append((sub.spec, emb))
-            _, th = vp.extend(emb, k)
+            pool.append(vp.extend(emb, k))
+    pool.sort(key=lambda item: item[0])
+    # the projected (VP) cost is already optimal over the linear parameters and close to a local
+    # optimum in the shapes; the trust-region solve polishes. Refined: the two best distinct
+    # starts and any other within 10 % of the best, at most n_starts (+ extra starts given)
+    cand: list[np.ndarray] = []
+    best_vp = pool[0][0]
+    for c, th in pool:
+        if len(cand) >= max(n_starts, 2) or (len(cand) >= 2 and c > 1.1 * best_vp + 1e-12):
+            break
+        if not any(np.allclose(th, t, rtol=1e-3) for t in cand):
             cand.append(th)
+    cand += list(extra_starts or [])
     runs: list[tuple[float, np.ndarray, str, bool, list[str], str | None]] = []
-    for theta0 in cand:
-        sol = prob.solve(theta0, max_nfev=max_nfev)
+    # explore with a small evaluation budget (ill-conditioned valleys make the trust region
+    # crawl); the winner, if it was stopped by the budget, continues with the full one
+    budget = min(max_nfev, EXPLORE_NFEV)
+    sols = [prob.solve(theta0, max_nfev=budget) for theta0 in cand]
+    if sols:
+        i = int(np.argmin([s_.objective for s_ in sols]))
+        if sols[i].capped and max_nfev > budget:
+            sols[i] = prob.solve(sols[i].theta, max_nfev=max_nfev - budget)
+    for sol in sols:
         runs.append((sol.objective, model.canonical(sol.theta), sol.message, sol.ok, sol.edge,
                      None))
     for spec, emb in subs:  # the submodel's optimum itself (component exactly 0)

@@ -15,7 +15,7 @@ Kinds of ``V`` (``se_cov``):
 * ``"model"`` (default): the covariance of the boundary-free Haar WV estimator under the fitted
   model (:func:`gmwm.wvcov.wv_covariance`) with the correlation between scales. SIN components
   enter only through their cross term with the noise (their own term is O(T^-2), paper 000
-  Theorem 1), see :func:`sin_cross_covariance`.
+  Theorem 1).
 * ``"gaussian"``: the diagonal ``2 nu_hat_j^2 / eta_j`` (ignores the between-scale correlation
   and counts the SIN's WV; kept for comparison).
 * a (J, J) matrix: the caller's covariance (e.g. a bootstrap's).
@@ -129,73 +129,20 @@ class Whitener:
 
 
 # -- covariance of the WV estimate ---------------------------------------------------------------
-def noise_spectrum(model: Model, theta: np.ndarray, omega: float,
-                   exclude: tuple[str, ...] = ("SIN", "DR")) -> float:
-    """Spectral density ``sum_h gamma(h) cos(omega h)`` of the stochastic (Gaussian) part of the
-    model at angular frequency omega [rad/sample] (RW: of its generalised spectrum, finite for
-    omega > 0)."""
-    s = 0.0
-    c = np.cos(omega)
-    for comp in model.components:
-        name = comp.process.name
-        if name in exclude:
-            continue
-        p = theta[comp.slice]
-        if name == "WN":
-            s += p[0]
-        elif name == "QN":
-            s += p[0] * 2 * (1 - c)
-        elif name == "RW":
-            s += p[0] / (2 * (1 - c))
-        elif name in ("AR1", "GM"):
-            if name == "GM":
-                a = p[0] / model.freq
-                phi, s2 = np.exp(-a), p[1] * -np.expm1(-2 * a)
-            else:
-                phi, s2 = p[0], p[1]
-            s += s2 / (1 - 2 * phi * c + phi**2)
-    return float(s)
-
-
-def sin_cross_covariance(model: Model, theta: np.ndarray, wv: WaveletVariance) -> np.ndarray:
-    """Covariance of the WV estimate from the cross term of each SIN with the Gaussian noise.
-
-    With ``W = W_sin + W_noise``, ``nu_hat_j`` holds ``(2/M_j) sum_t W_sin W_noise``, whose
-    covariance over the random phase and the noise is, for large M,
-    ``8 nu_sin,j nu_sin,k S(beta) / (alpha^2 max(M_j, M_k))`` with ``S`` the noise spectral
-    density at the SIN's frequency (:func:`noise_spectrum`): a rank-one term per sinusoid.
-    """
-    tau = wv.scales.astype(float)
-    J = tau.size
-    out = np.zeros((J, J))
-    M = np.maximum(wv.n_samples - tau + 1, 1.0)
-    Mmax = np.maximum.outer(M, M)
-    for comp in model.components:
-        if comp.process.name != "SIN":
-            continue
-        alpha, beta = theta[comp.slice]
-        if alpha <= 0:
-            continue
-        nus = comp.process.wv(theta[comp.slice], tau, model.freq)
-        S = noise_spectrum(model, theta, beta)
-        out += 8 * np.outer(nus, nus) * S / (alpha**2 * Mmax)
-    return out
-
-
 def model_wv_cov(model: Model, theta: np.ndarray, wv: WaveletVariance) -> np.ndarray:
     """Covariance of the boundary-free Haar WV estimate at ``wv``'s scales and length under the
-    model at ``theta``: the Gaussian components' exact covariance (between-scale correlation
-    included) plus the SIN-noise cross terms; SINs' own terms are O(T^-2) and left out."""
+    model at ``theta`` (:func:`gmwm.wvcov.wv_covariance`): the random components' exact
+    finite-sample covariance, between-scale correlation included, plus each SIN's cross term
+    with them (a SIN's own term is O(T^-2), paper 000 Theorem 1). Components at the boundary 0
+    contribute nothing."""
     from .wvcov import wv_covariance
 
     theta = np.asarray(theta, dtype=float)
-    sub, sub_theta = nonzero_part(model, theta, exclude=("SIN",))
-    if sub is None:
-        V = np.zeros((wv.n_levels, wv.n_levels))
-    else:
-        V = wv_covariance(sub, sub_theta, wv.scales, int(wv.n_samples))
-    V = V + sin_cross_covariance(model, theta, wv)
-    # a model whose Gaussian part vanishes at some scale would make V singular there: floor the
+    sub, sub_theta = nonzero_part(model, theta)
+    J = wv.n_levels
+    V = np.zeros((J, J)) if sub is None else wv_covariance(sub, sub_theta, wv.scales,
+                                                             int(wv.n_samples))
+    # a model whose random part vanishes at some scale would make V singular there: floor the
     # diagonal at a tiny share of the Gaussian WV-estimate variance
     floor = 1e-12 * np.diag(gaussian_wv_cov(wv.variance, wv.edof))
     return V + np.diag(np.where(np.diag(V) < floor, floor, 0.0))
@@ -247,6 +194,8 @@ class Solution:
     ok: bool
     message: str
     edge: list[str]
+    nfev: int = 0
+    capped: bool = False   # stopped by the evaluation budget
 
 
 class Problem:
@@ -327,7 +276,7 @@ class Problem:
                                     max_nfev=max_nfev)
         except (ValueError, FloatingPointError, np.linalg.LinAlgError) as err:
             return Solution(np.asarray(theta0, float), eta0, np.inf, False,
-                            f"optimiser failed: {err}", [])
+                            f"optimiser failed: {err}", [], 0, False)
         raw = model.from_free(sol.x)
         obj = self.objective(raw)
         ok = bool(sol.status > 0 and np.all(np.isfinite(raw)) and np.isfinite(obj))
@@ -337,7 +286,8 @@ class Problem:
                 if min(e - a, b - e) < 1e-3
                 and not (n.split(".")[0] in vanished and e - a < 1e-3)]
         return Solution(raw, sol.x, obj if np.isfinite(obj) else np.inf, ok,
-                        str(sol.message) if ok else f"stopped: {sol.message}", edge)
+                        str(sol.message) if ok else f"stopped: {sol.message}", edge,
+                        int(sol.nfev), bool(sol.status == 0))
 
     # covariance of the estimate
     def sandwich(self, theta: np.ndarray, V: np.ndarray,
