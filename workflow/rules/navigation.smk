@@ -34,7 +34,7 @@ NAV = {
 _NAV_ON = NAV["enabled"] and NAV["estimates_from"] in STUDIES
 if NAV["enabled"] and not _NAV_ON:
     raise WorkflowError(f"config: navigation.estimates_from {NAV['estimates_from']!r} is not an "
-                        "enabled study (kind misspec)")
+                        "enabled study (kind misspec); enable it or set navigation.enabled: false")
 if _NAV_ON:
     _src = STUDIES[NAV["estimates_from"]]
     if _src["kind"] != "misspec" or any(m not in _src["fit_models"] for m in NAV["models"]):
