@@ -11,6 +11,7 @@ from gmwm.svo import (
     PAPER_OMEGA_LONG,
     PAPER_OMEGA_SHORT,
     _mbb_kernel,
+    _mbb_time_kernel,
     _unpack,
     equal,
     mbb_svo_draws,
@@ -238,6 +239,29 @@ def test_projected_draws_equal_jacobian_times_full_draws():
     dfull = np.einsum("ajik,hjik->ha", svo_jacobian(W.cov, om), full - W.cov)
     dproj = mbb_svo_draws(X, W.cov, om, 40, 20, np.random.default_rng(5))
     assert np.max(np.abs(dfull - dproj)) < 1e-10 * np.abs(dfull).max()
+
+
+def test_time_scheme_identity_draw_and_projection():
+    """Time-axis MBB: blocks tiling 0..T-1 in order give back gamma_hat; the projected draws equal
+    G times the full draws; an unknown scheme is an input error."""
+    T, p, J, block = 3001, 3, 10, 7
+    X = _array(T, p, np.random.default_rng(15))
+    B = -(-T // block)
+    starts = (np.arange(B) * block)[None].astype(np.int64)
+    sums = np.zeros((1, J, p * (p + 1) // 2))
+    counts = np.zeros((1, J), np.int64)
+    _mbb_time_kernel(X, J, True, np.zeros(p), starts, block, T - (B - 1) * block, sums, counts)
+    ref = wccv(X, J)
+    np.testing.assert_array_equal(counts[0], ref.n)
+    got = _unpack(sums[0] / counts[0][:, None], p)
+    assert np.max(np.abs(got - ref.cov)) < 1e-13 * np.abs(ref.cov).max()
+    om = svo_weights("long", J)
+    full = mbb_wccv(X, J, n_boot=30, block=25, rng=3, scheme="time")
+    dfull = np.einsum("ajik,hjik->ha", svo_jacobian(ref.cov, om), full - ref.cov)
+    dproj = mbb_svo_draws(X, ref.cov, om, 30, 25, np.random.default_rng(3), "time")
+    assert np.max(np.abs(dfull - dproj)) < 1e-10 * np.abs(dfull).max()
+    with pytest.raises(InputError, match="unknown MBB scheme"):
+        svo(X, "short", levels=J, n_boot=10, mbb="other")
 
 
 def test_mbb_se_close_to_empirical_sd():

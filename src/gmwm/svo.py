@@ -266,6 +266,64 @@ def _mbb_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray
                 out[h, q] += trimmed[u + length, q] - trimmed[u, q]
 
 
+@njit(cache=True)
+def _mbb_time_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, starts: np.ndarray,
+                     block: int, last: int, sums: np.ndarray, counts: np.ndarray) -> None:
+    """Time-axis variant: the blocks ``starts[h, b] .. + block`` (last one ``last`` long) are taken
+    on the common time axis ``0..T-1``; level ``j`` uses the resampled times where it has a
+    coefficient (``t >= 2**j - 1``). ``sums[h, j-1]`` gets the feature sums (``w (w'y)`` or packed
+    ``w_i w_k``), ``counts[h, j-1]`` the number of coefficients used."""
+    T, p = x.shape
+    H, nb = starts.shape
+    npair = p * (p + 1) // 2
+    qj = npair if full else p
+    cur = np.empty((T, p))
+    for t in range(T):
+        for i in range(p):
+            cur[t, i] = x[t, i] - x[0, i]
+    nxt = np.empty((T, p))
+    cum = np.empty((T + 1, qj))
+    w = np.empty(p)
+    for j in range(1, J + 1):
+        lag = 1 << (j - 1)
+        tau = 2 * lag
+        Mj = T - tau + 1
+        for q in range(qj):
+            cum[0, q] = 0.0
+        for m in range(Mj):
+            t = m + tau - 1
+            for i in range(p):
+                a = cur[t, i]
+                b = cur[t - lag, i]
+                w[i] = 0.5 * (a - b)
+                nxt[t, i] = 0.5 * (a + b)
+            if full:
+                q = 0
+                for i in range(p):
+                    for k in range(i, p):
+                        cum[m + 1, q] = cum[m, q] + w[i] * w[k]
+                        q += 1
+            else:
+                s = 0.0
+                for i in range(p):
+                    s += w[i] * y[i]
+                for i in range(p):
+                    cum[m + 1, i] = cum[m, i] + s * w[i]
+        for h in range(H):
+            cnt = 0
+            for bi in range(nb):
+                length = last if bi == nb - 1 else block
+                lo = max(starts[h, bi] - (tau - 1), 0)
+                hi = starts[h, bi] + length - (tau - 1)
+                if hi <= lo:
+                    continue
+                cnt += hi - lo
+                for q in range(qj):
+                    sums[h, j - 1, q] += cum[hi, q] - cum[lo, q]
+            counts[h, j - 1] = cnt
+        cur, nxt = nxt, cur
+
+
 # --------------------------------------------------------------------------------------------------
 # validation helpers
 
@@ -535,18 +593,38 @@ def _mbb_draws(T: int, J: int, H: int, block: int, rng: np.random.Generator
 
 
 def _run_mbb(arr: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray, H: int,
-             block: int, rng: np.random.Generator) -> np.ndarray:
+             block: int, rng: np.random.Generator, scheme: str = "paper") -> np.ndarray:
+    """Bootstrap feature sums per draw: ``(H, q)`` with the per-level weights ``wf`` applied
+    (``scheme="paper"``: sums over the M_j resampled coefficients; ``"time"``: per-level means of
+    the resampled coefficients times ``wf * M_j``, so both estimate the same quantity)."""
     T, p = arr.shape
-    starts, last, refill = _mbb_draws(T, J, H, block, rng)
-    q = J * p * (p + 1) // 2 if full else p
-    out = np.zeros((H, q))
-    _mbb_kernel(arr, J, full, np.ascontiguousarray(y, dtype=np.float64),
-                np.ascontiguousarray(wf, dtype=np.float64), starts, block, last, refill, out)
-    return out
+    y = np.ascontiguousarray(y, dtype=np.float64)
+    wf = np.ascontiguousarray(wf, dtype=np.float64)
+    npair = p * (p + 1) // 2
+    if scheme == "paper":
+        starts, last, refill = _mbb_draws(T, J, H, block, rng)
+        out = np.zeros((H, J * npair if full else p))
+        _mbb_kernel(arr, J, full, y, wf, starts, block, last, refill, out)
+        return out
+    if scheme != "time":
+        raise InputError(f"unknown MBB scheme {scheme!r}: use 'paper' or 'time'")
+    if block > T:
+        raise InputError(f"block length {block} exceeds the {T} samples")
+    B = -(-T // block)
+    starts = rng.integers(0, T - block + 1, size=(H, B))
+    sums = np.zeros((H, J, npair if full else p))
+    counts = np.zeros((H, J), dtype=np.int64)
+    _mbb_time_kernel(arr, J, full, y, starts, block, T - (B - 1) * block, sums, counts)
+    if np.any(counts == 0):
+        raise InputError("a bootstrap draw has no coefficient at some level: use longer signals "
+                         "or fewer levels")
+    n = T - (1 << np.arange(1, J + 1)) + 1
+    means = sums / counts[:, :, None] * (wf * n)[None, :, None]
+    return means.reshape(H, -1) if full else means.sum(axis=1)
 
 
 def mbb_wccv(X: Any, levels: int | None = None, n_boot: int = 200, block: int | None = None,
-             block_const: float = 1.0, rng: Any = 0) -> np.ndarray:
+             block_const: float = 1.0, rng: Any = 0, scheme: str = "paper") -> np.ndarray:
     """Moving-block bootstrap draws ``gamma*_h`` of the WCCV (SPEC 6.2), ``(n_boot, J, p, p)``.
     Memory ``~ 8 J p^2 T / 2`` bytes: meant for small problems; :func:`svo` uses the projected
     draws (:func:`mbb_svo_draws`)."""
@@ -556,7 +634,7 @@ def mbb_wccv(X: Any, levels: int | None = None, n_boot: int = 200, block: int | 
     block = block_length(T, block_const) if block is None else int(block)
     n = T - (1 << np.arange(1, J + 1)) + 1
     out = _run_mbb(arr, J, True, np.zeros(p), 1.0 / n, _n_boot(n_boot), block,
-                   np.random.default_rng(rng))
+                   np.random.default_rng(rng), scheme)
     return _unpack(out.reshape(out.shape[0], J, -1), p)
 
 
@@ -567,9 +645,11 @@ def _n_boot(n_boot: Any) -> int:
 
 
 def mbb_svo_draws(X: Any, cov: np.ndarray, omega: np.ndarray, n_boot: int, block: int,
-                  rng: np.random.Generator) -> np.ndarray:
+                  rng: np.random.Generator, scheme: str = "paper") -> np.ndarray:
     """Linearised bootstrap coefficient deviations ``G (gamma*_h - gamma_hat)``, ``(n_boot, p)``,
-    for the data ``X``, its WCCV ``cov`` and renormalised weights ``omega``."""
+    for the data ``X``, its WCCV ``cov`` and renormalised weights ``omega``. ``scheme``:
+    ``"paper"`` (Algorithm 1, SPEC 6.2) or ``"time"`` (blocks on the common time axis, every level
+    resampled over its whole range; see :func:`svo`)."""
     arr = _as_array(X)
     T, p = arr.shape
     J = cov.shape[0]
@@ -577,7 +657,7 @@ def mbb_svo_draws(X: Any, cov: np.ndarray, omega: np.ndarray, n_boot: int, block
     fac, s = _cho(A)
     y = cho_solve(fac, np.ones(p)) / s
     n = T - (1 << np.arange(1, J + 1)) + 1
-    u = _run_mbb(arr, J, False, y, omega / n, _n_boot(n_boot), block, rng)
+    u = _run_mbb(arr, J, False, y, omega / n, _n_boot(n_boot), block, rng, scheme)
     # A*_w y - A_w y per draw; dc = -K A^-1 (that)
     du = u - A @ y
     sy = y.sum()
@@ -665,8 +745,9 @@ class SVOResult:
         lines = [(f"Virtual gyroscope: {head}; T = {self.wccv.n_samples}, J = "
                   f"{self.wccv.n_levels}, p = {self.coef.size}")]
         if self.cov is not None:
-            lines.append(f"CIs: moving-block bootstrap, {self.n_boot} draws, block length "
-                         f"{self.block} samples")
+            scheme = (self.extra or {}).get("mbb", "paper")
+            lines.append(f"CIs: moving-block bootstrap ({scheme}), {self.n_boot} draws, block "
+                         f"length {self.block} samples")
         width = max(8, *(len(n) for n in self.names))
         lines.append(f"{'signal':<{width}} {'coef':>10} {'se':>10} {lvl + ' CI':>24}")
         for k, name in enumerate(self.names):
@@ -714,14 +795,19 @@ def _wccv_of(X: Any, levels: int | None, alpha: float, freq: float,
 
 def svo(X: Any, weights: Any = "short", *, levels: int | None = None, n_boot: int = 500,
         block: int | None = None, block_const: float = 10.0, alpha: float = 0.05,
-        freq: float = 1.0, names: Sequence[str] | None = None, seed: Any = 0) -> SVOResult:
+        freq: float = 1.0, names: Sequence[str] | None = None, seed: Any = 0,
+        mbb: str = "paper") -> SVOResult:
     """Optimal virtual gyroscope by SVO from the signals ``X`` ``(T, p)`` (one per column) or
     their :class:`WaveletCrossCovariance` (then no bootstrap: ``se`` is NaN).
 
     ``weights``: ``J`` non-negative numbers, ``"short"``/``"long"``/``"equal"`` (see
     :func:`svo_weights`); renormalised. ``n_boot`` moving-block bootstrap draws (0 = no CI),
     block length ``block`` or ``block_const * T^(1/3)``, ``seed`` for the draws (int,
-    SeedSequence or Generator)."""
+    SeedSequence or Generator). ``mbb``: ``"paper"`` = Algorithm 1 of paper 003 (SPEC 6.2: blocks
+    over the last ``M_J`` times, one random original stretch refills each level); ``"time"`` =
+    blocks over the whole time axis, each level averaging the resampled coefficients it has (no
+    refill stretch; at the default J the refill is about half of every low level and keeps little
+    of its variability, see docs/pipeline.md)."""
     if not 0.0 < alpha < 1.0:
         raise InputError(f"alpha must be in (0, 1), got {alpha}")
     arr, W = _wccv_of(X, levels, alpha, freq, names)
@@ -733,9 +819,10 @@ def svo(X: Any, weights: Any = "short", *, levels: int | None = None, n_boot: in
         blk = block_length(W.n_samples, block_const) if block is None else int(block)
         if blk < 1:
             raise InputError(f"block length must be >= 1, got {block}")
-        dc = mbb_svo_draws(arr, W.cov, omega, n_boot, blk, np.random.default_rng(seed))
+        dc = mbb_svo_draws(arr, W.cov, omega, n_boot, blk, np.random.default_rng(seed), mbb)
         cov = dc.T @ dc / dc.shape[0]
-    return SVOResult(c, cov, omega, W, "svo", int(n_boot) if cov is not None else 0, blk, alpha)
+    return SVOResult(c, cov, omega, W, "svo", int(n_boot) if cov is not None else 0, blk, alpha,
+                     {"mbb": mbb} if cov is not None else None)
 
 
 def rdvg(X: Any, *, levels: int | None = None, alpha: float = 0.05, freq: float = 1.0,
