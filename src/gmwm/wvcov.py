@@ -424,7 +424,9 @@ def _all_pairs(T: float, tau: np.ndarray, wn: float, rw: float, qn: float, ar_a,
     S2 = np.zeros((J, J))
     for j in range(J):
         for k in range(j, J):
-            v1, v2 = _pair_sums(T, tau[j], tau[k], wn, rw, qn, ar_a, ar_neg, ar_p, ar_pl, ar_sm,
+            # the larger scale goes first: the outer (step m_j) difference is then the long one,
+            # which keeps the rounding of gamma ~ eps tau_k / tau_j instead of eps (tau_k/tau_j)^2
+            v1, v2 = _pair_sums(T, max(tau[j], tau[k]), min(tau[j], tau[k]), wn, rw, qn, ar_a, ar_neg, ar_p, ar_pl, ar_sm,
                                 gl_x, gl_w, grades, greg_l, greg_r)
             S1[j, k] = S1[k, j] = v1
             S2[j, k] = S2[k, j] = v2
