@@ -79,6 +79,9 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=10_000_000)
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--workdir", default="/tmp/gmwm_bench_cli")
+    ap.add_argument("--cli", default=None,
+                    help="command that runs the CLI (default: the installed 'gmwm'); e.g. a wrapper "
+                         "running another checkout")
     args = ap.parse_args()
     import numpy as np
 
@@ -88,7 +91,7 @@ def main() -> None:
     if not x_path.exists():
         np.save(x_path, np.random.default_rng(1).standard_normal(args.n))
     naive.write_text(NAIVE)
-    gmwm = shutil.which("gmwm") or "gmwm"
+    gmwm = args.cli or shutil.which("gmwm") or "gmwm"
     cli = [gmwm, "wv", str(x_path), "--json", "--quiet"]
     base = [sys.executable, str(naive), str(x_path)]
     print(f"# load average {os.getloadavg()[0]:.1f} / {os.cpu_count()} cores, T = {args.n}")
