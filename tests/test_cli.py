@@ -445,7 +445,7 @@ def test_av_readings_text_json_and_adev_plot(capsys, imu, tmp_path):
 
 def test_report_writes_markdown_html_yaml(capsys, imu, tmp_path):
     outdir = tmp_path / "rep"
-    code, out, err = run(capsys, "report", imu["path"], "--columns", "all", "--units", "gx,gy=deg/s",
+    code, _, err = run(capsys, "report", imu["path"], "--columns", "all", "--units", "gx,gy=deg/s",
                          "--units", "ax,ay=m/s^2", "-o", outdir)
     assert code == 0, err
     md = (outdir / "report.md").read_text()

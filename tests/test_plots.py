@@ -201,7 +201,7 @@ def test_plot_av_deviation_with_readings_and_channel_grid():
     fig, axes = channel_grid(4)
     assert len(axes) == 4 and sum(a.get_visible() for a in fig.axes) == 4
     ax = plot_av(av, ax=axes[0], deviation=True, readings=allan_readings(av), units="rad/s")
-    main = [ln for ln in ax.get_lines() if ln.get_label() == "Allan deviation"][0]
+    main = next(ln for ln in ax.get_lines() if ln.get_label() == "Allan deviation")
     np.testing.assert_allclose(main.get_ydata(), np.sqrt(av.avar))
     gids = {ln.get_gid() for ln in ax.get_lines()}
     assert {"reading_N", "reading_B"} <= gids

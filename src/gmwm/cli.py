@@ -648,8 +648,7 @@ def _fmt_s(s: float | None) -> str:
 
 
 def _warn(err: TextIO, messages: Sequence[str], prefix: str = "") -> None:
-    for m in messages:
-        err.write(f"gmwm: warning: {prefix}{m}\n")
+    err.writelines(f"gmwm: warning: {prefix}{m}\n" for m in messages)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -1236,9 +1235,10 @@ def _add_select_parser(sub: Any) -> None:
         "select", formatter_class=_Formatter, help="rank candidate models (model selection)",
         description=(
             "Fit each candidate model by GMWM to the signal's wavelet variance and rank them, best\n"
-            "first, by the Wavelet Information Criterion WIC = objective + k x tr(Omega A G V): an\n"
-            "estimate of how well the fitted model predicts the WV of a new signal (k = 2), or with\n"
-            "k = log T (--criterion wic-log) a consistent choice of the generating model.\n"
+            "first, by the Wavelet Information Criterion WIC = objective + k x tr(Omega A G V), the\n"
+            "objective plus k times the optimism of the fit (its effective number of parameters).\n"
+            "k = log T (default, wic-log): consistent choice of the generating model; k = 2 (wic):\n"
+            "an estimate of how well the fitted model predicts the WV of a new signal.\n"
             "--auto adds, for each MODEL given, the models with one or two of its components\n"
             "removed and with one component added (WN, QN, RW, DR, up to 3 AR1/GM, up to 2 SIN)."
         ),
@@ -1254,9 +1254,10 @@ def _add_select_parser(sub: Any) -> None:
                    help="candidate model strings (with --auto: base models)")
     p.add_argument("--auto", action="store_true",
                    help="build the candidate set from the MODEL(s) as base (see above)")
-    p.add_argument("--criterion", choices=("wic", "wic-log"), default="wic",
-                   help="wic: penalty factor 2 (prediction error); wic-log: factor log T "
-                        "(consistent)")
+    p.add_argument("--criterion", choices=("wic-log", "wic"), default="wic-log",
+                   help="wic-log: penalty factor log T (consistent choice of the generating "
+                        "model); wic: factor 2 (WV prediction error, admits spurious components "
+                        "more often)")
     p.add_argument("--freq", type=_positive_float, default=None,
                    help="sampling frequency in Hz (default: from the file, else 1)")
     p.add_argument("--levels", "-J", type=_positive_int, default=None, metavar="J",

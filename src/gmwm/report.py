@@ -75,12 +75,12 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     freq = float(next(iter(axes.values()))["result"].wv.freq)
     written: list[Path] = []
     md = [f"# {title}", "",
-          f"Input `{source}`, sampling frequency {freq:g} Hz, {len(axes)} axes; "
-          f"GMWM fits by gmwm {__version__}. Coefficients are continuous-time datasheet values "
-          "with 95 % delta-method intervals; per-sample parameters are in the JSON output.", ""]
+          (f"Input `{source}`, sampling frequency {freq:g} Hz, {len(axes)} axes; "
+           f"GMWM fits by gmwm {__version__}. Coefficients are continuous-time datasheet values "
+           "with 95 % delta-method intervals; per-sample parameters are in the JSON output."), ""]
     body: list[str] = [f"<h1>{html.escape(title)}</h1>",
-                       f"<p>Input <code>{html.escape(source)}</code>, sampling frequency {freq:g} Hz, "
-                       f"{len(axes)} axes; GMWM fits by gmwm {html.escape(__version__)}.</p>"]
+                       (f"<p>Input <code>{html.escape(source)}</code>, sampling frequency {freq:g} "
+                        f"Hz, {len(axes)} axes; GMWM fits by gmwm {html.escape(__version__)}.</p>")]
     summary = []
     for name, a in axes.items():
         res = a["result"]
@@ -103,13 +103,13 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
         rows = _rows(a["datasheet"])
         th = ["term", "quantity", "value", "95% CI", "unit"]
         md += [f"## {name}", "",
-               f"Model `{res.model.spec}`, T = {res.wv.n_samples} samples, J = {res.wv.n_levels} "
-               f"scales, objective {float(getattr(res, 'objective', float('nan'))):.4g}, converged "
-               f"{'yes' if getattr(res, 'converged', True) else 'NO'}.", "",
+               (f"Model `{res.model.spec}`, T = {res.wv.n_samples} samples, J = {res.wv.n_levels} "
+                f"scales, objective {float(getattr(res, 'objective', float('nan'))):.4g}, converged "
+                f"{'yes' if getattr(res, 'converged', True) else 'NO'}."), "",
                f"![WV of {name} with the fitted model]({png.name})", "", *_md_table(th, rows), ""]
         body += [f"<h2>{html.escape(name)}</h2>",
-                 f"<p>Model <code>{html.escape(res.model.spec)}</code>, T = {res.wv.n_samples} "
-                 f"samples, J = {res.wv.n_levels} scales.</p>",
+                 (f"<p>Model <code>{html.escape(res.model.spec)}</code>, T = {res.wv.n_samples} "
+                  f"samples, J = {res.wv.n_levels} scales.</p>"),
                  f'<img src="{html.escape(png.name)}" alt="WV of {html.escape(name)}" width="560">',
                  _html_table(th, rows)]
         if a["warnings"]:
