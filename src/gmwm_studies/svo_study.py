@@ -224,37 +224,42 @@ def train_chunk(case_name: str, replicates: Sequence[int], n_samples: int, level
 
 
 def coverage_chunk(case_name: str, replicates: Sequence[int], n_samples: int, levels: int,
-                   n_boot: int, block_const: float, alpha: float, seed: int
-                   ) -> dict[str, np.ndarray]:
-    """Coverage replicates: c_hat(omega_2) with MBB SEs on a fresh array; ``hit`` = |c_hat - c0| <=
-    z se per coefficient, c0 from the true WCCV."""
+                   n_boot: int, block_const: float, alpha: float, seed: int,
+                   schemes: Sequence[str] = ("paper",)) -> dict[str, np.ndarray]:
+    """Coverage replicates: c_hat(omega_2) with MBB SEs on a fresh array, one SE per MBB scheme
+    (same array and same draw stream for every scheme); ``hit[s]`` = |c_hat - c0| <= z se, c0 from
+    the true WCCV. Arrays: ``coef (R, p)``, ``se``/``hit`` ``(S, R, p)``."""
     cs = case(case_name)
     om = omega("w2", levels)
     c0 = svo_coef(cs.wccv(2.0 ** np.arange(1, levels + 1)), om)
     z = norm.ppf(1.0 - alpha / 2.0)
-    R = len(replicates)
-    coef, se, secs = np.empty((R, cs.p)), np.empty((R, cs.p)), np.empty(R)
+    R, S = len(replicates), len(schemes)
+    coef, se, secs = np.empty((R, cs.p)), np.empty((S, R, cs.p)), np.empty(R)
     block = 0
     for a, r in enumerate(replicates):
         t0 = time.perf_counter()
         X = cs.simulate(n_samples, array_rng(seed, case_name, "coverage", r))
-        res = svo(X, om, levels=levels, n_boot=n_boot, block_const=block_const, alpha=alpha,
-                  seed=boot_rng(seed, case_name, r))
-        coef[a], se[a], block = res.coef, res.se, res.block
+        for k, scheme in enumerate(schemes):
+            res = svo(X, om, levels=levels, n_boot=n_boot, block_const=block_const, alpha=alpha,
+                      seed=boot_rng(seed, case_name, r), mbb=scheme)
+            se[k, a] = res.se
+        coef[a], block = res.coef, res.block
         secs[a] = time.perf_counter() - t0
     return {"replicates": np.asarray(replicates), "coef": coef, "se": se,
-            "hit": np.abs(coef - c0) <= z * se, "c0": c0, "block": np.array(block),
-            "seconds": secs}
+            "hit": np.abs(coef - c0)[None] <= z * se, "c0": c0, "block": np.array(block),
+            "schemes": np.asarray(schemes), "seconds": secs}
 
 
 def merge(parts: Sequence[Mapping[str, np.ndarray]]) -> dict[str, np.ndarray]:
     """Concatenate chunk results along replicates (keys that are per-run are taken once)."""
-    once = {"gyro_wv", "c0", "block"}
+    once = {"gyro_wv", "c0", "block", "schemes"}
+    axis1 = {"se", "hit"}                # (schemes, replicates, p)
     first = min(parts, key=lambda d: int(np.min(d["replicates"])))
     out = {k: np.asarray(first[k]) for k in once if k in first}
     for k in parts[0]:
         if k not in once:
-            out[k] = np.concatenate([np.asarray(d[k]) for d in parts])
+            out[k] = np.concatenate([np.asarray(d[k]) for d in parts],
+                                    axis=1 if k in axis1 and "schemes" in parts[0] else 0)
     return out
 
 
@@ -301,17 +306,25 @@ def wv_table(res: Mapping[str, np.ndarray], freq: float) -> list[dict[str, Any]]
 
 
 def coverage_table(cov: Mapping[str, np.ndarray], conf: float = 0.95) -> list[dict[str, Any]]:
-    """Empirical coverage per coefficient with its Wilson interval (Monte Carlo error)."""
-    hit = np.asarray(cov["hit"], dtype=bool)
-    n = hit.shape[0]
+    """Empirical coverage per MBB scheme and coefficient with its Wilson interval (MC error)."""
+    hits = np.asarray(cov["hit"], dtype=bool)
+    schemes = [str(x) for x in np.atleast_1d(cov.get("schemes", ["paper"]))]
+    if hits.ndim == 2:
+        hits = hits[None]
+    ses = np.asarray(cov["se"]).reshape(hits.shape)
+    sd = cov["coef"].std(axis=0, ddof=1) if len(cov["coef"]) > 1 else np.full(hits.shape[2], np.nan)
     rows = []
-    for i in range(hit.shape[1]):
-        k = int(hit[:, i].sum())
-        lo, hi = wilson(k, n, conf)
-        rows.append({"gyro": i + 1, "coverage": k / n, "wilson_low": lo, "wilson_high": hi,
-                     "c0": float(cov["c0"][i]), "mean_coef": float(cov["coef"][:, i].mean()),
-                     "sd_coef": float(cov["coef"][:, i].std(ddof=1)) if n > 1 else float("nan"),
-                     "mean_se": float(cov["se"][:, i].mean()), "replicates": n})
+    for s_i, scheme in enumerate(schemes):
+        hit = hits[s_i]
+        n = hit.shape[0]
+        for i in range(hit.shape[1]):
+            k = int(hit[:, i].sum())
+            lo, hi = wilson(k, n, conf)
+            rows.append({"mbb": scheme, "gyro": i + 1, "coverage": k / n, "wilson_low": lo,
+                         "wilson_high": hi, "c0": float(cov["c0"][i]),
+                         "mean_coef": float(cov["coef"][:, i].mean()), "sd_coef": float(sd[i]),
+                         "mean_se": float(ses[s_i, :, i].mean()),
+                         "se_over_sd": float(ses[s_i, :, i].mean() / sd[i]), "replicates": n})
     return rows
 
 
@@ -393,20 +406,24 @@ def figure_gmwm(res: Mapping[str, np.ndarray]) -> Any:
 
 
 def figure_coverage(rows: Sequence[Mapping[str, Any]], conf: float = 0.95) -> Any:
-    """Paper Fig. 5: coverage per coefficient with Wilson intervals; band = the Wilson interval a
-    nominal-coverage study of this size would give."""
+    """Paper Fig. 5: coverage per coefficient and MBB scheme with Wilson intervals; band = the
+    Wilson interval a nominal-coverage study of this size would give."""
     from gmwm.plots import PALETTE, new_axes
 
     ax = new_axes()
     n = int(rows[0]["replicates"])
     lo, hi = wilson(round(conf * n), n, 0.95)
-    g = np.array([r["gyro"] for r in rows])
     ax.axhspan(lo, hi, color="grey", alpha=0.25, lw=0, label=f"MC band at {conf:g} (n = {n})")
     ax.axhline(conf, color="k", lw=0.6)
-    cov = np.array([r["coverage"] for r in rows])
-    err = np.array([[c - r["wilson_low"], r["wilson_high"] - c] for c, r in zip(cov, rows,
-                                                                              strict=True)]).T
-    ax.errorbar(g, cov, yerr=err, fmt="o", color=PALETTE[1], label="empirical coverage (Wilson)")
+    schemes = list(dict.fromkeys(r["mbb"] for r in rows))
+    for k, scheme in enumerate(schemes):
+        rs = [r for r in rows if r["mbb"] == scheme]
+        g = np.array([r["gyro"] for r in rs]) + 0.12 * (k - (len(schemes) - 1) / 2)
+        cov = np.array([r["coverage"] for r in rs])
+        err = np.array([[c - r["wilson_low"], r["wilson_high"] - c]
+                        for c, r in zip(cov, rs, strict=True)]).T
+        ax.errorbar(g, cov, yerr=err, fmt="os"[k % 2], color=PALETTE[1 + k],
+                    label=f"MBB {scheme}: coverage (Wilson 95 %)")
     ax.set_xlabel("coefficient (gyro)")
     ax.set_ylabel("coverage of 95 % CI")
     ax.legend(fontsize="small")

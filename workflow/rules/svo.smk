@@ -24,7 +24,8 @@ SVO = {
     **config.get("svo", {}),
 }
 SVO_COV = {"cases": ["case1"], "replicates": 1000, "chunk_size": 50, "n_boot": 500,
-           "block_const": 10.0, "alpha": 0.05, **SVO.get("coverage", {})}
+           "block_const": 10.0, "alpha": 0.05, "schemes": ["paper", "time"],
+           **SVO.get("coverage", {})}
 
 
 def _svo_chunks(n, size):
@@ -82,7 +83,8 @@ if SVO["enabled"]:
             f"Virtual gyroscope (paper 003): {SVO['train']} training arrays x "
             f"{SVO['test_per_train']} test arrays per case, SVO omega_1/omega_2, RDVG, equal "
             f"weights; coverage of MBB CIs ({SVO_COV['replicates']} replicates, "
-            f"{SVO_COV['n_boot']} draws, l = {SVO_COV['block_const']:g} T^(1/3)) for "
+            f"{SVO_COV['n_boot']} draws, l = {SVO_COV['block_const']:g} T^(1/3), schemes "
+            f"{'/'.join(SVO_COV['schemes'])}) for "
             + ", ".join(SVO_COV["cases"]) + ". [case1](svo/case1/wv.md)"
         ),
         "n_samples": [int(SVO["n_samples"])],
@@ -129,6 +131,7 @@ rule svo_coverage:
         n_boot=int(SVO_COV["n_boot"]),
         block_const=float(SVO_COV["block_const"]),
         alpha=float(SVO_COV["alpha"]),
+        schemes=list(SVO_COV["schemes"]),
         seed=int(SVO["seed"]),
     log:
         "logs/svo/{svo_case}/coverage_{a}_{b}.log",
