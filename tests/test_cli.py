@@ -553,3 +553,57 @@ def test_wv_json_separates_first_call_and_steady_state(capsys, signal_files):
     obj = json.loads(out)
     assert code == 0 and obj["seconds"] >= 0 and obj["seconds_first_call"] >= 0
     assert obj["seconds_read"] >= 0
+
+
+# ---- fast start and progress (issue 11 part 6) ---------------------------------------------------
+
+
+def test_cli_module_imports_nothing_heavy_at_top_level():
+    import ast
+    import inspect
+
+    import gmwm.cli as cli
+
+    tree = ast.parse(inspect.getsource(cli))
+    top = set()
+    for node in tree.body:
+        if isinstance(node, ast.Import):
+            top |= {a.name.split(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            top.add(node.module)
+    assert top <= {"__future__", "argparse", "importlib", "json", "os", "re", "sys", "time",
+                   "warnings", "collections.abc", "pathlib", "typing", "gmwm", "gmwm.errors"}, top
+
+
+class _Tty:
+    def __init__(self) -> None:
+        self.text = ""
+
+    def isatty(self) -> bool:
+        return True
+
+    def write(self, s: str) -> None:
+        self.text += s
+
+    def writelines(self, lines) -> None:
+        for line in lines:
+            self.write(line)
+
+    def flush(self) -> None:
+        pass
+
+
+def test_progress_lines_only_on_a_terminal_and_not_quiet(signal_files, monkeypatch, capsys):
+    from gmwm.cli import _Progress
+
+    tty = _Tty()
+    _Progress(tty, quiet=False)("fitting WN to gx")
+    assert tty.text.startswith("gmwm: [") and tty.text.endswith("s] fitting WN to gx\n")
+    quiet = _Tty()
+    _Progress(quiet, quiet=True)("x")
+    assert quiet.text == ""
+    tty = _Tty()
+    monkeypatch.setattr("sys.stderr", tty)
+    assert main(["fit", str(signal_files["npy"]), "WN+AR1", "--json"]) == 0
+    assert "reading" in tty.text and "fitting WN+AR1" in tty.text
+    capsys.readouterr()
