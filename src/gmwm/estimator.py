@@ -749,6 +749,7 @@ def fit(data: np.ndarray | WaveletVariance, model: str | Model, *, levels: int |
     if user_cov:
         settings["weights_cov"] = weights
     diagnostics = {"warnings": warnings, "condition_number": cond, "at_boundary": vanished,
+                   "closed_form": bool(model.is_linear and method == "gmwm"),
                    "n_refined": node.n_refined, "from_submodel": node.from_submodel,
                    "settings": settings}
     converged = node.converged and not node.edge

@@ -23,6 +23,7 @@ Kinds of ``V`` (``se_cov``):
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -140,8 +141,10 @@ def model_wv_cov(model: Model, theta: np.ndarray, wv: WaveletVariance) -> np.nda
     theta = np.asarray(theta, dtype=float)
     sub, sub_theta = nonzero_part(model, theta)
     J = wv.n_levels
-    V = np.zeros((J, J)) if sub is None else wv_covariance(sub, sub_theta, wv.scales,
-                                                             int(wv.n_samples))
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        V = np.zeros((J, J)) if sub is None else wv_covariance(sub, sub_theta, wv.scales,
+                                                                 int(wv.n_samples))
     # a model whose random part vanishes at some scale would make V singular there: floor the
     # diagonal at a tiny share of the Gaussian WV-estimate variance
     floor = 1e-12 * np.diag(gaussian_wv_cov(wv.variance, wv.edof))
