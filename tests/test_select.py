@@ -73,15 +73,17 @@ def test_auto_candidates_bounded_and_complete() -> None:
 
 
 def test_rank_picks_generating_linear_model() -> None:
-    """WN+RW at T = 2^14 among six linear candidates: 30 of 30 seeds picked WN+RW."""
+    """WN+RW at T = 2^14 among six linear candidates: 30 of 30 seeds picked WN+RW (WIC-log; WIC
+    too)."""
     cands = ["WN", "RW", "WN+RW", "QN+WN+RW", "WN+RW+DR", "QN+WN"]
     for seed in range(4):
         ranking = rank_models(_signal(seed), cands)
         assert ranking.best.model == "WN+RW"
         crit = [e.criterion for e in ranking.ranked]
         assert crit == sorted(crit)
+        assert ranking.criterion == "wic-log"
         for e in ranking.ranked:
-            assert e.criterion == pytest.approx(e.objective + 2 * e.penalty)
+            assert e.criterion == pytest.approx(e.objective + np.log(2**14) * e.penalty)
 
 
 def test_rank_picks_ar1_over_rw() -> None:
@@ -101,8 +103,8 @@ def test_superset_with_a_zero_component_ties_and_loses() -> None:
     top = ranking.ranked
     if top[1].objective == pytest.approx(top[0].objective, rel=1e-7):
         assert top[0].model == "WN+RW"
-    other = rerank(ranking, "wic-log")
-    assert other.best.model == "WN+RW" and other.factor == pytest.approx(np.log(2**14))
+    other = rerank(ranking, "wic")
+    assert other.best.model == "WN+RW" and other.factor == 2.0
     for e in other.ranked:
         assert e.criterion == pytest.approx(e.objective + other.factor * e.penalty)
 
@@ -133,7 +135,7 @@ class _Tty(io.StringIO):
 
 
 def test_cli_select_json_columns_auto_and_progress(tmp_path, capsys, monkeypatch) -> None:
-    x0, x1 = _signal(0, 2**13), _signal(1, 2**13)
+    x0, x1 = _signal(0), _signal(1)
     npy = tmp_path / "x.npy"
     np.save(npy, x0)
     assert main(["select", str(npy), "WN", "WN+RW", "QN+WN+RW", "--json"]) == 0
