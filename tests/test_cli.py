@@ -452,6 +452,7 @@ def test_report_writes_markdown_html_yaml(capsys, imu, tmp_path):
     for c in ("gx", "gy", "ax", "ay"):
         assert f"## {c}" in md and (outdir / f"{c}_wv.png").read_bytes()[:8] == PNG
     assert "deg/sqrt(h)" in md and "m/s/sqrt(h)" in md and "```yaml" in md
+    assert md.count("B (bias instability)") == 4
     yaml = (outdir / "imu.yaml").read_text()
     values = {line.split(":")[0]: float(line.split(":")[1].split("#")[0])
               for line in yaml.splitlines() if line and not line.startswith("#")}
@@ -562,7 +563,7 @@ def test_cli_module_imports_nothing_heavy_at_top_level():
     import ast
     import inspect
 
-    import gmwm.cli as cli
+    from gmwm import cli
 
     tree = ast.parse(inspect.getsource(cli))
     top = set()

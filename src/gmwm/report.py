@@ -1,7 +1,8 @@
 """Calibration report of an IMU: one Markdown page and one HTML page over all its axes.
 
 Per axis: the empirical WV with the fitted model and its components (PNG), the datasheet
-coefficients with 95 % CIs (:func:`gmwm.datasheet.datasheet`) and the fit's warnings; at the end a
+coefficients with 95 % CIs (:func:`gmwm.datasheet.datasheet`), the IEEE 952 Allan-deviation readings
+of the same data (bias instability included) and the fit's warnings; at the end a
 YAML block of noise densities as Kalibr-style tools expect (:func:`gmwm.datasheet.kalibr_yaml`),
 also written alone as ``imu.yaml``. Every file is written atomically.
 """
@@ -16,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from gmwm import __version__
-from gmwm.datasheet import kalibr_yaml
+from gmwm.datasheet import allan_readings, kalibr_yaml
 from gmwm.errors import InputError
 
 __all__ = ["write_report"]
@@ -40,6 +41,30 @@ def _rows(ds: Mapping[str, dict]) -> list[tuple[str, str, str, str, str]]:
             ci_text = "–" if not ci else f"[{_num(ci[0])}, {_num(ci[1])}]"
             out.append((term, what.replace("_", " "), _num(v["value"]), ci_text, v["unit"] or "–"))
     return out
+
+
+def _reading_rows(res: Any, units: str | None) -> list[tuple[str, str, str, str, str]]:
+    """IEEE 952 readings (N, K, B) of the fit's WV, for comparison with the GMWM coefficients."""
+    from gmwm.wv import AllanVariance
+
+    try:
+        r = allan_readings(AllanVariance.from_wv(res.wv), units or None)
+    except InputError:
+        return []
+    rows = []
+    for key in ("N", "K", "B"):
+        e = r[key]
+        ci = e.get("ci95")
+        if key == "B":
+            where = f"AD minimum at {e['tau_s']:.4g} s" + (" (last scale: upper bound)" if e["at_end"]
+                                                          else "")
+        elif e.get("value") is None:
+            where = e.get("note", "")
+        else:
+            where = f"slope line over {e['tau_range_s'][0]:.4g}-{e['tau_range_s'][1]:.4g} s"
+        rows.append((f"{key} ({e['name']})", _num(e.get("value")),
+                     "–" if not ci else f"[{_num(ci[0])}, {_num(ci[1])}]", e["unit"], where))
+    return rows
 
 
 def _md_table(headers: list[str], rows: list[tuple]) -> list[str]:
@@ -112,6 +137,13 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
                   f"samples, J = {res.wv.n_levels} scales.</p>"),
                  f'<img src="{html.escape(png.name)}" alt="WV of {html.escape(name)}" width="560">',
                  _html_table(th, rows)]
+        readings = _reading_rows(res, a["units"])
+        if readings:
+            rh = ["IEEE 952 reading", "value", "95% CI", "unit", "from"]
+            md += ["Allan-deviation readings of the same data (slope method, for comparison):", "",
+                   *_md_table(rh, readings), ""]
+            body += [("<p>Allan-deviation readings of the same data (slope method, for "
+                      "comparison):</p>"), _html_table(rh, readings)]
         if a["warnings"]:
             md += ["Warnings:", "", *(f"- {w}" for w in a["warnings"]), ""]
             body += ["<p>Warnings:</p><ul>"
