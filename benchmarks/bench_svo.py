@@ -6,7 +6,7 @@ paper's size (p = 6, J = 19): simulating a Case 1 / Case 2 array, the fused WCCV
 columns (reference), the SVO coefficients, RDVG, the MBB covariance (n_boot draws), a WN+RW GMWM fit
 of a virtual WV; then the projected CPU time of the full svo study (config/config.yaml sizes):
 per case 50 x (1 + 10) arrays (simulate + WCCV), 50 x 10 x 4 GMWM fits, and the coverage study
-(1000 x (simulate + WCCV + MBB)) for each coverage case.
+(1000 x (simulate + WCCV + one MBB per scheme)) for each coverage case.
 """
 
 from __future__ import annotations
@@ -45,6 +45,7 @@ def main() -> None:
     ap.add_argument("--test", type=int, default=10)
     ap.add_argument("--coverage", type=int, default=1000)
     ap.add_argument("--coverage-cases", type=int, default=1)
+    ap.add_argument("--schemes", type=int, default=2, help="MBB schemes per coverage replicate")
     a = ap.parse_args()
     rng = np.random.default_rng(1)
     J = a.levels
@@ -76,7 +77,7 @@ def main() -> None:
     train = a.train * ((1 + a.test) * arr + 3 * t["svo coefficients"] + t["rdvg"]
                        + 4 * a.test * t["GMWM WN+RW fit of a virtual WV"])
     cov = a.coverage * (t["simulate case1"] + t["wccv (fused, p = 6)"]
-                        + t[f"MBB ({a.n_boot} draws, l = {block})"])
+                        + a.schemes * t[f"MBB ({a.n_boot} draws, l = {block})"])
     total = 2 * train + a.coverage_cases * cov
     print(f"\nprojected CPU: training/test per case {train / 60:.1f} min "
           f"({train / a.train:.1f} s per training replicate), coverage per case {cov / 60:.1f} min "
