@@ -46,7 +46,7 @@ def signal_files(tmp_path_factory) -> dict:
 # ---- help -------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("cmd", ["simulate", "wv", "av", "fit", "model-wv"])
+@pytest.mark.parametrize("cmd", ["simulate", "wv", "av", "fit", "model-wv", "report"])
 def test_subcommand_help_explains_with_example(capsys, cmd):
     code, out, _ = run(capsys, cmd, "--help")
     assert code == 0

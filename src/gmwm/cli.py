@@ -198,14 +198,15 @@ def _add_units(p: argparse.ArgumentParser, what: str) -> None:
                         "label; repeatable, 'gx,gy,gz=deg/s' sets it for some columns")
 
 
-def _add_common(p: argparse.ArgumentParser, levels_help: str) -> None:
+def _add_common(p: argparse.ArgumentParser, levels_help: str, plot: bool = True) -> None:
     p.add_argument("--freq", type=_positive_float, default=None,
                    help="sampling frequency in Hz (default: from the file's time column or HDF5 "
                         "attribute, else 1; a contradiction with the file is an error)")
     p.add_argument("--levels", "-J", type=_positive_int, default=None, metavar="J", help=levels_help)
     p.add_argument("--json", action="store_true", help="print machine-readable JSON on stdout")
-    p.add_argument("--plot", metavar="FILE.png", default=None,
-                   help="draw a log-log figure to this file (.png, .pdf or .svg)")
+    if plot:
+        p.add_argument("--plot", metavar="FILE.png", default=None,
+                       help="draw a log-log figure to this file (.png, .pdf or .svg)")
     p.add_argument("--quiet", "-q", action="store_true",
                    help="no progress lines on stderr (they are shown only on a terminal anyway)")
 
@@ -380,8 +381,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_input(p)
     p.add_argument("model", metavar="MODEL", nargs="?", default="WN+RW",
-                   help=_MODEL_HELP + " (default: WN+RW, the two terms Kalibr needs)")
-    _add_common(p, _DEFAULT_LEVELS)
+                   help=_MODEL_HELP + "; WN+RW gives the two terms Kalibr needs")
+    _add_common(p, _DEFAULT_LEVELS, plot=False)
     _add_units(p, "datasheet coefficients; deg/s or rad/s marks a gyroscope, m/s^2 or g an "
                   "accelerometer")
     _add_fit_options(p)
