@@ -376,3 +376,15 @@ def test_short_table_like_csv_is_not_read_as_a_signal(tmp_path):
     p.write_text("cluster_m,allan_var\n" + "".join(f"{2 ** j},{1 / 2 ** j}\n" for j in range(10)))
     with pytest.raises(InputError, match="looks like a WV/AV table.*10 samples"):
         read_signal(p, column="allan_var")
+
+
+def test_read_channels_hdf5_time_dataset(tmp_path, x):
+    from gmwm.io import read_channels
+
+    p = tmp_path / "imu.h5"
+    with h5py.File(p, "w") as fh:
+        fh.create_dataset("imu/timestamp_ns", data=np.arange(x.size, dtype=np.int64) * 2_500_000)
+        fh.create_dataset("imu/gz", data=x)
+    ch = read_channels(p, "all")
+    assert list(ch.signals) == ["imu/gz"] and ch.freq == pytest.approx(400.0)
+    assert ch.freq_source == "time dataset /imu/timestamp_ns"
