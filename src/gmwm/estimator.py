@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import minimize_scalar, nnls
-from scipy.stats import norm
+from scipy.special import ndtri
 
 from .errors import IdentifiabilityError, InputError
 from .inference import (METHODS, Problem, Whitener, check_cov, omega_from_cov, weight_matrix,
@@ -103,8 +103,15 @@ class GMWMResult:
 
     def conf_int(self, alpha: float = 0.05) -> np.ndarray:
         """Wald intervals ``params -/+ z se`` (asymptotic; see :mod:`gmwm.bootstrap` for better)."""
-        z = norm.ppf(1 - alpha / 2)
+        z = ndtri(1 - alpha / 2)
         return np.column_stack([self.params - z * self.se, self.params + z * self.se])
+
+    def datasheet(self, units: str | None = None, alpha: float = 0.05) -> dict[str, Any]:
+        """Continuous datasheet coefficients (ARW/VRW, RRW, QN, RR, GM, SIN) in ``units``
+        (see :func:`gmwm.units.datasheet`)."""
+        from .units import datasheet
+
+        return datasheet(self, units, alpha)
 
     def problem(self) -> Problem:
         """The objective this result minimised (:class:`gmwm.inference.Problem`)."""
