@@ -340,3 +340,23 @@ def test_cli_svo(tmp_path, capsys):
         code = main(["svo", str(path), *argv, "-q"])
         err = capsys.readouterr().err
         assert code != 0 and msg in err and "Traceback" not in err and err.count("\n") == 1
+
+
+# --- study helpers --------------------------------------------------------------------------------
+def test_study_chunks_merge_and_wilson():
+    """Coverage chunks merge to the same numbers in any order; Wilson interval of 19/20 is
+    (0.7639, 0.9911) (textbook value)."""
+    from gmwm_studies.svo_study import coverage_chunk, coverage_table, merge, wilson
+
+    lo, hi = wilson(19, 20)
+    assert (round(lo, 4), round(hi, 4)) == (0.7639, 0.9911)
+    args = ("case1", 2**12, 10, 20, 5.0, 0.05, 3, ("paper", "time"))
+    a = coverage_chunk(args[0], [0, 1], *args[1:])
+    b = coverage_chunk(args[0], [2], *args[1:])
+    ab = coverage_chunk(args[0], [0, 1, 2], *args[1:])
+    for m in (merge([a, b]), merge([b, a])):
+        order = np.argsort(m["replicates"])
+        np.testing.assert_allclose(m["coef"][order], ab["coef"])
+        np.testing.assert_allclose(m["se"][:, order], ab["se"])
+    rows = coverage_table(merge([a, b]))
+    assert len(rows) == 12 and {r["mbb"] for r in rows} == {"paper", "time"}
