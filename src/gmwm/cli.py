@@ -422,6 +422,9 @@ def _add_svo_parser(sub: Any) -> None:
                    help="moving-block bootstrap draws for the CIs (0: no CIs)")
     p.add_argument("--block-const", type=_positive_float, default=10.0, metavar="A",
                    help="block length l = A * T^(1/3) samples")
+    p.add_argument("--mbb", choices=("paper", "time"), default="paper",
+                   help="bootstrap scheme: paper (Algorithm 1 of paper 003) or time (blocks over "
+                        "the whole time axis, no refill stretch)")
     p.add_argument("--seed", type=_nonneg_int, default=0, help="seed of the bootstrap draws")
     p.add_argument("--alpha", type=_alpha, default=0.05, help="CI level is 1 - alpha")
     p.add_argument("-o", "--output", metavar="TABLE.csv", default=None,
@@ -1417,7 +1420,7 @@ def cmd_svo(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     common = {"levels": args.levels, "alpha": args.alpha, "freq": args.freq_hz, "names": names}
     if args.method == "svo":
         res = svo(X, weights, n_boot=args.n_boot, block_const=args.block_const,
-                          seed=args.seed, **common)
+                  seed=args.seed, mbb=args.mbb, **common)
     else:
         res = (rdvg if args.method == "rdvg" else equal)(X, **common)
     seconds = time.perf_counter() - t0
