@@ -1,39 +1,39 @@
-"""End-to-end test of the Snakemake workflow on the quick profile, in a temporary copy.
+"""End-to-end tests of the Snakemake workflow on the quick profile.
 
-One quick run (~1.5-2 min on 2 cores) is shared by all tests of this module; they then check the
-outputs, what dry runs plan after config edits, and resumption after an interrupted job.
+The outputs come from the session's one quick run (`quick_run` in conftest.py: the README's
+command in a git copy of the workflow, which must leave `git status` clean). The tests check the
+outputs, what dry runs plan after config edits, and that a run killed with SIGKILL resumes with the
+same command and ends with the same estimates as the uninterrupted run.
 """
 
 from __future__ import annotations
 
+import os
 import re
-import shutil
+import signal
 import subprocess
-import sys
+import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+import xarray as xr
 import yaml
 
+from conftest import (
+    QUICK_ARGS,
+    QUICK_OUT,
+    git_status,
+    run_snakemake,
+    snakemake_cmd,
+    workflow_copy,
+)
 from gmwm.store import read_dataset
 
 pytestmark = pytest.mark.pipeline
 
-REPO = Path(__file__).resolve().parents[1]
-QUICK = ["--configfile", "config/quick.yaml"]
 T_QUICK = 131072
-
-
-def snakemake(workdir: Path, *args: str, timeout: int = 600) -> str:
-    """Run snakemake in ``workdir``; return its combined output (fails the test on error)."""
-    cmd = [sys.executable, "-m", "snakemake", "-j2", *QUICK, *args]
-    proc = subprocess.run(cmd, cwd=workdir, capture_output=True, text=True, timeout=timeout,
-                          check=False)
-    out = proc.stdout + proc.stderr
-    assert proc.returncode == 0, f"snakemake {' '.join(args)} failed:\n{out[-4000:]}"
-    return out
 
 
 def planned_jobs(output: str) -> dict[str, int]:
@@ -46,13 +46,15 @@ def planned_jobs(output: str) -> dict[str, int]:
 
 
 @pytest.fixture(scope="module")
-def run(tmp_path_factory) -> Path:
-    work = tmp_path_factory.mktemp("pipeline")
-    shutil.copy(REPO / "Snakefile", work)
-    for d in ("workflow", "config", "profiles"):
-        shutil.copytree(REPO / d, work / d, ignore=shutil.ignore_patterns("__pycache__"))
-    snakemake(work)
-    return work
+def run(quick_run) -> Path:
+    """Output directory of the session's quick run (results/, reports/, logs/ below it)."""
+    return quick_run.out
+
+
+def test_quick_run_completes_and_leaves_git_clean(quick_run):
+    failed = re.findall(r"Error in rule (\w+)", quick_run.output)
+    assert quick_run.returncode == 0, f"rules failed: {failed}\n{quick_run.output[-3000:]}"
+    assert quick_run.git_before == "" and quick_run.git_after == "", quick_run.git_after
 
 
 def test_outputs_exist_and_are_sensible(run):
@@ -107,51 +109,126 @@ def test_estimates_are_labelled(run):
     assert float(ds["truth"].sel(parameter="WN[1].sigma2")) == 8e-4
 
 
-def test_nothing_to_do_when_nothing_changed(run):
-    assert planned_jobs(snakemake(run, "-n")) == {}
+def test_nothing_to_do_when_nothing_changed(quick_run):
+    if quick_run.returncode != 0:
+        pytest.skip("the quick run failed (see test_quick_run_completes_and_leaves_git_clean)")
+    assert planned_jobs(run_snakemake(quick_run.work, *QUICK_ARGS, "-n")) == {}
 
 
-def _overlay(run: Path, name: str, content: dict) -> list[str]:
-    (run / "config" / name).write_text(yaml.safe_dump(content))
-    return ["--configfile", "config/quick.yaml", f"config/{name}"]
+def _overlay(tmp_path: Path, content: dict) -> list[str]:
+    path = tmp_path / "overlay.yaml"  # outside the copy: its git status stays clean
+    path.write_text(yaml.safe_dump(content))
+    return ["-j2", "--configfile", "config/quick.yaml", str(path), "-n"]
 
 
-def test_estimator_change_reuses_wv_cache(run):
-    args = _overlay(run, "edit_fit.yaml", {"estimators": {"gmwm": {"n_starts": 3}}})
-    jobs = planned_jobs(snakemake(run, "-n", *args))
+def test_estimator_change_reuses_wv_cache(quick_run, tmp_path):
+    args = _overlay(tmp_path, {"estimators": {"gmwm": {"n_starts": 3}}})
+    jobs = planned_jobs(run_snakemake(quick_run.work, *args))
     assert "simulate_wv" not in jobs
-    assert jobs["fit"] == 4 and jobs["table"] == 2 and jobs["figure_boxplot"] == 2
+    assert jobs["fit"] == 3 and jobs["table"] == 2  # sim2: 1 chunk, sim3: 2 chunks and jobs["figure_boxplot"] == 2
     assert "figure_wv" not in jobs  # the WV figure only depends on the cache
 
 
-def test_study_change_reruns_only_that_study(run):
-    edit = {"studies": {"sim3": {"truth": {"WN[1].sigma2": 9e-4}}}}
-    args = _overlay(run, "edit_study.yaml", edit)
-    out = snakemake(run, "-n", *args)
+def test_study_change_reruns_only_that_study(quick_run, tmp_path):
+    args = _overlay(tmp_path, {"studies": {"sim3": {"truth": {"WN[1].sigma2": 9e-4}}}})
+    out = run_snakemake(quick_run.work, *args)
     jobs = planned_jobs(out)
     assert jobs["simulate_wv"] == 2 and jobs["fit"] == 2
     outputs = [ln for ln in out.splitlines() if ln.strip().startswith("output:")]
     assert outputs and not [ln for ln in outputs if "sim2" in ln]
 
 
-def test_resume_after_interrupted_job(run):
-    est = run / "results" / "sim3" / "estimates" / f"gmwm_T{T_QUICK}.nc"
-    before = read_dataset(est)["estimate"].values
-    chunk = run / "results" / "sim3" / "fit" / "gmwm" / f"T{T_QUICK}_c1.nc"
-    # State of a run killed while fitting chunk 1: the chunk and everything downstream of it
-    # are missing, and the killed writer left a temporary file, never the target itself.
-    # (Snakemake does not redo a missing intermediate file whose consumers are up to date.)
-    chunk.unlink()
-    est.unlink()
-    for f in (run / "reports" / "sim3").iterdir():
-        f.unlink()
-    (chunk.parent / f".{chunk.stem}.deadbeef.tmp.nc").write_bytes(b"partial")
-    out = snakemake(run)
-    jobs = {m.group(1) for m in re.finditer(r"rule (\w+):", out)}
-    assert "simulate_wv" not in jobs and {"fit", "gather", "table"} <= jobs
-    assert len(re.findall(r"rule fit:", out)) == 1
-    assert (run / "reports" / "sim3" / "bias_sd_rmse.csv").exists()
-    np.testing.assert_array_equal(read_dataset(est)["estimate"].values, before)
-    # a second archive was added next to the first, none overwritten
-    assert len(list((run / "reports" / "archive").iterdir())) == 2
-    assert planned_jobs(snakemake(run, "-n")) == {}
+# --- kill and resume -----------------------------------------------------------------------------
+
+def _group(pgid: int) -> list[int]:
+    """Live processes of process group ``pgid`` other than its leader (the running jobs)."""
+    members = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue  # exited meanwhile
+        pid = int(stat.parent.name)
+        if int(fields[2]) == pgid and pid != pgid and fields[0] != "Z":
+            members.append(pid)
+    return members
+
+
+# The killed run is the quick command restricted to three studies (21 jobs instead of ~60) to keep
+# the suite short; the resume machinery does not depend on which studies run.
+KILL_OVERLAY = {
+    "studies": {name: {"enabled": False}
+                for name in ("sim2", "stim300_accel", "sim3_coverage", "misspec")},
+    **{section: {"enabled": False} for section in ("navchip", "uncertainty", "navigation", "svo")},
+}
+
+
+def _start(work: Path, args: list[str], log: Path) -> subprocess.Popen:
+    """snakemake ``args`` in its own process group, output to ``log``."""
+    with open(log, "wb") as fh:
+        return subprocess.Popen(snakemake_cmd(*args), cwd=work, stdout=fh,
+                                stderr=subprocess.STDOUT, start_new_session=True)
+
+
+def _wait_mid_run(proc: subprocess.Popen, log: Path, n_finished: int) -> None:
+    """Return once ``n_finished`` jobs have finished and another job is running."""
+    while proc.poll() is None:
+        if log.read_text().count("Finished jobid") >= n_finished and _group(proc.pid):
+            return
+        time.sleep(0.2)
+    pytest.fail(f"the run ended before it could be killed:\n{log.read_text()[-3000:]}")
+
+
+def _estimates(out: Path) -> dict[str, np.ndarray]:
+    """Every estimate array of a quick run: Monte Carlo studies, Simulation 1, STIM-300."""
+    found = {}
+    for path in sorted((out / "results").glob("*/estimates/*.nc")) + sorted(
+            (out / "results").glob("*/gmwm_mle/all_T*.nc")):
+        with xr.open_dataset(path) as ds:
+            found[str(path.relative_to(out))] = ds["estimate"].values
+    for path in sorted((out / "results").glob("*/allan/*.nc")):
+        for group in ("gmwm_cf", "armav", "avsm"):
+            with xr.open_dataset(path, group=group) as ds:
+                found[f"{path.relative_to(out)}:{group}"] = ds["estimate"].values
+    return found
+
+
+def test_sigkill_then_same_command_resumes(quick_run, tmp_path_factory):
+    """SIGKILL the main process only (its running job is orphaned and finishes later), then the
+    whole process group of the next run; the same command then completes, and every estimate
+    equals the uninterrupted run's."""
+    work = workflow_copy(tmp_path_factory.mktemp("killed"))
+    out = work / QUICK_OUT
+    overlay = work.parent / "kill_overlay.yaml"  # outside the copy: git status stays clean
+    overlay.write_text(yaml.safe_dump(KILL_OVERLAY))
+    args = [*QUICK_ARGS, str(overlay)]
+
+    first = _start(work, args, work.parent / "first.log")
+    _wait_mid_run(first, work.parent / "first.log", n_finished=2)
+    os.kill(first.pid, signal.SIGKILL)
+    first.wait()
+    assert list((out / ".snakemake" / "locks").iterdir()), "a killed run leaves Snakemake locks"
+
+    second = _start(work, args, work.parent / "second.log")  # the first's orphans may still run
+    _wait_mid_run(second, work.parent / "second.log", n_finished=2)
+    os.killpg(second.pid, signal.SIGKILL)
+    second.wait()
+    assert "removed stale Snakemake locks" in (work.parent / "second.log").read_text()
+
+    third = run_snakemake(work, *args)
+    assert "removed stale Snakemake locks" in third
+    while _group(first.pid):  # the first run's orphaned jobs finish on their own
+        time.sleep(0.5)
+
+    ref = _estimates(quick_run.out)
+    got = _estimates(out)
+    # sim3 (1 size), sim1 (2 sizes), stim300_gyro (2 sizes x 3 estimators)
+    assert len(got) == 9 and got.keys() <= ref.keys(), sorted(got)
+    for name, values in got.items():
+        np.testing.assert_array_equal(values, ref[name], err_msg=name)
+    for table in ("sim3/bias_sd_rmse.csv", "sim1/rmse_bias_time.csv"):
+        ref_t = pd.read_csv(quick_run.out / "reports" / table)
+        got_t = pd.read_csv(out / "reports" / table)
+        cols = [c for c in ref_t.columns if "time" not in c and "seconds" not in c]
+        pd.testing.assert_frame_equal(got_t[cols], ref_t[cols])
+    assert git_status(work) == ""

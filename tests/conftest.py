@@ -1,0 +1,87 @@
+"""Shared fixtures: ONE quick-profile Snakemake run per test session, in a git copy of the workflow.
+
+The run uses the README's command verbatim (`snakemake -j2 --configfile config/quick.yaml`) in a
+temporary git repository holding the workflow files, so tests can also check that a quick run
+leaves `git status` clean. Tests that need the pipeline's outputs take the `quick_run` fixture;
+pytest builds it once, on first use.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+WORKFLOW_FILES = ("Snakefile", ".gitignore", "workflow", "config", "profiles")
+QUICK_ARGS = ("-j2", "--configfile", "config/quick.yaml")  # README / docs/pipeline.md
+QUICK_OUT = Path("results/quick")  # config/quick.yaml: outdir
+
+
+def snakemake_cmd(*args: str) -> list[str]:
+    """The `snakemake` command of this interpreter's environment with ``args``."""
+    return [sys.executable, "-m", "snakemake", *args]
+
+
+def run_snakemake(work: Path, *args: str) -> str:
+    """Run snakemake in ``work`` (no time limit); return stdout + stderr; fail the test on error."""
+    proc = subprocess.run(snakemake_cmd(*args), cwd=work, capture_output=True, text=True,
+                          check=False)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0, f"snakemake {' '.join(args)} failed:\n{out[-4000:]}"
+    return out
+
+
+def git_status(work: Path) -> str:
+    """`git status --porcelain` of ``work``, including untracked files."""
+    return subprocess.run(["git", "status", "--porcelain", "--untracked-files=all"], cwd=work,
+                          capture_output=True, text=True, check=True).stdout
+
+
+def workflow_copy(dest: Path) -> Path:
+    """Copy the workflow files of the working tree to ``dest`` and commit them to a new git repo."""
+    for name in WORKFLOW_FILES:
+        src = REPO / name
+        if src.is_dir():
+            shutil.copytree(src, dest / name, ignore=shutil.ignore_patterns("__pycache__"))
+        else:
+            shutil.copy(src, dest / name)
+    env = {**os.environ, "GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@t",
+           "GIT_COMMITTER_NAME": "t", "GIT_COMMITTER_EMAIL": "t@t"}
+    for cmd in (["git", "init", "-q"], ["git", "add", "-A"], ["git", "commit", "-q", "-m", "copy"]):
+        subprocess.run(cmd, cwd=dest, check=True, env=env, capture_output=True)
+    return dest
+
+
+@dataclass(frozen=True)
+class QuickRun:
+    """A finished quick run: the git copy it ran in, Snakemake's exit status and output, and
+    `git status --porcelain` before and after."""
+
+    work: Path
+    returncode: int
+    output: str
+    git_before: str
+    git_after: str
+
+    @property
+    def out(self) -> Path:
+        """Its output directory (results/, reports/, logs/ below it)."""
+        return self.work / QUICK_OUT
+
+
+@pytest.fixture(scope="session")
+def quick_run(tmp_path_factory) -> QuickRun:
+    """One uninterrupted quick run per session. It is not asserted here: with keep-going a
+    failing rule leaves the other outputs, so test_quick_run_completes_and_leaves_git_clean
+    reports the failure and the tests of the other outputs still run."""
+    work = workflow_copy(tmp_path_factory.mktemp("quick"))
+    before = git_status(work)
+    proc = subprocess.run(snakemake_cmd(*QUICK_ARGS), cwd=work, capture_output=True, text=True,
+                          check=False)
+    return QuickRun(work, proc.returncode, proc.stdout + proc.stderr, before, git_status(work))
