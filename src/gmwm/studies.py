@@ -469,6 +469,9 @@ def render_index(studies: Sequence[Mapping[str, Any]], summary: pd.DataFrame,
     lines = [
         "# GMWM reproduction: studies at a glance",
         "",
+        ("Verdict for every figure and table of the papers (agrees / differs / not reproducible): "
+         "[REPRODUCTION.md](REPRODUCTION.md)."),
+        "",
         f"Config hash `{config_id}`; generated {datetime.now(UTC):%Y-%m-%d %H:%M} UTC.",
         "",
     ]
