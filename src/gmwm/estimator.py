@@ -289,7 +289,8 @@ class _VP:
     N_INIT = 4           # random placements besides the greedy one
 
     def __init__(self, model: Model, tau: np.ndarray, nu_hat: np.ndarray, white: Whitener,
-                 drift_sign: float, rng: np.random.Generator):
+                 drift_sign: float, rng: np.random.Generator,
+                 col_cache: dict[tuple[str, float], np.ndarray] | None = None):
         self.model, self.tau, self.nu_hat = model, tau, nu_hat
         self.white, self.drift_sign, self.rng = white, drift_sign, rng
         self.names = [c.process.name for c in model.components]
@@ -307,7 +308,8 @@ class _VP:
         self.shaped = [k for k, g in enumerate(self.grids) if g is not None]
         self.yw = white @ nu_hat
         self.ncomp = len(self.names)
-        self._cols: dict[tuple[str, float], np.ndarray] = {}
+        # whitened unit columns by (process, shape); shared by the nodes of one nested search
+        self._cols = {} if col_cache is None else col_cache
         self.cols = np.column_stack([self.col(k, 0.0) for k in range(self.ncomp)])
         # positivity floors of each scale coefficient (share 1e-3 of the WV at its best scale)
         self.floor = np.zeros(self.ncomp)
@@ -589,7 +591,7 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
             extra_starts: list[np.ndarray] | None = None) -> _Node:
     """Global search for ``model`` on ``problem``'s objective (memoised per model spec)."""
     if model.spec in cache and not extra_starts:
-        return cache[model.spec]
+        return cache[model.spec]  # type: ignore[return-value]
     prob = problem if problem.model == model else Problem(model, problem.wv, problem.omega,
                                                          problem.method)
     tau, nu_hat = prob.tau, prob.nu_hat
@@ -598,7 +600,8 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
         gw = Whitener(weight_matrix(prob.wv, "gaussian", "gmwm"))
     else:
         gw = prob.white
-    vp = _VP(model, tau, nu_hat, gw, drift_sign, _node_seed(seed, model.spec))
+    vp = _VP(model, tau, nu_hat, gw, drift_sign, _node_seed(seed, model.spec),
+             cache.setdefault("__columns__", {}))  # type: ignore[arg-type]
 
     if model.is_linear and prob.method == "gmwm":
         # closed form: NNLS on the whitened system is the exact minimiser
@@ -619,12 +622,12 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
             pool.append(vp.extend(emb, k))
     pool.sort(key=lambda item: item[0])
     # the projected (VP) cost is already optimal over the linear parameters and close to a local
-    # optimum in the shapes; the trust-region solve polishes. Refined: the two best distinct
-    # starts and any other within 10 % of the best, at most n_starts (+ extra starts given)
+    # optimum in the shapes; the trust-region solve polishes. Refined: the best start and any
+    # other distinct one within 10 % of it, at most n_starts (+ extra starts given)
     cand: list[np.ndarray] = []
     best_vp = pool[0][0]
     for c, th in pool:
-        if len(cand) >= max(n_starts, 2) or (len(cand) >= 2 and c > 1.1 * best_vp + 1e-12):
+        if len(cand) >= n_starts or (cand and c > 1.1 * best_vp + 1e-12):
             break
         if not any(np.allclose(th, t, rtol=1e-3) for t in cand):
             cand.append(th)
