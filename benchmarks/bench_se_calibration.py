@@ -24,8 +24,8 @@ CASES = {
                   "AR1[1].sigma2": 0.03},
     "AR1+WN+SIN": {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.975, "AR1[1].sigma2": 0.03,
                    "SIN[1].alpha": 0.85, "SIN[1].beta": 0.35},
-    "QN+WN+RW+DR": {"QN[1].Q2": 1.0, "WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-4,
-                    "DR[1].omega": 1e-4},
+    "QN+WN+RW+DR": {"QN[1].Q2": 1.0, "WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-3,
+                    "DR[1].omega": 1e-3},
 }
 
 

@@ -144,18 +144,20 @@ def main() -> int:
     args = ap.parse_args()
     stored = json.loads(BEST_FILE.read_text()) if BEST_FILE.exists() else {}
     rows = []
+    added = False
     for cid, wv, spec in cases():
         t0 = time.perf_counter()
         res = gmwm.fit(wv, spec, se_cov="gaussian")
         dt = time.perf_counter() - t0
         if args.update or cid not in stored:
             stored[cid] = min(best_known(wv, spec, args.n_random), res.objective)
+            added = True
         best = stored[cid]
         rel = (res.objective - best) / best
         rows.append((cid, res.objective, best, rel, dt, len(res.warnings)))
-        print(f"{cid:<48} default {res.objective:<12.7g} best {best:<12.7g} "
+        print(f"{cid:<48} default {res.objective:<14.10g} best {best:<14.10g} "
               f"rel {rel:+.1e}  {dt * 1e3:6.0f} ms  J={wv.n_levels}", flush=True)
-    if args.update:
+    if args.update or added:
         BEST_FILE.write_text(json.dumps(stored, indent=1, sort_keys=True) + "\n")
     bad = [r for r in rows if r[3] > 1e-6]
     times = np.array([r[4] for r in rows])

@@ -457,7 +457,8 @@ def _qn_cumulant_term(q2: float, T: int, tau: np.ndarray) -> np.ndarray:
             ok = np.array([0, tau[k] // 2, tau[k]])
             h = oj[:, None] - ok[None, :]
             cnt = _lag_count(T, tau[j], tau[k], h)
-            out[j, k] = (w[:, None] * w[None, :] * cnt).sum() / (tau[j] ** 2 * tau[k] ** 2)
+            out[j, k] = (w[:, None] * w[None, :] * cnt).sum() / (float(tau[j]) ** 2
+                                                                  * float(tau[k]) ** 2)
     return _QN_KAPPA4 * q2 * q2 * out / np.outer(M, M)
 
 
