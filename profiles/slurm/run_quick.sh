@@ -10,21 +10,20 @@ cd "$(dirname "$0")/../.."
 
 start=$(date +%Y-%m-%dT%H:%M:%S)
 t0=$(date +%s)
-python -m snakemake --profile profiles/slurm --configfile config/quick.yaml "$@"
+status=0
+mkdir -p results/quick
+python -m snakemake --profile profiles/slurm --configfile config/quick.yaml "$@" 2>&1 \
+    | tee results/quick/slurm_run.log || status=$?
 t1=$(date +%s)
-echo "run_quick.sh: snakemake finished in $((t1 - t0)) s"
+echo "run_quick.sh: snakemake exited with status ${status} after $((t1 - t0)) s"
 
 # every job the run submitted (one SLURM job per Snakemake job; localrules ran on this host)
 sacct -X -S "$start" -n -P -o JobID,JobName,Partition,Account,AllocCPUS,State,ExitCode,Elapsed \
     > results/quick/sacct.txt
 echo "run_quick.sh: $(wc -l < results/quick/sacct.txt) SLURM jobs," \
-     "$(grep -c '|COMPLETED|' results/quick/sacct.txt || true) COMPLETED; per rule:"
-python - <<'EOF'
-import collections, json, re
-from pathlib import Path
-rules = collections.Counter()
-for log in Path("results/quick/.snakemake/slurm_logs").glob("rule_*/**/*.log"):
-    rules[log.parts[3].removeprefix("rule_")] += 1
-print(json.dumps(dict(sorted(rules.items()))))
-EOF
+     "$(grep -c '|COMPLETED|' results/quick/sacct.txt || true) COMPLETED," \
+     "$(grep -c '^localrule ' results/quick/slurm_run.log || true) local jobs; SLURM jobs per rule:"
+grep -o 'submitted with SLURM jobid [0-9]* (log: [^)]*/rule_[A-Za-z0-9_]*' results/quick/slurm_run.log \
+    | sed 's|.*/rule_||' | sort | uniq -c || true
 sacct -X -S "$start" -o JobID,JobName%36,Partition,AllocCPUS,State,ExitCode,Elapsed | head -n 14
+exit "${status}"
