@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 from wflog import get_logger
 
-from gmwm.io import save_figure
+from gmwm.io import save_figure, write_text_atomic
 from gmwm.studies import format_markdown_table
 from gmwm_studies.svo_study import coverage_table, figure_coverage, merge
 
@@ -16,8 +16,8 @@ out = snakemake.output
 res = merge([dict(np.load(f)) for f in snakemake.input])
 rows = coverage_table(res, 1.0 - snakemake.params.alpha)
 df = pd.DataFrame(rows)
-df.to_csv(out.csv, index=False)
-Path(out.md).write_text(format_markdown_table(df) + "\n", encoding="utf-8")
+write_text_atomic(out.csv, df.to_csv(index=False))  # atomic: a killed job leaves no half file
+write_text_atomic(out.md, format_markdown_table(df) + "\n")
 written = save_figure(figure_coverage(rows, 1.0 - snakemake.params.alpha),
                       Path(out.fig).with_suffix(""), formats=snakemake.params.formats)
 log.info("wrote %s; %d replicates, block %d, %.2f s per replicate", ", ".join(map(str, written)),

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 from wflog import get_logger
 
-from gmwm.io import save_figure
+from gmwm.io import save_figure, write_text_atomic
 from gmwm.studies import format_markdown_table
 from gmwm_studies.svo_study import coef_table, figure_coefs, figure_gmwm, figure_wv, merge, wv_table
 
@@ -17,8 +17,8 @@ res = merge([dict(np.load(f)) for f in snakemake.input.train])
 for rows, csv, md in ((coef_table(res, case, p.levels), out.coefs_csv, out.coefs_md),
                       (wv_table(res, p.freq), out.wv_csv, out.wv_md)):
     df = pd.DataFrame(rows)
-    df.to_csv(csv, index=False)
-    Path(md).write_text(format_markdown_table(df) + "\n", encoding="utf-8")
+    write_text_atomic(csv, df.to_csv(index=False))  # atomic: a killed job leaves no half file
+    write_text_atomic(md, format_markdown_table(df) + "\n")
 folder = Path(out[0]).parent
 for fig, stem in ((figure_wv(res, p.freq, case), "fig_wv"),
                   (figure_coefs(res, case, p.levels), "fig_coefs"), (figure_gmwm(res), "fig_gmwm")):
