@@ -513,8 +513,12 @@ def avar(x: Any, levels: int | None = None, alpha: float = 0.05, freq: float = 1
 
 def _rho_moments(c: float) -> tuple[float, float, float]:
     """``(E rho_c(Z), Var rho_c(Z), E[Z rho_c'(Z)])`` for Z ~ N(0, 1) (numerical quadrature)."""
+    import math
+
     from scipy.integrate import quad
-    from scipy.stats import norm
+
+    def pdf(r: float) -> float:
+        return math.exp(-0.5 * r * r) / math.sqrt(2.0 * math.pi)
 
     def rho(r: float) -> float:
         u = (r / c) ** 2
@@ -524,10 +528,10 @@ def _rho_moments(c: float) -> tuple[float, float, float]:
         u = (r / c) ** 2
         return 6.0 * u * (1.0 - u) ** 2 if u < 1.0 else 0.0
 
-    tail = 2.0 * norm.sf(c)
-    e1 = 2.0 * quad(lambda r: rho(r) * norm.pdf(r), 0.0, c, epsabs=1e-13, epsrel=1e-12)[0] + tail
-    e2 = 2.0 * quad(lambda r: rho(r) ** 2 * norm.pdf(r), 0.0, c, epsabs=1e-13, epsrel=1e-12)[0] + tail
-    ez = 2.0 * quad(lambda r: zdrho(r) * norm.pdf(r), 0.0, c, epsabs=1e-13, epsrel=1e-12)[0]
+    tail = math.erfc(c / math.sqrt(2.0))  # P(|Z| > c)
+    e1 = 2.0 * quad(lambda r: rho(r) * pdf(r), 0.0, c, epsabs=1e-13, epsrel=1e-12)[0] + tail
+    e2 = 2.0 * quad(lambda r: rho(r) ** 2 * pdf(r), 0.0, c, epsabs=1e-13, epsrel=1e-12)[0] + tail
+    ez = 2.0 * quad(lambda r: zdrho(r) * pdf(r), 0.0, c, epsabs=1e-13, epsrel=1e-12)[0]
     return e1, e2 - e1**2, ez
 
 
