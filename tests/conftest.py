@@ -78,8 +78,8 @@ class QuickRun:
 @pytest.fixture(scope="session")
 def quick_run(tmp_path_factory) -> QuickRun:
     """One uninterrupted quick run per session. It is not asserted here: with keep-going a
-    failing rule leaves the other outputs, so test_quick_run_completes_and_leaves_git_clean
-    reports the failure and the tests of the other outputs still run."""
+    failing rule leaves the other outputs, so test_quick_run_completes reports the
+    failure and the tests of the other outputs still run."""
     work = workflow_copy(tmp_path_factory.mktemp("quick"))
     before = git_status(work)
     proc = subprocess.run(snakemake_cmd(*QUICK_ARGS), cwd=work, capture_output=True, text=True,
