@@ -1,4 +1,4 @@
-"""Benchmark the virtual-gyroscope code (gmwm.svo) and project the paper-003 study's cost.
+"""Benchmark the virtual-gyroscope code (gmwm.virtual, exported as gmwm.svo) and project the paper-003 study's cost.
 
 Usage: python benchmarks/bench_svo.py [--T 1044000] [--repeat 3] [--n-boot 500] [--block-const 10]
 Prints best-of-N wall and CPU seconds (after a warm-up call) of the steps of one replicate at the
@@ -18,7 +18,7 @@ from collections.abc import Callable
 import numpy as np
 
 import gmwm
-from gmwm.svo import block_length, mbb_svo_draws, rdvg, svo_coef, svo_weights, wccv
+from gmwm.virtual import block_length, mbb_svo_draws, rdvg, svo_coef, svo_weights, wccv
 from gmwm_studies.svo_study import case
 
 

@@ -1,4 +1,4 @@
-"""Virtual gyroscope (gmwm.svo): WCCV, SVO estimator, MBB covariance, RDVG; SPEC 6.4 values."""
+"""Virtual gyroscope (gmwm.virtual, exported as gmwm.svo): WCCV, SVO estimator, MBB covariance, RDVG; SPEC 6.4 values."""
 
 import json
 
@@ -7,7 +7,7 @@ import pytest
 
 import gmwm
 from gmwm.errors import InputError, ModelError
-from gmwm.svo import (
+from gmwm.virtual import (
     PAPER_OMEGA_LONG,
     PAPER_OMEGA_SHORT,
     _mbb_kernel,

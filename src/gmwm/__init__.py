@@ -17,8 +17,6 @@ Numba), so ``gmwm --help`` starts fast.
 from importlib import import_module
 from typing import Any
 
-# Same for gmwm.svo (module and function share the name).
-from .svo import svo
 
 __version__ = "0.1.0"
 
@@ -28,7 +26,7 @@ _EXPORTS = {
     "Model": "model", "fit": "estimator", "GMWMResult": "estimator",
     "wvar": "wv", "avar": "wv", "WaveletVariance": "wv", "AllanVariance": "wv",
     "fit_avsm": "avsm",
-    "svo": "svo",
+    "svo": "virtual",
     "select_model": "select", "rank_models": "select",
 }
 

@@ -1397,7 +1397,7 @@ def _python_warnings(caught: Sequence[warnings.WarningMessage], err: TextIO, deb
 
 def cmd_svo(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     """Virtual gyroscope: coefficients with CIs, the virtual WV table (-o), a WV figure (--plot)."""
-    from gmwm.svo import equal, plot_virtual_wv, rdvg, read_weights, svo
+    from gmwm.virtual import equal, plot_virtual_wv, rdvg, read_weights, svo
 
     if args.output and Path(args.output).suffix.lower() != ".csv":
         raise UsageError(f"--output {args.output}: the table is written as CSV, use a .csv name")

@@ -28,7 +28,7 @@ from scipy.stats import norm
 
 from gmwm.errors import InputError
 from gmwm.processes import ar1_unit_wv
-from gmwm.svo import (
+from gmwm.virtual import (
     PAPER_OMEGA_LONG,
     PAPER_OMEGA_SHORT,
     WaveletCrossCovariance,
@@ -150,7 +150,7 @@ def true_coefs(case_name: str, levels: int = 19) -> dict[str, np.ndarray]:
 
 def omega(key: str, levels: int) -> np.ndarray:
     """Scale weights of method ``svo_w1`` / ``svo_w2`` for ``levels`` levels (paper vectors at
-    J = 19; otherwise anchored as in :func:`gmwm.svo.svo_weights`)."""
+    J = 19; otherwise anchored as in :func:`gmwm.virtual.svo_weights`)."""
     return svo_weights({"w1": "long", "w2": "short"}[key], levels)
 
 

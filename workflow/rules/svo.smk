@@ -1,5 +1,5 @@
 # Virtual gyroscope by Scale-wise Variance Optimisation (paper 003, SPEC 6; config key `svo`).
-# Statistics live in gmwm.svo (library) and gmwm_studies.svo_study (protocol, tables, figures).
+# Statistics live in gmwm.virtual (library) and gmwm_studies.svo_study (protocol, tables, figures).
 #
 #   svo_train     training replicates [a, b) of a case: the 4 coefficient vectors (SVO omega_1,
 #                 SVO omega_2, RDVG, equal) of array r, applied to its `test_per_train` fresh

@@ -1,7 +1,6 @@
 """Virtual gyroscope by Scale-wise Variance Optimisation (SVO, paper 003; SPEC section 6).
 
-(``gmwm.svo`` is also the name of the main function, so import from this module with
-``from gmwm.svo import wccv, ...``; ``import gmwm.svo as m`` yields the function.)
+(The module is ``gmwm.virtual``; its main function is exported lazily as ``gmwm.svo``.)
 
 ``p`` signals of one axis ``X_t`` (columns of a ``(T, p)`` array) are combined into a virtual
 signal ``S_t = c'X_t`` with ``c'1 = 1``. With ``A_j`` the Haar wavelet cross-covariance (WCCV)
