@@ -39,7 +39,12 @@ spurious AR1 in 7 of 20 replicates). ``criterion="wic-log"`` (default) replaces 
 model's objective and every trace are O(1) while a missing component raises the objective
 proportionally to T, so a factor k_T with k_T -> inf and k_T / T -> 0 selects the generating
 model with probability -> 1 (consistency, the BIC analogue). It needs more data to admit a weak
-component (QN+WN+RW with a faint RW at T = 2^14: never picked; at 2^17: always).
+component (QN+WN+RW with a faint RW at T = 2^14: never picked; at 2^17: always) and to tell a RW
+from a slow AR1 (WN+2*AR1+RW with RW 1e-7 at T = 2^20: WIC 13 of 20, WIC-log 0 of 20, which
+keeps WN+2*AR1). Over the benchmark's 15 identifiable settings the two criteria hit the
+generating model equally often (223 and 220 of 300); the default favours never adding a
+spurious component on long recordings. ``Ranking`` keeps objective and trace, so
+:func:`rerank` gives the other criterion without refitting.
 Ties (a superset whose extra component is estimated at 0) go to the smaller model.
 """
 
