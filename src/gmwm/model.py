@@ -118,8 +118,11 @@ class Model:
         return sum(c.process.name == name for c in self.components)
 
     # -- parameter vectors ----------------------------------------------------------------------
-    def theta(self, values: Mapping[str, float] | None = None, **kwargs: float) -> np.ndarray:
-        """Parameter vector from a mapping of flat names, validated and in canonical order."""
+    def theta(self, values: Mapping[str, float] | None = None, *, estimate: bool = False,
+              **kwargs: float) -> np.ndarray:
+        """Parameter vector from a mapping of flat names, validated and in canonical order.
+        ``estimate=True`` also accepts a component whose scale parameter is exactly 0 (a fit at
+        the boundary; see :meth:`check`)."""
         given = dict(values or {}, **kwargs)
         unknown = sorted(set(given) - set(self.param_names))
         if unknown:
@@ -129,19 +132,25 @@ class Model:
         if missing:
             raise ModelError(f"missing value for parameter(s) {', '.join(missing)}")
         theta = np.array([float(given[n]) for n in self.param_names])
-        self.check(theta)
+        self.check(theta, boundary_ok=estimate)
         return self.canonical(theta)
 
     def as_dict(self, theta: np.ndarray) -> dict[str, float]:
         return {n: float(v) for n, v in zip(self.param_names, np.asarray(theta), strict=True)}
 
-    def check(self, theta: np.ndarray) -> None:
-        """Raise ModelError naming the first component whose parameters are out of domain."""
+    def check(self, theta: np.ndarray, boundary_ok: bool = False) -> None:
+        """Raise ModelError naming the first component whose parameters are out of domain.
+        ``boundary_ok`` accepts a scale parameter (variance, amplitude, drift) of exactly 0."""
         theta = np.asarray(theta, dtype=float)
         if theta.shape != (self.n_params,):
             raise ModelError(f"model {self.spec} has {self.n_params} parameters, got {theta.size}")
         for c in self.components:
-            msg = c.process.check(theta[c.slice])
+            p = theta[c.slice].copy()
+            if boundary_ok:
+                i = c.process.n_params - 1 if c.process.name in ("AR1", "GM") else 0
+                if p[i] == 0:
+                    p[i] = 1.0  # the boundary value 0: check the other parameters only
+            msg = c.process.check(p)
             if msg:
                 raise ModelError(f"{c.name}: {msg}")
 

@@ -162,7 +162,7 @@ def channels_from_fits(data_path: str | os.PathLike, fits_path: str | os.PathLik
         wv = load_navchip_wv(data_path, sensor, axis)
         model = Model(rec["model"], freq=float(rec["freq"]))
         names = model.param_names
-        params = model.theta(rec["params"])
+        params = model.theta(rec["params"], estimate=True)
         sheet = datasheet_wv(sensor, wv.scales, wv.freq)["total"]
         out.append(ChannelFit(
             sensor=sensor, axis=axis, wv=wv, model=model, params=params,
