@@ -194,8 +194,10 @@ wildcard_constraints:
 
 localrules:
     uncertainty_table,
+    uncertainty_table_navchip,
     uncertainty_corner,
     uncertainty_identifiability,
+    uncertainty_identifiability_navchip,
     coverage_report,
 
 
