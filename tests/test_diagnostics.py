@@ -27,7 +27,15 @@ def test_overparameterised_sinusoids_on_white_noise_are_flagged():
     res = gmwm.fit(x, "3*SIN+WN")
     text = " ".join(res.warnings)
     assert res.warnings, "a 7-parameter SIN model on pure white noise must not pass silently"
-    assert "SIN" in text
+    assert "SIN not supported by the data" in text
+
+
+def test_the_generating_model_carries_no_warning():
+    m = Model("WN+AR1+SIN")
+    x = m.simulate(m.theta({"WN[1].sigma2": 1.0, "AR1[1].phi": 0.95, "AR1[1].sigma2": 0.1,
+                            "SIN[1].alpha": 0.5, "SIN[1].beta": 0.3}), 2**16, 6)
+    res = gmwm.fit(x, m)
+    assert res.converged and not res.warnings, res.warnings
 
 
 def test_phi_at_minus_one_is_not_called_white_noise():

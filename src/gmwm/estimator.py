@@ -725,17 +725,20 @@ def fit(data: np.ndarray | WaveletVariance, model: str | Model, *, levels: int |
     with np.errstate(all="ignore"):
         omega = weight_matrix(wv, "ci" if efficient else weights, method)
         prob = Problem(model, wv, omega, method)
-        node = _search(prob, model, n_starts, seed, drift_sign, max_nfev, nested, {})
+        cache: dict[str, Any] = {}
+        node = _search(prob, model, n_starts, seed, drift_sign, max_nfev, nested, cache)
         for _ in range(0 if user_cov or efficient else reweight):
             omega = weight_matrix(wv, "gaussian", method, model_wv=model.wv(node.theta, prob.tau))
             prob = Problem(model, wv, omega, method)
-            node = _search(prob, model, n_starts, seed, drift_sign, max_nfev, nested, {},
+            cache = {}
+            node = _search(prob, model, n_starts, seed, drift_sign, max_nfev, nested, cache,
                            extra_starts=[node.theta])
         if efficient:
             V1 = wv_cov("model", model, node.theta, wv)
             omega = omega_from_cov(V1, wv.variance, method)
             prob = Problem(model, wv, omega, method)
-            node = _search(prob, model, n_starts, seed, drift_sign, max_nfev, nested, {},
+            cache = {}
+            node = _search(prob, model, n_starts, seed, drift_sign, max_nfev, nested, cache,
                            extra_starts=[node.theta])
     seconds_fit = time.perf_counter() - t0
     theta = node.theta
@@ -752,6 +755,13 @@ def fit(data: np.ndarray | WaveletVariance, model: str | Model, *, levels: int |
     V = weights if user_cov else wv_cov(se_cov, model, theta, wv)
     cov, se, cond = prob.sandwich(theta, V, fixed)
     warnings = _warnings(model, theta, se, cond, vanished, node, wv, data)
+    unsupported = _unsupported(prob, model, node, V, vanished, cache) if nested else []
+    if unsupported:
+        warnings.append("component(s) " + ", ".join(n for n, _ in unsupported) + " not supported "
+                        "by the data: dropping one raises the objective by less than 2 per "
+                        "parameter on the chi-square scale ("
+                        + ", ".join(f"{n}: {d:.2g}" for n, d in unsupported)
+                        + "); a smaller model fits as well")
     settings = {"weights": "covariance" if user_cov else weights, "method": method,
                 "n_starts": int(n_starts), "reweight": int(reweight), "seed": int(seed),
                 "levels": int(wv.n_levels), "max_nfev": int(max_nfev), "nested": bool(nested),
@@ -813,6 +823,32 @@ def _warnings(model: Model, theta: np.ndarray, se: np.ndarray, cond: float,
                    "(estimate below 1.96 standard errors)")
     if isinstance(data, WaveletVariance) and model.count("DR"):
         out.append("drift sign is not identified from a WV; reported positive")
+    return out
+
+
+def _unsupported(prob: Problem, model: Model, node: _Node, V: np.ndarray, vanished: list[str],
+                 cache: dict[str, Any]) -> list[tuple[str, float]]:
+    """Components whose removal raises the objective by less than 2 per parameter on the
+    chi-square scale (the objective divided by ``c = tr(Omega V_f) / J``; an AIC-type rule). The
+    drop-one submodels were fitted by the nested search (memoised in ``cache``)."""
+    from .inference import f_jacobian
+
+    F = f_jacobian(prob.nu_hat, prob.method)
+    with np.errstate(all="ignore"):
+        c = float(np.trace(prob.omega @ (V * np.outer(F, F))) / prob.wv.n_levels)
+    if not np.isfinite(c) or c <= 0:
+        return []
+    out = []
+    for sub, k in _drop_one(model):
+        comp = model.components[k]
+        sub_node = cache.get(sub.spec)
+        if sub_node is None or any(v.startswith(comp.process.name) for v in vanished):
+            continue
+        delta = (sub_node.objective - node.objective) / c
+        if np.isfinite(delta) and delta < 2 * comp.process.n_params:
+            name = comp.process.name if model.count(comp.process.name) == 1 else \
+                f"one {comp.process.name}"
+            out.append((name, float(delta)))
     return out
 
 
