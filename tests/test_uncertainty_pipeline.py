@@ -14,7 +14,7 @@ import xarray as xr
 from gmwm import bootstrap as bs
 from gmwm import identify
 from gmwm.errors import InputError
-from gmwm.fit import fit
+from gmwm.estimator import fit
 from gmwm.model import Model
 from gmwm.studies import fit_chunk, simulate_wv_chunk
 
