@@ -52,9 +52,13 @@ def test_coverage_chunk_does_not_depend_on_chunking(cov_ds):
     wald = cov_ds["ci"].sel(kind="wald").values
     est, se = cov_ds["estimate"].values, cov_ds["sandwich_se"].values
     np.testing.assert_allclose(wald[..., 1] - est, 1.959964 * se, rtol=1e-6)
-    # basic = 2 estimate - reversed percentile
+    # basic = 2 estimate - reversed percentile for phi; on the log scale (estimate^2 / reversed
+    # percentile) for the positive parameters WN sigma2 and AR1 sigma2
     pct, bas = cov_ds["ci"].sel(kind="percentile").values, cov_ds["ci"].sel(kind="basic").values
-    np.testing.assert_allclose(bas[..., 0], 2 * est - pct[..., 1], rtol=1e-12)
+    np.testing.assert_allclose(bas[:, 1, 0], 2 * est[:, 1] - pct[:, 1, 1], rtol=1e-12)
+    for i in (0, 2):
+        np.testing.assert_allclose(bas[:, i, 0], est[:, i] ** 2 / pct[:, i, 1], rtol=1e-12)
+    assert np.all(bas[:, [0, 2], 0] > 0)
 
 
 def test_coverage_summary_and_figure(cov_ds):
@@ -82,7 +86,9 @@ def test_bootstrap_chunks_round_trip_and_table():
     np.testing.assert_array_equal(joined.wv, whole.wv)
     df = bs.bootstrap_table(joined, "t 0")
     np.testing.assert_allclose(df.pct_low, whole.percentile_ci()[:, 0])
-    np.testing.assert_allclose(df.basic_high, 2 * est.params - whole.quantiles()[:, 0])
+    q_lo = whole.quantiles()[:, 0]
+    expected = np.where([True, False, True], est.params**2 / q_lo, 2 * est.params - q_lo)
+    np.testing.assert_allclose(df.basic_high, expected)
     np.testing.assert_allclose(df.boot_se, whole.se())
     assert (df.B == 9).all() and list(df.parameter) == est.param_names
     other = bs.replicate_fit(MODEL, TRUTH, T, 1, study="t", base_seed=1, settings=SETTINGS)
