@@ -52,7 +52,7 @@ def bench(label: str, spec: str, truth: dict, T: int, reps: int) -> None:
         t_wv.append(t2 - t1)
         t_fit.append(t3 - t2)
         nc += not res.converged
-    q = lambda a, p: 1e3 * np.quantile(a, p)  # noqa: E731 - milliseconds
+    q = lambda a, p: 1e3 * np.quantile(a, p)
     print(f"| {label} | {T:.2e} | {reps} | {q(t_sim, .5):8.1f} | {q(t_wv, .5):7.1f} | "
           f"{q(t_fit, .5):7.1f} | {q(t_fit, .9):7.1f} | {q(c_fit, .5):7.1f} | {nc} |")
 

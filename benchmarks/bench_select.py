@@ -76,8 +76,8 @@ def main() -> None:
     ap.add_argument("--ring", type=int, default=1, choices=(1, 2))
     ap.add_argument("--models", nargs="+", default=list(SCENARIOS))
     args = ap.parse_args()
-    print(f"| generating model | T | candidates | reps | WIC hits | WIC-log hits | "
-          f"most frequent wrong pick (WIC / WIC-log) | median s per replicate |")
+    print("| generating model | T | candidates | reps | WIC hits | WIC-log hits | "
+          "most frequent wrong pick (WIC / WIC-log) | median s per replicate |")
     print("|---|---|---|---|---|---|---|---|")
     t_all = time.perf_counter()
     for sid, label in enumerate(SCENARIOS):

@@ -115,9 +115,7 @@ def _random_theta(model: Model, wv: gmwm.WaveletVariance, white: Whitener,
         name = c.process.name
         if name in ("AR1", "GM"):
             theta[c.start + 1] = coef[k]
-        elif name == "SIN":
-            theta[c.start] = np.sqrt(coef[k])
-        elif name == "DR":
+        elif name == "SIN" or name == "DR":
             theta[c.start] = np.sqrt(coef[k])
         else:
             theta[c.start] = coef[k]

@@ -6,7 +6,6 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 import gmwm
@@ -14,7 +13,7 @@ from gmwm.model import Model
 
 BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
 sys.path.insert(0, str(BENCH))
-import hard_cases as hc  # noqa: E402
+import hard_cases as hc
 
 BEST = json.loads((BENCH / "hard_cases_best.json").read_text())
 FAST = [cid for cid in BEST if not cid.startswith("navchip")]
@@ -63,7 +62,7 @@ def test_nested_chain_is_monotone(cid):
     for big, small in itertools.permutations(objs, 2):
         cb = Model(big).components
         cs = Model(small).components
-        count = lambda cc: {n: sum(c.process.name == n for c in cc) for n in  # noqa: E731
+        count = lambda cc: {n: sum(c.process.name == n for c in cc) for n in
                             {c.process.name for c in cc}}
         if all(count(cb).get(k, 0) >= v for k, v in count(cs).items()):
             assert objs[big] <= objs[small] * (1 + 1e-9) + 1e-15, (big, small, objs)

@@ -11,7 +11,6 @@ from gmwm import navchip as nv
 from gmwm.data import load_navchip_wv, load_registry
 from gmwm.errors import DataUnavailableError
 from gmwm.estimator import fit
-from gmwm.model import Model
 from gmwm.wv import WaveletVariance
 
 MODEL = "QN+WN+2*GM+RW+DR"

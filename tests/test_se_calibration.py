@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from bench_se_calibration import CASES, calibration, ratio  # noqa: E402
+from bench_se_calibration import CASES, calibration, ratio
 
 
 @pytest.mark.parametrize("spec", sorted(CASES))

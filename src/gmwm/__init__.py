@@ -17,7 +17,6 @@ Numba), so ``gmwm --help`` starts fast.
 from importlib import import_module
 from typing import Any
 
-
 __version__ = "0.1.0"
 
 _EXPORTS = {

@@ -29,6 +29,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
+from itertools import permutations
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -252,19 +253,15 @@ class BootstrapResult:
             comps = [c for c in model.components if c.process.name == name]
             if len(comps) < 2:
                 continue
-            from itertools import permutations
-
             perms = list(permutations(range(len(comps))))
+            targets = [est_eta[c.slice] for c in comps]
             for row in used:
                 eta = _free(model, row)
                 blocks = [row[c.slice].copy() for c in comps]
                 eblocks = [eta[c.slice] for c in comps]
-
-                def dist(perm: tuple[int, ...]) -> float:
-                    return sum(float(np.sum((eblocks[src] - est_eta[c.slice]) ** 2))
-                               for c, src in zip(comps, perm, strict=True))
-
-                best = min(perms, key=dist)
+                cost = [sum(float(np.sum((eblocks[src] - t) ** 2))
+                            for t, src in zip(targets, perm, strict=True)) for perm in perms]
+                best = perms[int(np.argmin(cost))]
                 for c, src in zip(comps, best, strict=True):
                     row[c.slice] = blocks[src]
         return used

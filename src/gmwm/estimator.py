@@ -41,12 +41,11 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize_scalar, nnls
+from scipy.optimize import nnls
 from scipy.special import ndtri
 
 from .errors import IdentifiabilityError, InputError
-from .inference import (METHODS, Problem, Whitener, check_cov, omega_from_cov, weight_matrix,
-                        wv_cov)
+from .inference import METHODS, Problem, Whitener, check_cov, omega_from_cov, weight_matrix, wv_cov
 from .model import Model, as_model
 from .processes import PROCESSES, ar1_unit_wv_many, sin_unit_wv
 from .wv import WaveletVariance, wvar

@@ -40,7 +40,7 @@ import numpy as np
 
 from .errors import GMWMError, InputError
 from .estimator import GMWMResult
-from .inference import Problem, f_jacobian, omega_from_cov, wv_cov, whitener
+from .inference import Problem, f_jacobian, omega_from_cov, whitener, wv_cov
 from .model import Model
 from .wv import WaveletVariance
 
@@ -618,7 +618,7 @@ def posterior_check(result: GMWMResult | tuple, *, n_walkers: int | None = None,
     L = whitener(s.omega / s.posterior_scale())
     target = s.problem.target
     base = s.theta.copy()
-    wv_of = lambda TH: model.wv_many(TH, tau)  # noqa: E731
+    wv_of = lambda TH: model.wv_many(TH, tau)
 
     pos = np.cumsum(act) - 1  # column of each active parameter in the sampled vector
     blocks = [(c, np.arange(c.start, c.start + c.process.n_params))
