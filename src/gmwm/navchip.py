@@ -358,10 +358,11 @@ def write_tables(estimates: pd.DataFrame, gof: pd.DataFrame, threshold: float, m
     write_text_atomic(estimates_md, "\n".join([
         f"# Navchip: GMWM estimates of `{model}` per axis", "",
         ("Per-sample parameters (signal in rad/s or m/s^2, 250 Hz; GM beta in 1/s, GM sigma2 the "
-        "stationary variance). SE: sandwich with the Gaussian diagonal WV covariance, computed in "
-        "log coordinates (ignores the correlation between scales, hence optimistic; bootstrap CIs "
-        "are a separate step). `at_boundary`: the component contributes < 1e-6 of the WV at "
-        "every scale (estimate 0 in effect, no SE). The drift sign is not identified from a WV."),
+        "stationary variance). SE: gmwm.fit's sandwich with the covariance of the WV estimate "
+        "under the fitted model (between-scale correlation included; it assumes the model is "
+        "right, which the GOF table questions for accelerometer X and Y; bootstrap CIs are a "
+        "separate step). `at_boundary`: the component contributes < 1e-6 of the WV at every scale "
+        "(estimate exactly 0, no SE). The drift sign is not identified from a WV."),
         "", format_markdown_table(estimates, digits=4)]))
     verdict = ", ".join(f"{r.sensor} {r.axis}: {'fits' if r.model_fits else 'does not fit'}"
                         for r in gof.itertuples())
