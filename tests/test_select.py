@@ -140,7 +140,7 @@ def test_cli_select_json_columns_auto_and_progress(tmp_path, capsys, monkeypatch
     np.save(npy, x0)
     assert main(["select", str(npy), "WN", "WN+RW", "QN+WN+RW", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
-    assert [r["model"] for r in d["ranking"]][0] == "WN+RW" and len(d["ranking"]) == 3
+    assert d["ranking"][0]["model"] == "WN+RW" and len(d["ranking"]) == 3
 
     csv = tmp_path / "imu.csv"
     csv.write_text("gx,gy\n" + "\n".join(f"{a:.17g},{b:.17g}" for a, b in zip(x0, x1)) + "\n")

@@ -1335,8 +1335,7 @@ def cmd_select(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                      "yes" if e.converged else "NO") for i, e in enumerate(r.ranked, 1)]
             out.write(format_table(["rank", "model", "criterion", "objective", "penalty",
                                     "n_params", "converged"], rows) + "\n")
-            for e in r.skipped:
-                out.write(f"skipped {e.model}: {e.error}\n")
+            out.writelines(f"skipped {e.model}: {e.error}\n" for e in r.skipped)
     for col, (r, _) in rankings.items():
         if not r.best.converged:
             where = "" if args.columns is None else f" (column {col})"

@@ -130,10 +130,10 @@ class Ranking:
         return out
 
     def summary(self) -> str:
-        lines = [f"model ranking by {self.criterion.upper()} = objective + {self.factor:.3g} x "
-                 f"penalty (best first)",
-                 f"{'rank':>4}  {'model':<24}{'criterion':>12}{'objective':>12}{'penalty':>10}"
-                 f"{'params':>7}  converged"]
+        lines = [(f"model ranking by {self.criterion.upper()} = objective + {self.factor:.3g} x "
+                  f"penalty (best first)"),
+                 (f"{'rank':>4}  {'model':<24}{'criterion':>12}{'objective':>12}{'penalty':>10}"
+                  f"{'params':>7}  converged")]
         for i, e in enumerate(self.ranked, 1):
             lines.append(f"{i:>4}  {e.model:<24}{e.criterion:>12.5g}{e.objective:>12.5g}"
                          f"{e.penalty:>10.4g}{e.n_params:>7}  {'yes' if e.converged else 'NO'}")
