@@ -310,8 +310,6 @@ class _VP:
         # whitened unit columns by (process, shape); shared by the nodes of one nested search
         self._cols = {} if col_cache is None else col_cache
         self.cols = np.column_stack([self.col(k, 0.0) for k in range(self.ncomp)])
-        # positivity floors of each scale coefficient (share 1e-3 of the WV at its best scale)
-        self.floor = np.zeros(self.ncomp)
 
     def col(self, k: int, u: float) -> np.ndarray:
         key = (self.names[k], float(u))
@@ -748,12 +746,10 @@ def fit(data: np.ndarray | WaveletVariance, model: str | Model, *, levels: int |
     for c in model.components:
         if c.name in vanished:
             fixed[c.slice] = True
-            # the scale parameter (last for AR1/GM, first otherwise) is 0
-            i = c.start + (c.process.n_params - 1 if c.process.name in ("AR1", "GM") else 0)
-            theta[i] = 0.0
+            theta[c.start + c.process.scale_index] = 0.0
     V = weights if user_cov else wv_cov(se_cov, model, theta, wv)
     cov, se, cond = prob.sandwich(theta, V, fixed)
-    warnings = _warnings(model, theta, se, cond, vanished, node, wv, data)
+    warnings = _warnings(model, theta, se, cond, vanished, fixed, data)
     unsupported = _unsupported(prob, model, node, V, vanished, cache) if nested else []
     if unsupported:
         warnings.append("component(s) " + ", ".join(n for n, _ in unsupported) + " not supported "
@@ -783,7 +779,7 @@ def fit(data: np.ndarray | WaveletVariance, model: str | Model, *, levels: int |
 
 
 def _warnings(model: Model, theta: np.ndarray, se: np.ndarray, cond: float,
-              vanished: list[str], node: _Node, wv: WaveletVariance, data: Any) -> list[str]:
+              vanished: list[str], fixed: np.ndarray, data: Any) -> list[str]:
     """Human-readable problems of a fit (boundary, weak identification, missing SEs)."""
     out: list[str] = []
     if vanished:
@@ -804,8 +800,8 @@ def _warnings(model: Model, theta: np.ndarray, se: np.ndarray, cond: float,
     if np.isfinite(cond) and cond > COND_WARN or not np.isfinite(cond):
         out.append(f"the WV Jacobian is ill-conditioned (condition number {cond:.3g}): more "
                    "parameters than the WV can identify; try a smaller model or `--check`")
-    bad_se = [n for n, s, c_fixed in zip(model.param_names, se, _fixed_names(model, vanished),
-                                         strict=True) if not np.isfinite(s) and not c_fixed]
+    bad_se = [n for n, s, f in zip(model.param_names, se, fixed, strict=True)
+              if not np.isfinite(s) and not f]
     if bad_se:
         out.append("standard errors could not be computed for " + ", ".join(bad_se)
                    + " (singular sandwich)")
@@ -813,8 +809,7 @@ def _warnings(model: Model, theta: np.ndarray, se: np.ndarray, cond: float,
     for c in model.components:
         if c.name in vanished:
             continue
-        i = c.start + (0 if c.process.name in ("SIN",) or c.process.linear
-                       else c.process.n_params - 1)
+        i = c.start + c.process.scale_index
         if np.isfinite(se[i]) and abs(theta[i]) < 1.96 * se[i]:
             weak.append(c.name)
     if weak:
@@ -830,11 +825,7 @@ def _unsupported(prob: Problem, model: Model, node: _Node, V: np.ndarray, vanish
     """Components whose removal raises the objective by less than 2 per parameter on the
     chi-square scale (the objective divided by ``c = tr(Omega V_f) / J``; an AIC-type rule). The
     drop-one submodels were fitted by the nested search (memoised in ``cache``)."""
-    from .inference import f_jacobian
-
-    F = f_jacobian(prob.nu_hat, prob.method)
-    with np.errstate(all="ignore"):
-        c = float(np.trace(prob.omega @ (V * np.outer(F, F))) / prob.wv.n_levels)
+    c = prob.chi2_scale(V)
     if not np.isfinite(c) or c <= 0:
         return []
     out = []
@@ -850,6 +841,3 @@ def _unsupported(prob: Problem, model: Model, node: _Node, V: np.ndarray, vanish
             out.append((name, float(delta)))
     return out
 
-
-def _fixed_names(model: Model, vanished: list[str]) -> list[bool]:
-    return [n.split(".")[0] in vanished for n in model.param_names]

@@ -99,9 +99,7 @@ class _Setup:
     def posterior_scale(self) -> float:
         """c such that ``Q_fit / c`` is on the chi-square scale: ``tr(Omega V_f) / J`` (1 for
         the efficient weights Omega = V_f^-1)."""
-        F = f_jacobian(self.wv.variance, self.problem.method)
-        Vf = self.V * np.outer(F, F)
-        return float(np.trace(self.omega @ Vf) / self.wv.n_levels)
+        return self.problem.chi2_scale(self.V)
 
 
 def _setup(obj: Any, cov: np.ndarray | None = None) -> _Setup:

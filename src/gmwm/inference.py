@@ -158,7 +158,7 @@ def nonzero_part(model: Model, theta: np.ndarray, exclude: tuple[str, ...] = ()
     keep = []
     for c in model.components:
         p = theta[c.slice]
-        scale = p[-1] if c.process.name in ("AR1", "GM") else p[0]
+        scale = p[c.process.scale_index]
         if c.process.name not in exclude and scale != 0 and np.all(np.isfinite(p)):
             keep.append(c)
     if not keep:
@@ -291,6 +291,13 @@ class Problem:
         return Solution(raw, sol.x, obj if np.isfinite(obj) else np.inf, ok,
                         str(sol.message) if ok else f"stopped: {sol.message}", edge,
                         int(sol.nfev), bool(sol.status == 0))
+
+    def chi2_scale(self, V: np.ndarray) -> float:
+        """``c = tr(Omega V_f) / J``: the objective divided by c is on the chi-square scale
+        (c = 1 for the efficient weights Omega = V_f^-1, V the covariance of nu_hat)."""
+        F = f_jacobian(self.nu_hat, self.method)
+        with np.errstate(all="ignore"):
+            return float(np.trace(self.omega @ (V * np.outer(F, F))) / self.wv.n_levels)
 
     # covariance of the estimate
     def sandwich(self, theta: np.ndarray, V: np.ndarray,

@@ -146,10 +146,8 @@ class Model:
             raise ModelError(f"model {self.spec} has {self.n_params} parameters, got {theta.size}")
         for c in self.components:
             p = theta[c.slice].copy()
-            if boundary_ok:
-                i = c.process.n_params - 1 if c.process.name in ("AR1", "GM") else 0
-                if p[i] == 0:
-                    p[i] = 1.0  # the boundary value 0: check the other parameters only
+            if boundary_ok and p[c.process.scale_index] == 0:
+                p[c.process.scale_index] = 1.0  # the boundary value 0: check the others only
             msg = c.process.check(p)
             if msg:
                 raise ModelError(f"{c.name}: {msg}")

@@ -32,6 +32,9 @@ class Process:
     param_names: tuple[str, ...] = ()
     #: True if nu is linear in a transform h(p) with a parameter-free column (QN, WN, RW, DR).
     linear: bool = False
+    #: Index of the scale parameter (variance, amplitude or drift; the one that is 0 when the
+    #: component vanishes).
+    scale_index: int = 0
 
     @property
     def n_params(self) -> int:
@@ -266,6 +269,7 @@ class AR1(Process):
 
     name = "AR1"
     param_names = ("phi", "sigma2")
+    scale_index = 1
 
     def wv(self, p, tau, freq=1.0):
         return p[1] * ar1_unit_wv(p[0], tau)[0]
@@ -307,6 +311,7 @@ class GaussMarkov(Process):
 
     name = "GM"
     param_names = ("beta", "sigma2")
+    scale_index = 1
 
     def _ar1(self, p, freq):
         a = p[0] / freq
