@@ -237,13 +237,6 @@ class Problem:
             r = self.residual(np.asarray(theta, dtype=float))
         return float(r @ r)
 
-    def objective_many(self, thetas: np.ndarray, omega: np.ndarray | None = None) -> np.ndarray:
-        """Objective of many parameter rows at once (posterior sampling)."""
-        with np.errstate(all="ignore"):
-            R = self.target - self.f(self.model.wv_many(thetas, self.tau))
-            W = self.omega if omega is None else omega
-            return np.einsum("ij,jk,ik->i", R, W, R)
-
     def jac_theta(self, theta: np.ndarray) -> np.ndarray:
         """``d f(nu(theta)) / d theta``, shape (J, p)."""
         A = self.model.jacobian(theta, self.tau)
