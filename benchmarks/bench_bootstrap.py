@@ -20,9 +20,9 @@ import numpy as np
 
 import gmwm
 from gmwm import bootstrap as bs
-from gmwm.data import load_navchip_wv
 from gmwm.estimator import weight_matrix
 from gmwm.model import Model
+from gmwm_studies.data import load_navchip_wv
 
 SPEC = "QN+WN+2*GM+RW+DR"
 

@@ -20,8 +20,8 @@ import numpy as np
 
 from gmwm import fit
 from gmwm.model import Model
-from gmwm.seeds import replicate_rng, replicate_seed
 from gmwm.wv import wvar
+from gmwm_studies.seeds import replicate_rng, replicate_seed
 
 TRUTH = {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.975, "AR1[1].sigma2": 0.03, "SIN[1].alpha": 0.85,
          "SIN[1].beta": 0.35, "RW[1].gamma2": 4e-4}

@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 
 import gmwm
-from gmwm.data import load_navchip_wv
 from gmwm.inference import Problem, Whitener, weight_matrix
 from gmwm.model import Model
+from gmwm_studies.data import load_navchip_wv
 
 HERE = Path(__file__).resolve().parent
 BEST_FILE = HERE / "hard_cases_best.json"

@@ -12,8 +12,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from gmwm import data
 from gmwm.errors import DataUnavailableError, InputError
+from gmwm_studies import data
 
 SHARED = data.REPO_ROOT.parent / "shared" / "data"
 needs_shared = pytest.mark.skipif(not (SHARED / "wv" / "navchip_wv.csv").is_file(),

@@ -27,7 +27,7 @@ def _wv(cid: str):
         if not hc.NAVCHIP.exists():
             pytest.skip("Navchip data not available (../shared/data)")
         _, sensor, axis = name.split("_")
-        from gmwm.data import load_navchip_wv
+        from gmwm_studies.data import load_navchip_wv
 
         return load_navchip_wv(hc.NAVCHIP, sensor, axis)
     return hc.simulated_wv(name)

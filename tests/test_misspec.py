@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gmwm import studies as gs
 from gmwm.errors import ModelError
 from gmwm_studies import misspec as ms
+from gmwm_studies import montecarlo as gs
 
 SETTINGS = {"method": "gmwm", "weights": "ci", "n_starts": 2, "reweight": 0}
 FITS = {"model1": "AR1+RW", "model2": "AR1+RW+2*SIN"}

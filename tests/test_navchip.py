@@ -1,4 +1,4 @@
-"""Navchip analysis (gmwm.navchip) on the real local data and on small synthetic inputs."""
+"""Navchip analysis (gmwm_studies.navchip) on the real local data and on small synthetic inputs."""
 
 from __future__ import annotations
 
@@ -7,11 +7,11 @@ import json
 import numpy as np
 import pytest
 
-from gmwm import navchip as nv
-from gmwm.data import load_navchip_wv, load_registry
 from gmwm.errors import DataUnavailableError
 from gmwm.estimator import fit
 from gmwm.wv import WaveletVariance
+from gmwm_studies import navchip as nv
+from gmwm_studies.data import load_navchip_wv, load_registry
 
 MODEL = "QN+WN+2*GM+RW+DR"
 SETTINGS = {"weights": "ci", "n_starts": 2, "max_nfev": 600, "seed": 1}

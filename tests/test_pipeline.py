@@ -29,7 +29,7 @@ from conftest import (
     snakemake_cmd,
     workflow_copy,
 )
-from gmwm.store import read_dataset
+from gmwm_studies.store import read_dataset
 
 pytestmark = pytest.mark.pipeline
 

@@ -9,10 +9,10 @@ import pandas as pd
 import pytest
 import xarray as xr
 
-from gmwm import store
-from gmwm import studies as gs
 from gmwm.errors import InputError, ModelError
-from gmwm.seeds import replicate_rng, replicate_seed, stable_int
+from gmwm_studies import archive, store
+from gmwm_studies import montecarlo as gs
+from gmwm_studies.seeds import replicate_rng, replicate_seed, stable_int
 
 SIM3 = "AR1+RW+WN+SIN"
 SIM3_TRUTH = {"WN[1].sigma2": 8e-4, "AR1[1].phi": 0.9997083, "AR1[1].sigma2": 9e-6,
@@ -208,9 +208,9 @@ def test_archive_never_overwrites(tmp_path):
     f.write_text("hello")
     bench = pd.DataFrame({"rule": ["fit"], "study": ["s"], "job": ["j"], "seconds": [1.0]})
     cfg = {"seed": 1}
-    a = gs.make_archive(tmp_path / "arch", cfg, [f], bench, base=tmp_path)
-    b = gs.make_archive(tmp_path / "arch", cfg, [f], bench, base=tmp_path)
-    assert a != b and a.name.endswith(gs.config_hash(cfg))
+    a = archive.make_archive(tmp_path / "arch", cfg, [f], bench, base=tmp_path)
+    b = archive.make_archive(tmp_path / "arch", cfg, [f], bench, base=tmp_path)
+    assert a != b and a.name.endswith(archive.config_hash(cfg))
     for d in (a, b):
         assert (d / "r" / "x.md").read_text() == "hello"
         assert json.loads((d / "config.json").read_text()) == cfg

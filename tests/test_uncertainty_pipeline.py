@@ -16,7 +16,8 @@ from gmwm import identify
 from gmwm.errors import InputError
 from gmwm.estimator import fit
 from gmwm.model import Model
-from gmwm.studies import fit_chunk, simulate_wv_chunk
+from gmwm_studies import uncertainty as un
+from gmwm_studies.montecarlo import fit_chunk, fit_kwargs, replicate_fit, simulate_wv_chunk
 
 MODEL = "WN+AR1"
 TRUTH = {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.9, "AR1[1].sigma2": 0.5}
@@ -27,27 +28,27 @@ NAVCHIP_WV = Path("/work/shared/data/wv/navchip_wv.csv")
 
 @pytest.fixture(scope="module")
 def cov_ds() -> xr.Dataset:
-    return bs.coverage_chunk(MODEL, TRUTH, T, [0, 1, 2, 3], study="t", base_seed=5, B=6,
+    return un.coverage_chunk(MODEL, TRUTH, T, [0, 1, 2, 3], study="t", base_seed=5, B=6,
                              settings=SETTINGS)
 
 
 def test_replicate_fit_equals_the_study_fit():
     chunk = simulate_wv_chunk(MODEL, TRUTH, T, [3], study="s", base_seed=9)
     ds = fit_chunk(chunk, SETTINGS)
-    res = bs.replicate_fit(MODEL, TRUTH, T, 3, study="s", base_seed=9, settings=SETTINGS)
+    res = replicate_fit(MODEL, TRUTH, T, 3, study="s", base_seed=9, settings=SETTINGS)
     np.testing.assert_array_equal(res.params, ds["estimate"].values[0])
     # AVSM-only keys are dropped, GMWM keys kept
-    assert bs.fit_kwargs({"n_starts": 2, "min_edof": 2, "max_nfev": 50}) == {"n_starts": 2,
+    assert fit_kwargs({"n_starts": 2, "min_edof": 2, "max_nfev": 50}) == {"n_starts": 2,
                                                                              "max_nfev": 50}
 
 
 def test_coverage_chunk_does_not_depend_on_chunking(cov_ds):
-    parts = [bs.coverage_chunk(MODEL, TRUTH, T, reps, study="t", base_seed=5, B=6,
+    parts = [un.coverage_chunk(MODEL, TRUTH, T, reps, study="t", base_seed=5, B=6,
                                settings=SETTINGS) for reps in ([2, 3], [0, 1])]
     joined = xr.concat(parts, dim="replicate").sortby("replicate")
     for var in ("estimate", "sandwich_se", "boot_se", "ci"):
         np.testing.assert_array_equal(joined[var].values, cov_ds[var].values)
-    assert list(cov_ds["kind"].values) == list(bs.CI_KINDS)
+    assert list(cov_ds["kind"].values) == list(un.CI_KINDS)
     # Wald interval = estimate -/+ 1.959964 sandwich SE
     wald = cov_ds["ci"].sel(kind="wald").values
     est, se = cov_ds["estimate"].values, cov_ds["sandwich_se"].values
@@ -62,42 +63,42 @@ def test_coverage_chunk_does_not_depend_on_chunking(cov_ds):
 
 
 def test_coverage_summary_and_figure(cov_ds):
-    df = bs.coverage_summary(cov_ds)
-    assert len(df) == 3 * len(bs.CI_KINDS) and df.attrs["R"] == 4 and df.attrs["B"] == 6
+    df = un.coverage_summary(cov_ds)
+    assert len(df) == 3 * len(un.CI_KINDS) and df.attrs["R"] == 4 and df.attrs["B"] == 6
     hits = bs.covers(cov_ds["ci"].sel(kind="wald").values, cov_ds["truth"].values).mean(axis=0)
     wald = df[df.interval == "wald"]
     np.testing.assert_allclose(wald.coverage, hits)
     np.testing.assert_allclose(wald.mc_se, np.sqrt(hits * (1 - hits) / 4))
     ratio = np.mean(cov_ds["boot_se"].values / cov_ds["sandwich_se"].values, axis=0)
     np.testing.assert_allclose(wald.mean_se_ratio, ratio)
-    fig = bs.plot_coverage(df)
-    assert len(fig.axes[0].containers) == len(bs.CI_KINDS)
+    fig = un.plot_coverage(df)
+    assert len(fig.axes[0].containers) == len(un.CI_KINDS)
 
 
 def test_bootstrap_chunks_round_trip_and_table():
-    est = bs.replicate_fit(MODEL, TRUTH, T, 0, study="t", base_seed=1, settings=SETTINGS)
+    est = replicate_fit(MODEL, TRUTH, T, 0, study="t", base_seed=1, settings=SETTINGS)
     ss = np.random.SeedSequence(7, spawn_key=(123,))
     parts = [bs.parametric_bootstrap(est, seed=ss, draws=d, n_starts=2)
              for d in (range(4), range(4, 9))]
-    back = [bs.bootstrap_from_dataset(bs.bootstrap_to_dataset(p), est) for p in parts]
+    back = [un.bootstrap_from_dataset(un.bootstrap_to_dataset(p), est) for p in parts]
     whole = bs.parametric_bootstrap(est, 9, seed=ss, n_starts=2)
     joined = bs.BootstrapResult.combine(back[::-1])
     np.testing.assert_array_equal(joined.theta, whole.theta)
     np.testing.assert_array_equal(joined.wv, whole.wv)
-    df = bs.bootstrap_table(joined, "t 0")
+    df = un.bootstrap_table(joined, "t 0")
     np.testing.assert_allclose(df.pct_low, whole.percentile_ci()[:, 0])
     q_lo = whole.quantiles()[:, 0]
     expected = np.where([True, False, True], est.params**2 / q_lo, 2 * est.params - q_lo)
     np.testing.assert_allclose(df.basic_high, expected)
     np.testing.assert_allclose(df.boot_se, whole.se())
     assert (df.B == 9).all() and list(df.parameter) == est.param_names
-    other = bs.replicate_fit(MODEL, TRUTH, T, 1, study="t", base_seed=1, settings=SETTINGS)
+    other = replicate_fit(MODEL, TRUTH, T, 1, study="t", base_seed=1, settings=SETTINGS)
     with pytest.raises(InputError):
-        bs.bootstrap_from_dataset(bs.bootstrap_to_dataset(parts[0]), other)
+        un.bootstrap_from_dataset(un.bootstrap_to_dataset(parts[0]), other)
 
 
 def test_summary_row_pass_and_warn():
-    good = bs.replicate_fit(MODEL, TRUTH, 2**14, 0, study="t", base_seed=2, settings=SETTINGS)
+    good = replicate_fit(MODEL, TRUTH, 2**14, 0, study="t", base_seed=2, settings=SETTINGS)
     rep = identify.check(good, n_starts=4)
     row = identify.summary_row("good", rep)
     assert row == identify.summary_row("good", json.loads(json.dumps(rep.to_json_dict())))
@@ -112,15 +113,15 @@ def test_summary_row_pass_and_warn():
 
 @pytest.mark.skipif(not NAVCHIP_WV.is_file(), reason="Navchip WV file not available")
 def test_navchip_result_reproduces_the_recorded_fit(tmp_path):
-    navchip = pytest.importorskip("gmwm.navchip")
+    navchip = pytest.importorskip("gmwm_studies.navchip")
     settings = {"weights": "ci", "n_starts": 2, "seed": 1}
     fits = navchip.fit_channels(NAVCHIP_WV, "QN+WN+2*GM+RW+DR", ["gyroscope"], axes=["X"],
                                 fit_settings=settings)
     path = tmp_path / "fits.json"
     path.write_text(json.dumps(navchip.fits_to_json(fits, settings)))
-    res = bs.navchip_result(str(NAVCHIP_WV), str(path), "gyroscope", "X")
+    res = un.navchip_result(str(NAVCHIP_WV), str(path), "gyroscope", "X")
     np.testing.assert_allclose(res.params, fits[0].params, rtol=1e-9)
     assert not res.diagnostics["navchip_refit_differs"]
     assert res.wv.n_samples == 3105250
     with pytest.raises(InputError):
-        bs.navchip_result(str(NAVCHIP_WV), str(path), "gyroscope", "Y")
+        un.navchip_result(str(NAVCHIP_WV), str(path), "gyroscope", "Y")

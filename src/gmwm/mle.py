@@ -203,7 +203,11 @@ class _Likelihood:
 
     @staticmethod
     def _model(y: np.ndarray) -> UnobservedComponents:
-        from statsmodels.tsa.statespace.structural import UnobservedComponents
+        try:
+            from statsmodels.tsa.statespace.structural import UnobservedComponents
+        except ImportError:  # an optional dependency (extra "pipeline")
+            raise InputError("the MLE's statsmodels backend and its 'default' start need "
+                             "statsmodels: pip install 'gmwm[pipeline]'") from None
 
         # A fresh model per data vector: statsmodels caches its copy of the data, so re-binding new
         # data to an existing model is silently ignored by the filter (construction costs < 1 ms).

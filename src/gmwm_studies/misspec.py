@@ -1,12 +1,12 @@
 """Model misspecification study of the vibration-noise paper (000, Table 5, Fig. 6).
 
 Signals are simulated from the rotating-gyroscope model (AR1 + RW + 2 SIN, Table 5, per-sample
-values at 200 Hz, signal in deg/s) with the common Monte Carlo runner (:func:`gmwm.studies.
+values at 200 Hz, signal in deg/s) with the common Monte Carlo runner (:func:`montecarlo.
 simulate_wv_chunk`, WV cached per chunk). Each cached WV is then fitted with every model of
 ``fit_models`` (Model 1 = AR1 + RW, misspecified; Model 2 = AR1 + RW + 2 SIN, true) by the common
-:func:`gmwm.studies.fit_chunk`; only the parameters a model shares with the truth are scored.
+:func:`montecarlo.fit_chunk`; only the parameters a model shares with the truth are scored.
 
-Conventions: estimates are xarray Datasets as in :mod:`gmwm.studies` (dims replicate, parameter)
+Conventions: estimates are xarray Datasets as in :mod:`montecarlo` (dims replicate, parameter)
 with the attribute ``fit_label`` naming the fitted model; the "basic" parameters are those of
 AR1[1] and RW[1].
 """
@@ -22,7 +22,7 @@ import pandas as pd
 import xarray as xr
 
 from gmwm.errors import InputError, ModelError
-from gmwm.store import WVChunk
+from gmwm_studies.store import WVChunk
 
 __all__ = [
     "BASIC_PARAMS",
@@ -77,10 +77,10 @@ def fit_model_chunk(chunk: WVChunk, model_spec: str, label: str, fit_settings: M
                     estimator: str = "gmwm", progress: Any = None) -> xr.Dataset:
     """Fit ``model_spec`` to every WV of ``chunk`` (simulated from ``chunk.model``).
 
-    Wraps :func:`gmwm.studies.fit_chunk` with the chunk's model replaced by the fitted one and the
+    Wraps :func:`montecarlo.fit_chunk` with the chunk's model replaced by the fitted one and the
     truth restricted to its parameters; the random starts use the replicate's stream 1 as in every
     study. Attributes ``fit_label`` and ``simulated_model`` are added."""
-    from gmwm.studies import fit_chunk
+    from gmwm_studies.montecarlo import fit_chunk
 
     sub = dataclasses.replace(chunk, model=model_spec,
                               truth=restrict_truth(chunk.truth, model_spec))
@@ -97,9 +97,9 @@ def misspec_table(fits: Mapping[str, xr.Dataset], parameters: Sequence[str] | No
     ``fits`` maps a model label (e.g. "model1") to its gathered Dataset. ``parameters`` limits the
     rows (default: every parameter of each model); ``labels`` gives display names ("Model 1").
     Columns: method ("Model 1 (AR1+RW)"), model (label), then those of
-    :func:`gmwm.studies.summarize`, plus ``rmse_ratio`` = RMSE / RMSE of the last model (the true
+    :func:`montecarlo.summarize`, plus ``rmse_ratio`` = RMSE / RMSE of the last model (the true
     one) for shared parameters."""
-    from gmwm.studies import summarize
+    from gmwm_studies.montecarlo import summarize
 
     if not fits:
         raise InputError("misspec_table needs at least one fitted model")

@@ -24,7 +24,7 @@ import pandas as pd
 import xarray as xr
 
 from gmwm.errors import InputError
-from gmwm.seeds import stable_int
+from gmwm_studies.seeds import stable_int
 
 from .ekf import FilterSetup, exp_so3, log_so3, run_filter
 

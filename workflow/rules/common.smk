@@ -1,7 +1,8 @@
 # Shared helpers: which studies run, their chunks, file names, resource hints.
 # Adding a study kind = a rule file that registers its targets with register_targets(kind, fn).
 
-import gmwm.studies as gs
+import gmwm_studies.montecarlo as gs
+from gmwm_studies.archive import config_hash
 from snakemake.exceptions import WorkflowError
 
 STUDY_DEFAULTS = {"enabled": True, "description": "", "levels": None, "estimators": ["gmwm"]}
@@ -30,7 +31,7 @@ STUDIES = {
     if raw.get("enabled", True)
 }
 FIG_FORMATS = config.get("figures", {}).get("formats", ["png", "pdf"])
-CONFIG_ID = gs.config_hash(config)
+CONFIG_ID = config_hash(config)
 BENCH = "results/benchmarks"
 
 

@@ -1,7 +1,7 @@
 # Model misspecification study of the vibration-noise paper (kind: misspec; paper 000 Table 5,
 # Fig. 6; library code gmwm_studies.misspec):
 #   simulate_wv (montecarlo.smk: per chunk, simulate the study model + one WV pass, HDF5 cache)
-#   -> misspec_fit (per chunk and fitted model: gmwm.studies.fit_chunk on the cached WVs)
+#   -> misspec_fit (per chunk and fitted model: gmwm_studies.montecarlo.fit_chunk on the cached WVs)
 #   -> misspec_gather (shared gather script) -> misspec_report (table, Fig. 6).
 # The study's `fit_models` maps labels to the fitted models (model1 = AR1+RW, the misspecified
 # static model; model2 = AR1+RW+2*SIN, the true one); each must be nested in the study model.

@@ -8,7 +8,7 @@
 # Iteration b draws from SeedSequence(seed, spawn_key=(crc32(name), b)): chunking changes nothing.
 # Registered in the index and the archive through INDEX_SECTIONS (report.smk).
 
-import gmwm.studies as _gs_nav
+import gmwm_studies.montecarlo as _gs_nav
 
 NAV = {
     "enabled": True,

@@ -2,7 +2,7 @@
 # MLE on WN + RW + AR1 + SIN signals. Per chunk of replicates: simulate, fit GMWM (always) and each
 # MLE variant (own start, statsmodels' start, GMWM start; only replicates below the study's MLE cap
 # at that T) -> gather per T -> tables -> figures.
-# The statistics live in gmwm.mle_comparison; raw signals are never stored.
+# The statistics live in gmwm_studies.sim1; raw signals are never stored.
 
 
 def sim1_mle_caps(name):

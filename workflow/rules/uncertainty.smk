@@ -1,11 +1,12 @@
 # Uncertainty and trust of the pipeline's fits (issue 6; config key `uncertainty`, study kind
-# `bootstrap_coverage`). Statistics live in gmwm.bootstrap and gmwm.identify; scripts only wire.
+# `bootstrap_coverage`). Statistics live in gmwm_studies.uncertainty (built on gmwm.bootstrap) and
+# gmwm.identify; scripts only wire.
 #
 #   uncertainty_estimate   one fitted model per "fit": replicate 0 at the largest T of every study
 #                          (simulated with the study's stream and fitted with its first GMWM
 #                          estimator), or one Navchip axis (from results/navchip/fits.json)
 #   -> uncertainty_boot    parametric bootstrap draws [a, b) of a fit (draw b always uses stream
-#                          (seed, crc32(fit), b): chunking does not change any draw)
+#                          (seed, stable_int(fit), b): chunking does not change any draw)
 #   -> uncertainty_table   Table 1: estimates, 95 % percentile and basic CIs, bootstrap vs sandwich SE
 #   -> uncertainty_identify (local + global + emcee posterior checks) -> uncertainty_corner,
 #      uncertainty_identifiability (pass/warn table with reasons)
@@ -14,7 +15,7 @@
 # Outputs that need the Navchip data go to reports/navchip/ and are requested by `rule all` only
 # (not index/archive inputs), like navchip.smk's, so a missing data file fails only those jobs.
 
-import zlib
+from gmwm_studies.seeds import stable_int
 
 UNC = {
     "enabled": True,
@@ -233,7 +234,7 @@ rule uncertainty_boot:
         "results/uncertainty/boot/{fit}_d{a}-{b}.nc",
     params:
         draws=lambda w: [int(w.a), int(w.b)],
-        seed=lambda w: [int(UNC["seed"]), zlib.crc32(w.fit.encode())],
+        seed=lambda w: [int(UNC["seed"]), stable_int(w.fit)],
     log:
         "logs/uncertainty/boot/{fit}_d{a}-{b}.log",
     benchmark:
@@ -303,7 +304,7 @@ rule uncertainty_identify:
         posterior=lambda w: unc_posterior(w.fit),
         n_starts=UNC_ID["n_starts"],
         max_steps=UNC_ID["max_steps"],
-        seed=lambda w: zlib.crc32(w.fit.encode()),
+        seed=lambda w: stable_int(w.fit),
     log:
         "logs/uncertainty/identify/{fit}.log",
     benchmark:

@@ -4,7 +4,7 @@ reports/archive/<timestamp>-<config hash>/ directory (never overwriting an earli
 from wflog import get_logger
 
 from gmwm.io import write_json_atomic
-from gmwm.studies import config_hash, make_archive, read_benchmarks
+from gmwm_studies.archive import config_hash, make_archive, read_benchmarks
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

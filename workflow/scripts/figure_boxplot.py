@@ -10,8 +10,8 @@ from wflog import get_logger
 
 from gmwm.io import save_figure
 from gmwm.plots import boxplot_standardized
-from gmwm.store import read_dataset
-from gmwm.studies import standardized_errors
+from gmwm_studies.montecarlo import standardized_errors
+from gmwm_studies.store import read_dataset
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

@@ -11,7 +11,7 @@ from wflog import get_logger
 from gmwm.io import save_figure
 from gmwm.model import Model
 from gmwm.plots import plot_wv_replicates
-from gmwm.store import read_wv_chunks
+from gmwm_studies.store import read_wv_chunks
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

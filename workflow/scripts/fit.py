@@ -2,8 +2,8 @@
 
 from wflog import get_logger
 
-from gmwm.store import read_wv_chunk, write_dataset
-from gmwm.studies import fit_chunk
+from gmwm_studies.montecarlo import fit_chunk
+from gmwm_studies.store import read_wv_chunk, write_dataset
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

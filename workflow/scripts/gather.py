@@ -2,8 +2,8 @@
 
 from wflog import get_logger
 
-from gmwm.store import read_dataset, write_dataset
-from gmwm.studies import gather
+from gmwm_studies.montecarlo import gather
+from gmwm_studies.store import read_dataset, write_dataset
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

@@ -6,7 +6,7 @@ import pandas as pd
 from wflog import get_logger
 
 from gmwm.io import write_text_atomic
-from gmwm.studies import read_benchmarks, render_index, run_summary
+from gmwm_studies.archive import read_benchmarks, render_index, run_summary
 
 KEY_COLUMNS = ["method",  # STIM-300: GMWM / ARMAV / AVSM rows of one table
                "n_samples", "parameter", "truth", "rel_bias", "rel_sd", "std_bias",

@@ -8,9 +8,9 @@ matplotlib.use("Agg")
 from wflog import get_logger
 
 from gmwm.io import save_figure
-from gmwm.store import read_dataset
-from gmwm.studies import write_table
 from gmwm_studies.misspec import BASIC_PARAMS, misspec_table, plot_fig6
+from gmwm_studies.montecarlo import write_table
+from gmwm_studies.store import read_dataset
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

@@ -4,8 +4,8 @@ import time
 
 from wflog import get_logger
 
-from gmwm.store import read_dataset, write_dataset
 from gmwm_studies.navigation import run_chunk
+from gmwm_studies.store import read_dataset, write_dataset
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

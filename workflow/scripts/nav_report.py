@@ -11,8 +11,7 @@ import xarray as xr
 from wflog import get_logger
 
 from gmwm.io import save_figure, write_text_atomic
-from gmwm.store import read_dataset
-from gmwm.studies import write_table
+from gmwm_studies.montecarlo import write_table
 from gmwm_studies.navigation import (
     gnss_schedule,
     make_trajectory,
@@ -21,6 +20,7 @@ from gmwm_studies.navigation import (
     ratio_summary,
     ratio_with_ci,
 )
+from gmwm_studies.store import read_dataset
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

@@ -10,7 +10,7 @@ from pathlib import Path
 from wflog import get_logger
 
 from gmwm.errors import GMWMError
-from gmwm.navchip import obtain_navchip
+from gmwm_studies.navchip import obtain_navchip
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

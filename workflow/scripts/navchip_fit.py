@@ -1,5 +1,5 @@
 """Rule navchip_fit: GMWM fit of the Navchip model to every axis; writes the fits file that the
-report and the bootstrap step read (gmwm.navchip.load_fits)."""
+report and the bootstrap step read (gmwm_studies.navchip.load_fits)."""
 
 import json
 from pathlib import Path
@@ -7,7 +7,7 @@ from pathlib import Path
 from wflog import get_logger
 
 from gmwm.io import write_json_atomic
-from gmwm.navchip import fit_channels, fits_to_json
+from gmwm_studies.navchip import fit_channels, fits_to_json
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

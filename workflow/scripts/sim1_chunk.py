@@ -2,8 +2,8 @@
 
 from wflog import get_logger
 
-from gmwm.mle_comparison import run_chunk
-from gmwm.store import write_dataset
+from gmwm_studies.sim1 import run_chunk
+from gmwm_studies.store import write_dataset
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

@@ -12,9 +12,9 @@ import pandas as pd
 from wflog import get_logger
 
 from gmwm.io import save_figure
-from gmwm.mle_comparison import COMPARED, PARAM_LABELS, method_label, standardized_by_method
 from gmwm.plots import boxplot_grouped, plot_rmse_curves, plot_runtime, style
-from gmwm.store import read_dataset
+from gmwm_studies.sim1 import COMPARED, PARAM_LABELS, method_label, standardized_by_method
+from gmwm_studies.store import read_dataset
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

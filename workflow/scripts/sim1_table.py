@@ -3,9 +3,9 @@
 from wflog import get_logger
 
 from gmwm.io import write_text_atomic
-from gmwm.mle_comparison import counts_text, study_tables
-from gmwm.store import read_dataset
-from gmwm.studies import write_table
+from gmwm_studies.montecarlo import write_table
+from gmwm_studies.sim1 import counts_text, study_tables
+from gmwm_studies.store import read_dataset
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

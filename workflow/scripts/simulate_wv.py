@@ -2,8 +2,8 @@
 
 from wflog import get_logger
 
-from gmwm.store import write_wv_chunk
-from gmwm.studies import simulate_wv_chunk
+from gmwm_studies.montecarlo import simulate_wv_chunk
+from gmwm_studies.store import write_wv_chunk
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

@@ -3,8 +3,8 @@
 
 from wflog import get_logger
 
-from gmwm.allan_comparison import fit_chunk_all, write_estimates
-from gmwm.store import read_wv_chunk
+from gmwm_studies.stim300 import fit_chunk_all, write_estimates
+from gmwm_studies.store import read_wv_chunk
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

@@ -5,8 +5,8 @@ from pathlib import Path
 
 from wflog import get_logger
 
-from gmwm import allan_comparison as ac
 from gmwm.io import save_figure, write_text_atomic
+from gmwm_studies import stim300 as ac
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

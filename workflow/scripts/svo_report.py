@@ -7,7 +7,7 @@ import pandas as pd
 from wflog import get_logger
 
 from gmwm.io import save_figure, write_text_atomic
-from gmwm.studies import format_markdown_table
+from gmwm_studies.montecarlo import format_markdown_table
 from gmwm_studies.svo_study import coef_table, figure_coefs, figure_gmwm, figure_wv, merge, wv_table
 
 snakemake = globals()["snakemake"]  # injected by Snakemake

@@ -3,8 +3,8 @@
 import pandas as pd
 from wflog import get_logger
 
-from gmwm.store import read_dataset
-from gmwm.studies import summarize, write_table
+from gmwm_studies.montecarlo import summarize, write_table
+from gmwm_studies.store import read_dataset
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

@@ -5,8 +5,9 @@ import pickle
 import numpy as np
 from wflog import get_logger
 
-from gmwm.bootstrap import bootstrap_to_dataset, parametric_bootstrap
-from gmwm.store import write_dataset
+from gmwm.bootstrap import parametric_bootstrap
+from gmwm_studies.store import write_dataset
+from gmwm_studies.uncertainty import bootstrap_to_dataset
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

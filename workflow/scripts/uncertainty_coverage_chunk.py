@@ -1,10 +1,10 @@
 """Rule coverage_chunk: for each replicate of one chunk, fit, bootstrap (B refits) and keep the
-percentile, basic and Wald intervals (gmwm.bootstrap.coverage_chunk)."""
+percentile, basic and Wald intervals (gmwm_studies.uncertainty.coverage_chunk)."""
 
 from wflog import get_logger
 
-from gmwm.bootstrap import coverage_chunk
-from gmwm.store import write_dataset
+from gmwm_studies.store import write_dataset
+from gmwm_studies.uncertainty import coverage_chunk
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

@@ -4,10 +4,10 @@ sandwich SE ratios (CSV + Markdown), and the coverage figure."""
 import xarray as xr
 from wflog import get_logger
 
-from gmwm.bootstrap import coverage_summary, plot_coverage
 from gmwm.io import save_figure
-from gmwm.store import read_dataset
-from gmwm.studies import write_table
+from gmwm_studies.montecarlo import write_table
+from gmwm_studies.store import read_dataset
+from gmwm_studies.uncertainty import coverage_summary, plot_coverage
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

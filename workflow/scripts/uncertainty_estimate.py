@@ -5,8 +5,9 @@ import pickle
 
 from wflog import get_logger
 
-from gmwm.bootstrap import navchip_result, replicate_fit
 from gmwm.io import atomic_path
+from gmwm_studies.montecarlo import replicate_fit
+from gmwm_studies.uncertainty import navchip_result
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

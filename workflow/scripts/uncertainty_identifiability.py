@@ -6,7 +6,7 @@ import pandas as pd
 from wflog import get_logger
 
 from gmwm.identify import summary_row
-from gmwm.studies import write_table
+from gmwm_studies.montecarlo import write_table
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

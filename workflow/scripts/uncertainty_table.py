@@ -6,9 +6,10 @@ import pickle
 import pandas as pd
 from wflog import get_logger
 
-from gmwm.bootstrap import BootstrapResult, bootstrap_from_dataset, bootstrap_table
-from gmwm.store import read_dataset
-from gmwm.studies import write_table
+from gmwm.bootstrap import BootstrapResult
+from gmwm_studies.montecarlo import write_table
+from gmwm_studies.store import read_dataset
+from gmwm_studies.uncertainty import bootstrap_from_dataset, bootstrap_table
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

@@ -1,4 +1,4 @@
-"""Tests for the Simulation 1 study library (gmwm.mle_comparison): runner, chunking, summaries."""
+"""Tests for the Simulation 1 study library (gmwm_studies.sim1): runner, chunking, summaries."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ import pytest
 import xarray as xr
 
 from gmwm.errors import InputError
-from gmwm.mle_comparison import (
+from gmwm_studies.montecarlo import gather
+from gmwm_studies.sim1 import (
     COMPARED,
     comparison_table,
     counts_text,
@@ -21,7 +22,6 @@ from gmwm.mle_comparison import (
     summarize_comparison,
     wrong_optimum,
 )
-from gmwm.studies import gather
 
 MODEL = "WN+RW+AR1+SIN"
 TRUTH = {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.975, "AR1[1].sigma2": 0.03, "SIN[1].alpha": 0.85,

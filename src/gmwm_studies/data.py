@@ -199,7 +199,7 @@ def _write_sidecar(entry: Mapping, target: Path) -> None:
         "sensor_name": entry.get("sensor_name"), "freq_hz": entry.get("freq_hz"),
         "n": entry.get("n"), "n_levels": entry.get("n_levels"), "units": entry.get("units"),
         "source": dict(entry.get("source", {})),
-        "note": "written by gmwm.data.obtain from the registry config/datasets.yaml",
+        "note": "written by gmwm_studies.data.obtain from the registry config/datasets.yaml",
     }
     with atomic_path(target.with_suffix(".json")) as tmp:
         tmp.write_text(json.dumps(meta, indent=2), encoding="utf-8")

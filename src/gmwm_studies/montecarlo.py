@@ -2,7 +2,7 @@
 
 The Snakemake workflow calls these functions; all statistics live here. A study is
 (model, truth, sample sizes, replicates); replicate ``r`` at sample size ``T`` always uses the
-random stream :func:`gmwm.seeds.replicate_rng` ``(study, T, r, base_seed)``, so results do not
+random stream :func:`seeds.replicate_rng` ``(study, T, r, base_seed)``, so results do not
 depend on chunking, parallelism or job order.
 
 Conventions: ``truth`` maps canonical parameter names (``'AR1[1].phi'``...) to per-sample values;
@@ -11,41 +11,35 @@ estimates are xarray Datasets with dims ``(replicate, parameter)``; the empirica
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
-import platform
-import shutil
-import subprocess
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from datetime import UTC, datetime
-from importlib import metadata
-from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 import xarray as xr
 
 from gmwm.errors import GMWMError, InputError, ModelError
-from gmwm.io import write_json_atomic, write_text_atomic
-from gmwm.seeds import replicate_rng, replicate_seed
-from gmwm.store import WVChunk
+from gmwm.io import write_text_atomic
+from gmwm_studies.seeds import replicate_rng, replicate_seed
+from gmwm_studies.store import WVChunk
+
+if TYPE_CHECKING:
+    from gmwm.estimator import GMWMResult
 
 __all__ = [
     "check_truth",
     "chunk_bounds",
     "chunk_replicates",
-    "config_hash",
     "fit_chunk",
+    "fit_kwargs",
+    "fit_settings_kwargs",
     "format_markdown_table",
     "gather",
-    "make_archive",
-    "read_benchmarks",
-    "render_index",
-    "run_summary",
+    "replicate_fit",
     "simulate_wv_chunk",
     "standardized_errors",
     "summarize",
@@ -179,6 +173,34 @@ def fit_settings_kwargs(fit_settings: Mapping[str, Any]) -> dict[str, Any]:
     return dict(fit_settings)
 
 
+def fit_kwargs(settings: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The ``gmwm.fit`` keywords among an estimator's settings (others, e.g. AVSM's, dropped)."""
+    return {k: v for k, v in (settings or {}).items() if k in (*FIT_KEYS, "max_nfev")}
+
+
+def replicate_fit(model_spec: str, truth: Mapping[str, float], n_samples: int, replicate: int, *,
+                  study: str, base_seed: int, settings: Mapping[str, Any] | None = None,
+                  levels: int | None = None, freq: float = 1.0) -> GMWMResult:
+    """GMWM fit of replicate ``replicate`` of a study, equal to :func:`fit_chunk`'s fit of it.
+
+    The signal uses the replicate's stream (:func:`seeds.replicate_rng`), the WV is
+    rebuilt from its variances (CIs from the eta_3 rule, as a cached chunk is) and the fit's starts
+    use stream 1. ``freq`` [Hz] is the sampling frequency.
+    """
+    from gmwm.estimator import fit
+    from gmwm.model import Model
+    from gmwm.wv import WaveletVariance, wvar
+
+    model = Model(model_spec, freq=freq)
+    theta = model.theta(dict(truth))
+    x = model.simulate(theta, int(n_samples), replicate_rng(study, n_samples, replicate, base_seed))
+    wv = wvar(x, levels=levels, freq=freq)
+    del x
+    wv = WaveletVariance.from_table(wv.scales, wv.variance, n_samples=int(n_samples), freq=freq)
+    seed = replicate_seed(study, n_samples, replicate, base_seed, stream=1)
+    return fit(wv, model, seed=seed, **fit_kwargs(settings))
+
+
 FitOne = Callable[[Any, Any, int], tuple[np.ndarray, np.ndarray, bool, float, str]]
 """Fit of one replicate: (wv, model, seed) -> (params, se, converged, objective, message)."""
 
@@ -195,7 +217,7 @@ def fit_chunk(
     """Fit the study model to every replicate's WV of ``chunk``; one row per replicate, none dropped.
 
     ``fit_one`` fits one replicate (default: :func:`gmwm.fit` with ``fit_settings``); other
-    estimators (ARMAV, AVSM in :mod:`gmwm.allan_comparison`) plug in here. ``freq`` [Hz] is the
+    estimators (ARMAV, AVSM in :mod:`gmwm_studies.stim300`) plug in here. ``freq`` [Hz] is the
     sampling frequency of the WV. A replicate whose fit fails with a library error or does not
     converge keeps its row, with ``converged = False`` and the failure in ``message`` (estimates
     NaN if the fit raised). The random starts of the fit use stream 1 of the replicate's seed.
@@ -401,178 +423,3 @@ def write_table(df: pd.DataFrame, csv_path: str | os.PathLike, md_path: str | os
     write_text_atomic(csv_path, df.to_csv(index=False, float_format="%.10g"))
     md = (f"# {title}\n\n" if title else "") + format_markdown_table(df)
     write_text_atomic(md_path, md)
-
-
-# ---------------------------------------------------------------------------------------------
-# run bookkeeping: config hash, timings, index page, archive
-# ---------------------------------------------------------------------------------------------
-
-
-def config_hash(config: Mapping[str, Any], length: int = 10) -> str:
-    """Short SHA-256 of the config (keys sorted), naming the archive of a run with this config."""
-    text = json.dumps(config, sort_keys=True, default=str)
-    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:length]
-
-
-def read_benchmarks(paths: Iterable[str | os.PathLike]) -> pd.DataFrame:
-    """Collect Snakemake ``benchmark:`` files laid out as ``.../<rule>/<study>/<job>.tsv``.
-
-    Missing files are skipped (their job ran in an earlier session whose benchmark was removed).
-    Returns one row per job: rule, study, job, seconds (wall), max_rss_mb, cpu_time [s].
-    """
-    rows = []
-    for path in map(Path, paths):
-        if not path.exists():
-            continue
-        table = pd.read_csv(path, sep="\t")
-        if table.empty:
-            continue
-        last = table.iloc[-1]
-        rows.append(
-            {
-                "rule": path.parent.parent.name,
-                "study": path.parent.name,
-                "job": path.stem,
-                "seconds": _num(last.get("s", np.nan)),
-                "max_rss_mb": _num(last.get("max_rss", np.nan)),
-                "cpu_time": _num(last.get("cpu_time", np.nan)),
-            }
-        )
-    return pd.DataFrame(rows, columns=["rule", "study", "job", "seconds", "max_rss_mb", "cpu_time"])
-
-
-def _num(value: Any) -> float:
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        return float("nan")
-
-
-def run_summary(bench: pd.DataFrame) -> pd.DataFrame:
-    """Jobs and summed wall time [s] per study and rule (from :func:`read_benchmarks`)."""
-    if bench.empty:
-        return pd.DataFrame(columns=["study", "rule", "jobs", "seconds"])
-    return (
-        bench.groupby(["study", "rule"], sort=True)
-        .agg(jobs=("job", "count"), seconds=("seconds", "sum"))
-        .reset_index()
-    )
-
-
-def render_index(studies: Sequence[Mapping[str, Any]], summary: pd.DataFrame,
-                 config_id: str) -> str:
-    """Markdown index page: per study its description, figures, key numbers and run time.
-
-    Each entry of ``studies``: name, model, description, n_samples (list), replicates, figures
-    (relative paths), table (relative path of the Markdown table), key (DataFrame of key numbers).
-    """
-    lines = [
-        "# GMWM reproduction: studies at a glance",
-        "",
-        ("Verdict for every figure and table of the papers (agrees / differs / not reproducible): "
-         "[REPRODUCTION.md](REPRODUCTION.md)."),
-        "",
-        f"Config hash `{config_id}`; generated {datetime.now(UTC):%Y-%m-%d %H:%M} UTC.",
-        "",
-    ]
-    for s in studies:
-        lines += [f"## {s['name']}: `{s['model']}`", ""]
-        if s.get("description"):
-            lines += [str(s["description"]), ""]
-        sizes = ", ".join(str(t) for t in s["n_samples"])
-        lines += [
-            (f"Sample sizes {sizes}; {s['replicates']} replicates each. "
-             f"Full table: [{s['table']}]({s['table']})."),
-            "",
-        ]
-        for fig in s.get("figures", []):
-            lines += [f"![{Path(fig).stem}]({fig})", ""]
-        key = s.get("key")
-        if key is not None and len(key):
-            lines += [format_markdown_table(key, digits=3), ""]
-        own = summary[summary["study"] == s["name"]] if len(summary) else summary
-        if len(own):
-            total = own["seconds"].sum()
-            per_rule = ", ".join(
-                f"{r.rule} {r.jobs} jobs {r.seconds:.1f} s" for r in own.itertuples(index=False)
-            )
-            lines += [f"Run time (summed job wall time): {total:.1f} s ({per_rule}).", ""]
-    return "\n".join(lines) + "\n"
-
-
-def package_versions(names: Sequence[str] = ("gmwm", "numpy", "scipy", "numba", "xarray",
-                                              "h5py", "netCDF4", "pandas", "matplotlib",
-                                              "snakemake", "snakemake-executor-plugin-slurm")
-                     ) -> dict[str, str]:
-    """Installed versions of the packages a run depends on ("not installed" if absent)."""
-    out = {"python": platform.python_version()}
-    for name in names:
-        try:
-            out[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            out[name] = "not installed"
-    return out
-
-
-def git_commit(repo: str | os.PathLike = ".") -> str:
-    """``git describe``-style commit of ``repo`` (with ``-dirty``), or "unknown" outside git."""
-    try:
-        out = subprocess.run(
-            ["git", "describe", "--always", "--dirty", "--abbrev=40"],
-            cwd=repo, capture_output=True, text=True, check=True, timeout=20,
-        )
-        return out.stdout.strip() or "unknown"
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-
-
-def make_archive(
-    archive_root: str | os.PathLike,
-    config: Mapping[str, Any],
-    files: Iterable[str | os.PathLike],
-    bench: pd.DataFrame,
-    repo: str | os.PathLike = ".",
-    base: str | os.PathLike = ".",
-) -> Path:
-    """Copy a run's reports into a new ``<archive_root>/<UTC timestamp>-<config hash>/``.
-
-    Never overwrites: if the directory exists a numeric suffix is added. The archive holds the
-    files (paths kept relative to ``base``), ``config.json``, ``versions.json``, ``git.txt`` and
-    ``timings.csv`` (one row per job). It is assembled under a hidden temporary name and renamed
-    into place, so a partial archive never looks complete.
-    """
-    root = Path(archive_root)
-    root.mkdir(parents=True, exist_ok=True)
-    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
-    name = f"{stamp}-{config_hash(config)}"
-    tmp = root / f".{name}.tmp-{os.getpid()}"
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    tmp.mkdir()
-    try:
-        base = Path(base)
-        for f in files:
-            src = Path(f)
-            rel = src.resolve().relative_to(base.resolve()) if src.is_absolute() else src
-            dst = tmp / rel
-            dst.parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(src, dst)
-        write_json_atomic(tmp / "config.json", dict(config))
-        write_json_atomic(tmp / "versions.json", package_versions())
-        write_text_atomic(tmp / "git.txt", git_commit(repo) + "\n")
-        write_text_atomic(tmp / "timings.csv", bench.to_csv(index=False))
-        target = root / name
-        k = 1
-        while True:
-            try:
-                # os.rename onto an existing non-empty directory fails, so this never overwrites.
-                os.rename(tmp, target)
-                return target
-            except OSError:
-                if not target.exists():
-                    raise
-                target = root / f"{name}-{k}"
-                k += 1
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp)

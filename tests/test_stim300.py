@@ -1,4 +1,4 @@
-"""STIM-300 study library (gmwm.allan_comparison): fits, units, summaries, storage, figures."""
+"""STIM-300 study library (gmwm_studies.stim300): fits, units, summaries, storage, figures."""
 
 from __future__ import annotations
 
@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 import yaml
 
-from gmwm import allan_comparison as ac
 from gmwm.errors import InputError
 from gmwm.model import Model
-from gmwm.studies import simulate_wv_chunk
 from gmwm.units import stim300_truth
 from gmwm.wv import WaveletVariance
+from gmwm_studies import stim300 as ac
+from gmwm_studies.montecarlo import simulate_wv_chunk
 
 REPO = Path(__file__).resolve().parents[1]
 FREQ = 250.0

@@ -1,7 +1,7 @@
 """STIM-300 Monte Carlo of paper 004 (SPEC 4.2): GMWM against the Allan-variance methods.
 
 Per replicate the pipeline simulates the signal once, computes ONE wavelet variance (cached by
-:func:`gmwm.studies.simulate_wv_chunk`) and fits it with three cheap estimators, each named in the
+:func:`montecarlo.simulate_wv_chunk`) and fits it with three cheap estimators, each named in the
 config (``estimators.<name>.method``):
 
 * ``gmwm``: GMWM, closed form (non-negative weighted least squares, SPEC 5.2) for these linear
@@ -30,8 +30,8 @@ import xarray as xr
 
 from gmwm import units
 from gmwm.errors import InputError
-from gmwm.store import WVChunk
-from gmwm.studies import check_truth, gather, summarize
+from gmwm_studies.montecarlo import check_truth, gather, summarize
+from gmwm_studies.store import WVChunk
 
 __all__ = [
     "ESTIMATOR_METHODS",
@@ -116,12 +116,12 @@ def fit_chunk(chunk: WVChunk, settings: Mapping[str, Any], estimator: str, freq:
               progress: Progress | None = None) -> xr.Dataset:
     """Fit every replicate's cached WV of ``chunk`` with one estimator; one row per replicate.
 
-    :func:`gmwm.studies.fit_chunk` with this module's per-replicate fit (GMWM, ARMAV or AVSM), so
-    :func:`gmwm.studies.gather` and :func:`gmwm.studies.summarize` apply; adds the ``method``
+    :func:`montecarlo.fit_chunk` with this module's per-replicate fit (GMWM, ARMAV or AVSM), so
+    :func:`montecarlo.gather` and :func:`montecarlo.summarize` apply; adds the ``method``
     and ``freq`` attributes. ``freq`` [Hz] matters for AVSM only (it reads the AD at cluster
     times in seconds).
     """
-    from gmwm.studies import fit_chunk as fit_study_chunk
+    from gmwm_studies.montecarlo import fit_chunk as fit_study_chunk
 
     method = _method(settings)
     ds = fit_study_chunk(chunk, settings, estimator, progress, freq=freq,
@@ -386,7 +386,7 @@ def report_markdown(table: pd.DataFrame, cost: pd.DataFrame, *, title: str, mode
                     estimators: Mapping[str, Mapping[str, Any]],
                     truth_vs_table_i: Mapping[str, float], cores: int) -> str:
     """Markdown report: settings, truth vs Table I, bias/SD/RMSE table, per-replicate cost."""
-    from gmwm.studies import format_markdown_table
+    from gmwm_studies.montecarlo import format_markdown_table
 
     lines = [f"# {title}", "", (f"Model `{model}`; values in paper 004 Table I units. "
              "Statistics over the converged fits (non-converged ones are counted in "

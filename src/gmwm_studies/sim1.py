@@ -1,7 +1,7 @@
 """Simulation 1 of the vibration-noise paper: GMWM against the Kalman-filter MLE (SPEC 4.1, 5.7).
 
 Per replicate one WN + RW + AR1 + SIN signal is simulated from
-:func:`gmwm.seeds.replicate_rng` ``(study, T, r, seed)`` (so results do not depend on chunking), the
+:func:`seeds.replicate_rng` ``(study, T, r, seed)`` (so results do not depend on chunking), the
 GMWM is fitted to the signal (timed as one call, WV computation included) and, for the first
 ``n_mle`` replicates of each sample size, the MLE of :func:`gmwm.mle.fit_mle` (sinusoid frequency
 known) once per configured *variant*, i.e. per starting rule:
@@ -33,7 +33,7 @@ import pandas as pd
 import xarray as xr
 
 from gmwm.errors import GMWMError, InputError
-from gmwm.seeds import replicate_rng, replicate_seed
+from gmwm_studies.seeds import replicate_rng, replicate_seed
 
 __all__ = [
     "COMPARED",
@@ -161,7 +161,7 @@ def run_replicate(
     """
     from gmwm import fit
     from gmwm.model import Model
-    from gmwm.studies import check_truth, fit_settings_kwargs
+    from gmwm_studies.montecarlo import check_truth, fit_settings_kwargs
 
     model = Model(model_spec)
     theta = check_truth(model_spec, truth)

@@ -2,7 +2,7 @@
 goodness of fit.
 
 Input: the public Navchip wavelet variance (Haar MODWT, 20 levels, 95 % chi-square CI; gyroscope in
-rad/s, accelerometer in m/s^2, 250 Hz, T = 3,105,250), obtained by :func:`gmwm.data.obtain`.
+rad/s, accelerometer in m/s^2, 250 Hz, T = 3,105,250), obtained by :func:`gmwm_studies.data.obtain`.
 
 * Fit: ``QN + WN + 2*GM + RW + DR`` by :func:`gmwm.fit` on each axis (the WV is all there is: the
   raw signal is not public, so the drift sign is not identified and reported positive).
@@ -100,7 +100,7 @@ def obtain_navchip(dest_dir: str | os.PathLike, dataset: str = "navchip_wv",
     Raises :class:`~gmwm.errors.DataUnavailableError` naming the file and its public source when it
     is neither in ``data_dir`` (None: the registry's ``local_dir``) nor downloadable.
     """
-    from gmwm.data import obtain
+    from gmwm_studies.data import obtain
 
     dest = Path(dest_dir)
     dest.mkdir(parents=True, exist_ok=True)
@@ -154,8 +154,8 @@ def fit_channel(wv: Any, model: str, sensor: str, axis: str,
 def channels_from_fits(data_path: str | os.PathLike, fits_path: str | os.PathLike
                        ) -> list[ChannelFit]:
     """Rebuild the channel fits from the data file and a fits file (no refit)."""
-    from gmwm.data import load_navchip_wv
     from gmwm.model import Model
+    from gmwm_studies.data import load_navchip_wv
 
     out = []
     for (sensor, axis), rec in load_fits(fits_path).items():
@@ -180,7 +180,7 @@ def fit_channels(path: str | os.PathLike, model: str, sensors: Sequence[str] = (
                  axes: Sequence[str] = AXES, fit_settings: Mapping[str, Any] | None = None,
                  progress: Any = None) -> list[ChannelFit]:
     """Fit every requested channel of the Navchip WV CSV at ``path``."""
-    from gmwm.data import load_navchip_wv
+    from gmwm_studies.data import load_navchip_wv
 
     out = []
     for sensor in sensors:
@@ -351,7 +351,7 @@ def write_tables(estimates: pd.DataFrame, gof: pd.DataFrame, threshold: float, m
                  gof_csv: str | os.PathLike, gof_md: str | os.PathLike) -> None:
     """Write the estimates and goodness-of-fit tables as CSV and Markdown (atomically)."""
     from gmwm.io import write_text_atomic
-    from gmwm.studies import format_markdown_table
+    from gmwm_studies.montecarlo import format_markdown_table
 
     write_text_atomic(estimates_csv, estimates.to_csv(index=False))
     write_text_atomic(gof_csv, gof.to_csv(index=False))

@@ -1,0 +1,200 @@
+"""Run bookkeeping of the pipeline: config hash, job timings, the index page and the run archive.
+
+The Snakemake workflow names each run by :func:`config_hash`, collects its ``benchmark:`` files
+with :func:`read_benchmarks`, renders ``index.md`` with :func:`render_index` and copies a finished
+run's reports into a never-overwritten archive directory with :func:`make_archive`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import shutil
+import subprocess
+from collections.abc import Iterable, Mapping, Sequence
+from datetime import UTC, datetime
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from gmwm.io import write_json_atomic, write_text_atomic
+from gmwm_studies.montecarlo import format_markdown_table
+
+__all__ = ["config_hash", "git_commit", "make_archive", "package_versions", "read_benchmarks",
+           "render_index", "run_summary"]
+
+
+
+def config_hash(config: Mapping[str, Any], length: int = 10) -> str:
+    """Short SHA-256 of the config (keys sorted), naming the archive of a run with this config."""
+    text = json.dumps(config, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:length]
+
+
+def read_benchmarks(paths: Iterable[str | os.PathLike]) -> pd.DataFrame:
+    """Collect Snakemake ``benchmark:`` files laid out as ``.../<rule>/<study>/<job>.tsv``.
+
+    Missing files are skipped (their job ran in an earlier session whose benchmark was removed).
+    Returns one row per job: rule, study, job, seconds (wall), max_rss_mb, cpu_time [s].
+    """
+    rows = []
+    for path in map(Path, paths):
+        if not path.exists():
+            continue
+        table = pd.read_csv(path, sep="\t")
+        if table.empty:
+            continue
+        last = table.iloc[-1]
+        rows.append(
+            {
+                "rule": path.parent.parent.name,
+                "study": path.parent.name,
+                "job": path.stem,
+                "seconds": _num(last.get("s", np.nan)),
+                "max_rss_mb": _num(last.get("max_rss", np.nan)),
+                "cpu_time": _num(last.get("cpu_time", np.nan)),
+            }
+        )
+    return pd.DataFrame(rows, columns=["rule", "study", "job", "seconds", "max_rss_mb", "cpu_time"])
+
+
+def _num(value: Any) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def run_summary(bench: pd.DataFrame) -> pd.DataFrame:
+    """Jobs and summed wall time [s] per study and rule (from :func:`read_benchmarks`)."""
+    if bench.empty:
+        return pd.DataFrame(columns=["study", "rule", "jobs", "seconds"])
+    return (
+        bench.groupby(["study", "rule"], sort=True)
+        .agg(jobs=("job", "count"), seconds=("seconds", "sum"))
+        .reset_index()
+    )
+
+
+def render_index(studies: Sequence[Mapping[str, Any]], summary: pd.DataFrame,
+                 config_id: str) -> str:
+    """Markdown index page: per study its description, figures, key numbers and run time.
+
+    Each entry of ``studies``: name, model, description, n_samples (list), replicates, figures
+    (relative paths), table (relative path of the Markdown table), key (DataFrame of key numbers).
+    """
+    lines = [
+        "# GMWM reproduction: studies at a glance",
+        "",
+        ("Verdict for every figure and table of the papers (agrees / differs / not reproducible): "
+         "[REPRODUCTION.md](REPRODUCTION.md)."),
+        "",
+        f"Config hash `{config_id}`; generated {datetime.now(UTC):%Y-%m-%d %H:%M} UTC.",
+        "",
+    ]
+    for s in studies:
+        lines += [f"## {s['name']}: `{s['model']}`", ""]
+        if s.get("description"):
+            lines += [str(s["description"]), ""]
+        sizes = ", ".join(str(t) for t in s["n_samples"])
+        lines += [
+            (f"Sample sizes {sizes}; {s['replicates']} replicates each. "
+             f"Full table: [{s['table']}]({s['table']})."),
+            "",
+        ]
+        for fig in s.get("figures", []):
+            lines += [f"![{Path(fig).stem}]({fig})", ""]
+        key = s.get("key")
+        if key is not None and len(key):
+            lines += [format_markdown_table(key, digits=3), ""]
+        own = summary[summary["study"] == s["name"]] if len(summary) else summary
+        if len(own):
+            total = own["seconds"].sum()
+            per_rule = ", ".join(
+                f"{r.rule} {r.jobs} jobs {r.seconds:.1f} s" for r in own.itertuples(index=False)
+            )
+            lines += [f"Run time (summed job wall time): {total:.1f} s ({per_rule}).", ""]
+    return "\n".join(lines) + "\n"
+
+
+def package_versions(names: Sequence[str] = ("gmwm", "numpy", "scipy", "numba", "xarray",
+                                              "h5py", "netCDF4", "pandas", "matplotlib",
+                                              "snakemake", "snakemake-executor-plugin-slurm")
+                     ) -> dict[str, str]:
+    """Installed versions of the packages a run depends on ("not installed" if absent)."""
+    out = {"python": platform.python_version()}
+    for name in names:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def git_commit(repo: str | os.PathLike = ".") -> str:
+    """``git describe``-style commit of ``repo`` (with ``-dirty``), or "unknown" outside git."""
+    try:
+        out = subprocess.run(
+            ["git", "describe", "--always", "--dirty", "--abbrev=40"],
+            cwd=repo, capture_output=True, text=True, check=True, timeout=20,
+        )
+        return out.stdout.strip() or "unknown"
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def make_archive(
+    archive_root: str | os.PathLike,
+    config: Mapping[str, Any],
+    files: Iterable[str | os.PathLike],
+    bench: pd.DataFrame,
+    repo: str | os.PathLike = ".",
+    base: str | os.PathLike = ".",
+) -> Path:
+    """Copy a run's reports into a new ``<archive_root>/<UTC timestamp>-<config hash>/``.
+
+    Never overwrites: if the directory exists a numeric suffix is added. The archive holds the
+    files (paths kept relative to ``base``), ``config.json``, ``versions.json``, ``git.txt`` and
+    ``timings.csv`` (one row per job). It is assembled under a hidden temporary name and renamed
+    into place, so a partial archive never looks complete.
+    """
+    root = Path(archive_root)
+    root.mkdir(parents=True, exist_ok=True)
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
+    name = f"{stamp}-{config_hash(config)}"
+    tmp = root / f".{name}.tmp-{os.getpid()}"
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    tmp.mkdir()
+    try:
+        base = Path(base)
+        for f in files:
+            src = Path(f)
+            rel = src.resolve().relative_to(base.resolve()) if src.is_absolute() else src
+            dst = tmp / rel
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dst)
+        write_json_atomic(tmp / "config.json", dict(config))
+        write_json_atomic(tmp / "versions.json", package_versions())
+        write_text_atomic(tmp / "git.txt", git_commit(repo) + "\n")
+        write_text_atomic(tmp / "timings.csv", bench.to_csv(index=False))
+        target = root / name
+        k = 1
+        while True:
+            try:
+                # os.rename onto an existing non-empty directory fails, so this never overwrites.
+                os.rename(tmp, target)
+                return target
+            except OSError:
+                if not target.exists():
+                    raise
+                target = root / f"{name}-{k}"
+                k += 1
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp)
