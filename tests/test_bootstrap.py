@@ -186,3 +186,18 @@ def test_boundary_estimate_simulates_without_the_vanished_component():
     assert x.size == y.size
     with pytest.raises(InputError):
         bs.simulate_draw(model, np.array([-1.0, 0.0]), 10, np.random.default_rng(1))
+
+
+def test_coverage_wilson_interval_never_degenerates():
+    # 100 of 100 intervals cover: the binomial MC SE is 0, the Wilson 95 % interval is
+    # [100 / (100 + z^2), 1] = [0.9630, 1] (z = 1.96); 50 of 100: 0.5 -+ 0.0962.
+    truth = np.array([0.0, 0.0])
+    cis = np.zeros((100, 2, 2))
+    cis[:, 0] = [-1.0, 1.0]
+    cis[:, 1] = [-1.0, 1.0]
+    cis[50:, 1] = [1.0, 2.0]
+    cov = bs.coverage(cis, truth)
+    assert cov.mcse[0] == 0.0
+    np.testing.assert_allclose(cov.lo[0], 100 / (100 + 1.959964**2), rtol=1e-5)
+    assert cov.hi[0] == pytest.approx(1.0)
+    np.testing.assert_allclose([cov.lo[1], cov.hi[1]], [0.4038, 0.5962], atol=2e-4)

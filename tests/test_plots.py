@@ -133,7 +133,7 @@ def test_plot_wv_replicates(sim1):
 def test_boxplot_standardized_dict_and_array():
     rng = np.random.default_rng(0)
     data = {"sigma2": rng.standard_normal(50), "phi": rng.standard_normal(50)}
-    ax = boxplot_standardized(data, title="T = 1000")
+    ax = boxplot_standardized(data, title="T = 1000", math_labels=False)
     assert [t.get_text() for t in ax.get_xticklabels()] == ["sigma2", "phi"]
     zero = [ln for ln in ax.get_lines() if ln.get_gid() == "zero_line"]
     assert len(zero) == 1 and set(zero[0].get_ydata()) == {0.0}
@@ -206,3 +206,32 @@ def test_plot_av_deviation_with_readings_and_channel_grid():
     gids = {ln.get_gid() for ln in ax.get_lines()}
     assert {"reading_N", "reading_B"} <= gids
     assert ax.get_ylabel() == "Allan deviation [rad/s]"
+
+
+def test_param_label_uses_the_papers_notation():
+    from gmwm.plots import param_label
+
+    names = ["WN[1].sigma2", "AR1[1].phi", "AR1[1].sigma2", "AR1[2].phi", "SIN[1].beta",
+             "GM[1].sigma2", "RW[1].gamma2"]
+    got = [param_label(n, names) for n in names]
+    assert got == [r"$\sigma^2$", r"$\phi_{1}$", r"$\varsigma_{1}^2$", r"$\phi_{2}$",
+                   r"$\beta$", r"$\sigma_{GM}^2$", r"$\gamma^2$"]
+    assert param_label("not a parameter") == "not a parameter"
+
+
+def test_boxplot_marks_and_counts_flagged_replicates():
+    rng = np.random.default_rng(1)
+    z = rng.standard_normal(40)
+    bnd = np.zeros(40, bool)
+    bnd[:3] = True
+    sw = np.zeros(40, bool)
+    sw[5:12] = True
+    data = {"AR1[1].phi": {"z": z, "boundary": bnd, "switched": sw},
+            "WN[1].sigma2": {"z": z, "boundary": np.zeros(40, bool), "switched": np.zeros(40, bool)}}
+    ax = boxplot_standardized(data)
+    marks = {ln.get_gid(): len(ln.get_xdata()) for ln in ax.get_lines()
+             if (ln.get_gid() or "").startswith("mark_")}
+    assert marks == {"mark_boundary": 3, "mark_switched": 7}
+    counts = [t.get_text() for t in ax.texts if t.get_gid() == "mark_counts"]
+    assert counts == ["b 3\ns 7"]  # only the flagged parameter gets a count
+    assert [t.get_text() for t in ax.get_xticklabels()] == [r"$\phi$", r"$\sigma^2$"]

@@ -216,3 +216,37 @@ def test_archive_never_overwrites(tmp_path):
         assert json.loads((d / "config.json").read_text()) == cfg
         assert (d / "timings.csv").exists() and (d / "versions.json").exists()
     assert not [p for p in (tmp_path / "arch").iterdir() if p.name.startswith(".")]
+
+
+def _sim2_like(est: np.ndarray) -> xr.Dataset:
+    names = ["AR1[1].phi", "AR1[1].sigma2", "SIN[1].alpha", "SIN[1].beta", "SIN[2].alpha",
+             "SIN[2].beta"]
+    truth = [0.5, 1e-3, 0.025, 0.056, 0.0015, 8e-6]
+    ds = _estimates(est, truth=truth)
+    ds = ds.assign_coords(parameter=names)
+    ds.attrs["model"] = "AR1+2*SIN"
+    return ds
+
+
+def test_replicate_flags_boundary_and_label_switching():
+    truth = np.array([0.5, 1e-3, 0.025, 0.056, 0.0015, 8e-6])
+    est = np.tile(truth * 1.05, (5, 1))
+    est[1, 1] = 0.0                      # AR1 variance vanished
+    est[2, 0] = 1.0 - 1e-12              # phi at the domain edge
+    # slow SIN absorbed; a spurious fast SIN takes label 1 (decreasing beta) and the true fast
+    # SIN moves to label 2
+    est[3, 2:] = [0.004, 2.0, 0.025, 0.056]
+    est[4, 2:] = [0.0015, 8e-6, 0.025, 0.056]  # plain swap of the two SIN
+    ds = _sim2_like(est)
+    ds["converged"].values[4] = False         # non-converged replicates are never flagged
+    f = gs.replicate_flags(ds)
+    b = f["boundary"].values
+    assert b.sum() == 2 and b[1, 1] and b[2, 0]
+    s = f["switched"].values
+    np.testing.assert_array_equal(s.any(axis=1), [False, False, False, True, False])
+    assert not s[3, :2].any() and s[3, 2:].all()  # only the SIN columns are marked
+    df = gs.summarize(ds)
+    assert df.set_index("parameter").loc["SIN[2].beta", "n_switched"] == 1
+    assert df.set_index("parameter").loc["AR1[1].sigma2", "n_boundary"] == 1
+    ds["converged"].values[4] = True
+    assert gs.replicate_flags(ds)["switched"].values[4, 2:].all()

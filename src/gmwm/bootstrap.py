@@ -447,12 +447,15 @@ def parametric_bootstrap(result: GMWMResult, B: int = 100, *, seed: SeedLike = 0
 
 # -- coverage -------------------------------------------------------------------------------------
 class Coverage(NamedTuple):
-    """Per-parameter share of replicates covering the truth, its Monte Carlo SE and the number of
-    replicates with a finite interval."""
+    """Per-parameter share of replicates covering the truth, its Monte Carlo SE, the number of
+    replicates with a finite interval, and the Wilson score interval of the share (``lo``, ``hi``;
+    95 %), which stays inside [0, 1] and is not empty at a share of 0 or 1."""
 
     share: np.ndarray
     mcse: np.ndarray
     n: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
 
 
 def covers(ci: np.ndarray, truth: np.ndarray) -> np.ndarray:
@@ -470,7 +473,8 @@ def coverage(cis: np.ndarray, truth: np.ndarray) -> Coverage:
     """Coverage of intervals ``cis`` (R, p, 2) for ``truth`` (p,).
 
     Replicates whose interval is NaN (e.g. no converged refits) are left out per parameter and
-    ``n`` says how many were used. ``mcse = sqrt(c (1 - c) / n)`` (binomial Monte Carlo SE).
+    ``n`` says how many were used. ``mcse = sqrt(c (1 - c) / n)`` (binomial Monte Carlo SE, 0 at a
+    share of 0 or 1, so reports quote the Wilson interval ``lo``-``hi`` instead).
     """
     cis = np.asarray(cis, dtype=float)
     if cis.ndim != 3:
@@ -478,7 +482,14 @@ def coverage(cis: np.ndarray, truth: np.ndarray) -> Coverage:
     hit = covers(cis, truth)
     finite = np.all(np.isfinite(cis), axis=-1)
     n = finite.sum(axis=0)
+    from scipy.stats import binomtest
+
+    k = (hit & finite).sum(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
-        share = np.where(n > 0, (hit & finite).sum(axis=0) / np.maximum(n, 1), np.nan)
+        share = np.where(n > 0, k / np.maximum(n, 1), np.nan)
         mcse = np.sqrt(share * (1 - share) / n)
-    return Coverage(share, mcse, n)
+    lo, hi = np.full(len(n), np.nan), np.full(len(n), np.nan)
+    for j in np.flatnonzero(n > 0):
+        ci = binomtest(int(k[j]), int(n[j])).proportion_ci(confidence_level=0.95, method="wilson")
+        lo[j], hi[j] = ci.low, ci.high
+    return Coverage(share, mcse, n, lo, hi)

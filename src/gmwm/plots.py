@@ -401,6 +401,37 @@ def _box(ax: Axes, cols: list[np.ndarray], positions: Sequence[float], color: st
     )
 
 
+_SYMBOL = {"sigma2": r"\sigma^2", "Q2": "Q^2", "gamma2": r"\gamma^2", "omega": r"\omega",
+           "phi": r"\phi", "alpha": r"\alpha", "beta": r"\beta"}
+
+
+def param_label(name: str, names: Sequence[str] = ()) -> str:
+    """A canonical parameter name (``'AR1[2].sigma2'``) in the papers' notation as math text:
+    WN sigma^2, QN Q^2, RW gamma^2, DR omega, AR1 (phi, varsigma^2), GM (beta, sigma^2_GM),
+    SIN (alpha, beta). The component index is a subscript when ``names`` (all parameters of the
+    figure) hold several components of that type. Unknown names are returned unchanged."""
+    try:
+        comp, par = name.split(".")
+        kind, idx = comp.rstrip("]").split("[")
+    except ValueError:
+        return name
+    sym = r"\varsigma^2" if (kind == "AR1" and par == "sigma2") else _SYMBOL.get(par)
+    if sym is None:
+        return name
+    several = any(n.startswith(f"{kind}[") and not n.startswith(f"{kind}[1]") for n in names)
+    sub = [idx] if several else []
+    if kind == "GM" and par == "sigma2":
+        sub.insert(0, "GM")
+    if not sub:
+        return f"${sym}$"
+    base, sup = (sym[:-2], "^2") if sym.endswith("^2") else (sym, "")
+    return f"${base}_{{{','.join(sub)}}}{sup}$"
+
+
+_MARKS = {"boundary": ("v", "#C0392B", "at a boundary (0, |φ| = 1, β = π)"),
+          "switched": ("x", "#E67E22", "label-switched (components swapped)")}
+
+
 def boxplot_standardized(
     data: Mapping[str, Any] | np.ndarray,
     *,
@@ -408,19 +439,47 @@ def boxplot_standardized(
     ax: Axes | None = None,
     title: str | None = None,
     ylabel: str = "Standardized error",
+    math_labels: bool = True,
 ) -> Axes:
     """Boxplots of standardized errors ((estimate - truth) / SD), one box per parameter, with a zero
-    line (paper 000 Figures 4 and 9). ``data``: ``{param: values}`` or a 2-D array (R, p) + ``labels``."""
+    line (paper 000 Figures 4 and 9). ``data``: ``{param: values}``, or ``{param: {"z": values,
+    "boundary": mask, "switched": mask}}`` (as the studies' ``standardized_errors`` gives with
+    flags) to mark and count boundary and label-switched replicates, or a 2-D array (R, p) +
+    ``labels``. ``math_labels``: tick labels in the papers' notation (:func:`param_label`)."""
+    marks: dict[str, dict[str, np.ndarray]] = {}
+    if isinstance(data, Mapping) and any(isinstance(v, Mapping) for v in data.values()):
+        marks = {k: {m: np.asarray(v[m], bool) for m in _MARKS if m in v} for k, v in data.items()}
+        data = {k: np.asarray(v["z"], float) for k, v in data.items()}
     names, cols = _as_columns(data, labels)
     ax = new_axes(ax)
     with style():
         ax.axhline(0.0, color=PALETTE[2], lw=0.8, zorder=0, gid="zero_line")
         _box(ax, cols, range(1, len(cols) + 1), PALETTE[1], 0.6)
-        ax.set_xticks(range(1, len(cols) + 1), names)
+        shown: set[str] = set()
+        for i, name in enumerate(names, start=1):
+            z = np.asarray(data[name], float) if marks else None
+            counts = []
+            for m, (marker, color, text) in _MARKS.items():
+                mask = marks.get(name, {}).get(m)
+                if mask is None or z is None or not mask.any():
+                    continue
+                pts = z[mask & np.isfinite(z)]
+                jitter = np.linspace(-0.18, 0.18, len(pts)) if len(pts) > 1 else np.zeros(1)
+                ax.plot(i + jitter, pts, marker, color=color, ms=3.5, alpha=0.8, ls="none",
+                        label=text if m not in shown else None, gid=f"mark_{m}")
+                shown.add(m)
+                counts.append(f"{m[0]} {int(mask.sum())}")
+            if counts:
+                ax.text(i, 1.0, "\n".join(counts), transform=ax.get_xaxis_transform(),
+                        ha="center", va="bottom", fontsize=7, gid="mark_counts")
+        ticks = [param_label(n, names) for n in names] if math_labels else names
+        ax.set_xticks(range(1, len(cols) + 1), ticks)
         ax.set_ylabel(ylabel)
         ax.grid(False, axis="x")
+        if shown:
+            ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.12), ncols=2, fontsize=7)
         if title:
-            ax.set_title(title)
+            ax.set_title(title, pad=22 if shown else 6)
     return ax
 
 

@@ -40,6 +40,7 @@ __all__ = [
     "format_markdown_table",
     "gather",
     "replicate_fit",
+    "replicate_flags",
     "simulate_wv_chunk",
     "standardized_errors",
     "summarize",
@@ -348,28 +349,130 @@ def _converged_estimates(ds: xr.Dataset) -> xr.DataArray:
     return ds["estimate"].where(ds["converged"]).dropna("replicate", how="all")
 
 
-def standardized_errors(ds: xr.Dataset) -> dict[str, np.ndarray]:
-    """(estimate - truth) / empirical SD per parameter, converged replicates only (paper Fig. 4)."""
+def standardized_errors(ds: xr.Dataset, *, with_flags: bool = False
+                        ) -> dict[str, np.ndarray] | dict[str, dict[str, np.ndarray]]:
+    """(estimate - truth) / empirical SD per parameter, converged replicates only (paper Fig. 4).
+
+    ``with_flags``: per parameter ``{"z": ..., "boundary": bool mask, "switched": bool mask}``
+    (same length as ``z``; see :func:`replicate_flags`) so a figure can mark those replicates.
+    """
     est = _converged_estimates(ds)
-    out: dict[str, np.ndarray] = {}
+    flags = replicate_flags(ds).sel(replicate=est["replicate"]) if with_flags else None
+    out: dict[str, Any] = {}
     for name in ds["parameter"].values:
         x = est.sel(parameter=name).values
-        x = x[np.isfinite(x)]
+        keep = np.isfinite(x)
+        x = x[keep]
         sd = np.std(x, ddof=1) if len(x) > 1 else np.nan
         truth = float(ds["truth"].sel(parameter=name))
-        out[str(name)] = (x - truth) / sd if sd > 0 else np.full(len(x), np.nan)
+        z = (x - truth) / sd if sd > 0 else np.full(len(x), np.nan)
+        if flags is None:
+            out[str(name)] = z
+        else:
+            out[str(name)] = {
+                "z": z,
+                "boundary": flags["boundary"].sel(parameter=name).values[keep],
+                "switched": flags["switched"].sel(parameter=name).values[keep],
+            }
     return out
+
+
+BOUNDARY_REL = 1e-8
+"""A scale parameter (variance, amplitude, drift) below this fraction of its true value is at the
+boundary 0 (the estimator sets a vanished component to exactly 0)."""
+PHI_EDGE = 1e-8
+"""An AR1 ``|phi|`` within this distance of 1 is at the domain edge."""
+
+
+def _shape_distance(kind: str, name: str, est: np.ndarray, truth: float) -> np.ndarray:
+    """Squared distance of estimates from the truth on the parameter's natural scale: atanh for the
+    AR1 phi, log for every positive parameter (0 estimates are clipped far from any truth)."""
+    if kind == "AR1" and name == "phi":
+        lim = 1.0 - 1e-15
+        return (np.arctanh(np.clip(est, -lim, lim)) - np.arctanh(np.clip(truth, -lim, lim))) ** 2
+    tiny = abs(truth) * 1e-12 + 1e-300
+    return (np.log(np.maximum(np.abs(est), tiny)) - np.log(abs(truth))) ** 2
+
+
+def replicate_flags(ds: xr.Dataset) -> xr.Dataset:
+    """Which replicates are at a boundary and which are label-switched (study estimates ``ds``).
+
+    * ``boundary`` (replicate, parameter): a scale parameter below ``BOUNDARY_REL`` x truth (the
+      component vanished or was absorbed), an AR1 ``|phi|`` within ``PHI_EDGE`` of 1, or a SIN
+      beta at pi.
+    * ``switched`` (replicate, parameter; set on every parameter of the type): for a process type with several components (2*AR1, 2*SIN), some
+      true component is estimated in another component's column: the estimated component nearest
+      to it (sum of squared log/atanh distances over the component's parameters) has another label
+      and is at least twice as close as its own. This happens when the canonical labels (AR1 by
+      phi, SIN by decreasing beta) shift because one component was absorbed and a spurious one
+      took its place, or when two components trade places.
+
+    Non-converged replicates are never flagged (they are counted separately).
+    """
+    from gmwm.model import Model
+
+    model = Model(ds.attrs["model"])
+    est = ds["estimate"]
+    conv = ds["converged"].values.astype(bool)
+    names = [str(n) for n in ds["parameter"].values]
+    boundary = np.zeros((ds.sizes["replicate"], len(names)), dtype=bool)
+    by_type: dict[str, list[Any]] = {}
+    for c in model.components:
+        by_type.setdefault(c.process.name, []).append(c)
+        for k, pname in enumerate(c.param_names):
+            if pname not in names:
+                continue
+            j = names.index(pname)
+            x = est.sel(parameter=pname).values
+            truth = float(ds["truth"].sel(parameter=pname))
+            if k == c.process.scale_index:
+                boundary[:, j] = np.abs(x) <= BOUNDARY_REL * abs(truth)
+            elif c.process.name == "AR1" and c.process.param_names[k] == "phi":
+                boundary[:, j] = np.abs(x) >= 1.0 - PHI_EDGE
+            elif c.process.name == "SIN" and c.process.param_names[k] == "beta":
+                boundary[:, j] = x >= np.pi * (1.0 - 1e-9)
+    switched = np.zeros_like(boundary)
+    for kind, comps in by_type.items():
+        if len(comps) < 2 or any(p not in names for c in comps for p in c.param_names):
+            continue
+        # dist[a, b]: distance of component a's estimate from component b's truth, per replicate
+        dist = np.zeros((len(comps), len(comps), ds.sizes["replicate"]))
+        for a, ca in enumerate(comps):
+            for b, cb in enumerate(comps):
+                for pa, pb, short in zip(ca.param_names, cb.param_names, ca.process.param_names):
+                    x = est.sel(parameter=pa).values
+                    t = float(ds["truth"].sel(parameter=pb))
+                    dist[a, b] += _shape_distance(kind, short, x, t)
+        hit = np.zeros(ds.sizes["replicate"], dtype=bool)
+        for b in range(len(comps)):
+            nearest = np.argmin(dist[:, b], axis=0)
+            hit |= (nearest != b) & (np.min(dist[:, b], axis=0) < 0.5 * dist[b, b])
+        cols = [names.index(p) for c in comps for p in c.param_names]
+        switched[:, cols] |= hit[:, None]
+    boundary &= conv[:, None]
+    switched &= conv[:, None]
+    return xr.Dataset(
+        {"boundary": (("replicate", "parameter"), boundary),
+         "switched": (("replicate", "parameter"), switched)},
+        coords={"replicate": ds["replicate"].values, "parameter": names},
+    )
 
 
 def summarize(ds: xr.Dataset) -> pd.DataFrame:
     """Per parameter: truth, mean, bias, SD, RMSE, relative bias/SD, standardized bias, MC SE of the
-    bias (SD / sqrt(n)), and the share of replicates whose fit did not converge.
+    bias (SD / sqrt(n)), the share of replicates whose fit did not converge, and how many converged
+    replicates have the parameter at a boundary (``n_boundary``) or are label-switched
+    (``n_switched``, per replicate; :func:`replicate_flags`).
 
     Statistics use the converged replicates; ``n_used`` says how many.
     """
     est = _converged_estimates(ds)
     n_total = int(ds.sizes["replicate"])
     n_conv = int(ds["converged"].sum())
+    try:
+        flags = replicate_flags(ds)
+    except (KeyError, ModelError):  # estimates without a parseable model: no flags
+        flags = None
     rows = []
     for name in ds["parameter"].values:
         x = est.sel(parameter=name).values
@@ -398,6 +501,10 @@ def summarize(ds: xr.Dataset) -> pd.DataFrame:
                 "n_used": n,
                 "n_replicates": n_total,
                 "share_not_converged": 1.0 - n_conv / n_total if n_total else np.nan,
+                "n_boundary": (int(flags["boundary"].sel(parameter=name).sum())
+                               if flags is not None else 0),
+                "n_switched": (int(flags["switched"].sel(parameter=name).sum())
+                               if flags is not None else 0),
             }
         )
     return pd.DataFrame(rows)

@@ -212,7 +212,8 @@ def coverage_summary(ds):
         width = np.nanmean(ci[:, k, :, 1] - ci[:, k, :, 0], axis=0)
         for j, name in enumerate(names):
             rows.append({"parameter": name, "truth": truth[j], "interval": str(kind),
-                         "coverage": cov.share[j], "mc_se": cov.mcse[j], "n": int(cov.n[j]),
+                         "coverage": cov.share[j], "mc_se": cov.mcse[j],
+                         "wilson_lo": cov.lo[j], "wilson_hi": cov.hi[j], "n": int(cov.n[j]),
                          "mean_width": width[j],
                          "mean_se_ratio": np.nanmean(ratio[:, j]),
                          "median_se_ratio": np.nanmedian(ratio[:, j]),
@@ -224,8 +225,9 @@ def coverage_summary(ds):
 
 
 def plot_coverage(summary, level: float = 0.95, ax=None):
-    """Coverage per parameter (x) and interval kind (markers) with +-2 MC SE bars and the nominal
-    line. Returns the matplotlib Figure."""
+    """Coverage per parameter (x, in the papers' notation) and interval kind (markers) with the
+    Wilson 95 % interval of each coverage as bars (inside [0, 1]) and the nominal line. Returns
+    the matplotlib Figure."""
     import matplotlib.pyplot as plt
 
     if ax is None:
@@ -238,13 +240,17 @@ def plot_coverage(summary, level: float = 0.95, ax=None):
     for k, (kind, mk) in enumerate(zip(kinds, "osd^v", strict=False)):
         sub = summary[summary["interval"] == kind].set_index("parameter").loc[names]
         off = (k - (len(kinds) - 1) / 2) * 0.18
-        ax.errorbar(x + off, sub["coverage"], yerr=2 * sub["mc_se"], fmt=mk, ms=5, capsize=3,
-                    label=kind)
+        c = sub["coverage"].to_numpy(float)
+        yerr = np.clip(np.vstack([c - sub["wilson_lo"].to_numpy(float),
+                                  sub["wilson_hi"].to_numpy(float) - c]), 0.0, None)
+        ax.errorbar(x + off, c, yerr=yerr, fmt=mk, ms=5, capsize=3, label=kind)
     ax.axhline(level, color="0.3", ls="--", lw=1, label=f"nominal {level:g}")
-    ax.set_xticks(x, names, rotation=20, ha="right", fontsize=8)
-    ax.set_ylabel("coverage (+-2 MC SE)")
-    lo = float(np.nanmin(summary["coverage"] - 2 * summary["mc_se"]))
+    from gmwm.plots import param_label
+
+    ax.set_xticks(x, [param_label(n, names) for n in names], fontsize=9)
+    ax.set_ylabel("coverage (Wilson 95 % interval)")
+    lo = float(np.nanmin(summary["wilson_lo"]))
     ax.set_ylim(max(0.0, min(lo, level - 0.1) - 0.02), 1.01)
-    ax.legend(fontsize=8, loc="lower left", ncol=len(kinds) + 1)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     fig.tight_layout()
     return fig

@@ -155,7 +155,9 @@ rule figure_wv:
 
 rule figure_boxplot:
     input:
-        lambda w: f"results/{w.study}/estimates/{study(w)['estimators'][0]}_T{max_T(w.study)}.nc",
+        lambda w: [
+            f"results/{w.study}/estimates/{e}_T{max_T(w.study)}.nc" for e in study(w)["estimators"]
+        ],
     output:
         report(
             "reports/{study}/fig_boxplot.png",

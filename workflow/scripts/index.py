@@ -15,7 +15,7 @@ KEY_COLUMNS = ["method",  # STIM-300: GMWM / ARMAV / AVSM rows of one table
                "n_mle", "mle_not_converged", "speedup", "rmse_ratio_sigma2", "rmse_ratio_phi",
                "rmse_ratio_ar1_sigma2", "rmse_ratio_gamma2",
                # uncertainty: identifiability status per fit; coverage study: coverage, MC SE
-               "fit", "status", "interval", "coverage", "mc_se", "mean_se_ratio",
+               "fit", "status", "interval", "coverage", "wilson_lo", "wilson_hi", "mean_se_ratio",
                # navigation emulation: maximum of the position error ratio, its epoch and CI
                "window", "time_s", "max_ratio", "ci_lo", "ci_hi"]
 

@@ -21,11 +21,14 @@ write_table(df, snakemake.output.csv, snakemake.output.md,
             title=(f"{name}: coverage of {100 * a['level']:g} % intervals over R = {a['R']} "
                    f"replicates (T = {a['n_samples']}, B = {a['B']} bootstrap refits each; "
                    f"{n_conv}/{a['R']} replicate fits converged); mc_se = sqrt(c (1 - c) / n); "
+                   "wilson_lo/hi = Wilson 95 % interval of the coverage (quoted instead of mc_se, "
+                   "which is 0 at a coverage of 0 or 1); "
                    "mean/median_se_ratio = bootstrap SE / sandwich SE; sd_over_* = empirical SD "
                    "of the estimates / mean SE"))
 fig = plot_coverage(df, level=a["level"])
 fig.axes[0].set_title(f"{name}: T = {a['n_samples']}, R = {a['R']}, B = {a['B']}", fontsize=9)
 for path in [snakemake.output.png, *snakemake.output.other]:
     save_figure(fig, path)
-log.info("coverage:\n%s", df[["parameter", "interval", "coverage", "mc_se", "mean_se_ratio"]]
+log.info("coverage:\n%s", df[["parameter", "interval", "coverage", "wilson_lo", "wilson_hi",
+                                "mean_se_ratio"]]
          .to_string())
