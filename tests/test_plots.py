@@ -235,3 +235,19 @@ def test_boxplot_marks_and_counts_flagged_replicates():
     counts = [t.get_text() for t in ax.texts if t.get_gid() == "mark_counts"]
     assert counts == ["b 3\ns 7"]  # only the flagged parameter gets a count
     assert [t.get_text() for t in ax.get_xticklabels()] == [r"$\phi$", r"$\sigma^2$"]
+
+
+def test_corner_plot_log_coordinates_for_scale_parameters():
+    from gmwm.identify import corner_plot
+
+    rng = np.random.default_rng(2)
+    phi = 0.9 + 0.01 * rng.standard_normal(400)
+    s2 = 10 ** rng.normal(-6, 1, 400)  # spans decades: shown as log10
+    fig = corner_plot(np.column_stack([phi, s2]), ["AR1[1].phi", "AR1[1].sigma2"],
+                      truths=np.array([0.9, 1e-6]))
+    ax = fig.axes[3]  # bottom row, second column: the variance's histogram
+    lo, hi = ax.get_xlim()
+    assert -11 < lo < hi < -1  # log10 coordinates, not 0..1e-4
+    assert ax.get_xlabel() == r"log10 $\varsigma^2$"
+    assert fig.axes[2].get_xlabel() == r"$\phi$"  # phi stays linear
+    assert fig.axes[2].get_ylabel() == r"log10 $\varsigma^2$"

@@ -226,8 +226,11 @@ def _sin_envelope_columns(u: np.ndarray, tau: np.ndarray) -> np.ndarray:
     b = np.exp(np.asarray(u))[None, :]
     t = tau[:, None]
     x = b * t / 4
-    s4 = np.where(x < 1.1656, np.sin(np.minimum(x, 1.1656)) ** 4, 0.375)
-    return 2 * s4 / (t**2 * np.sin(b / 2) ** 2)
+    s2 = np.sin(np.minimum(x, 1.1656))
+    s2 *= s2
+    s4 = np.where(x < 1.1656, s2 * s2, 0.375)
+    d = np.sin(b / 2)
+    return 2 * s4 / (t**2 * (d * d))
 
 
 @lru_cache(maxsize=128)

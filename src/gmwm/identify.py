@@ -33,6 +33,7 @@ estimate in free coordinates; chains are extended until ``n_steps > 50 tau_int``
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -749,15 +750,33 @@ def _zero_fixed(TH: np.ndarray, fixed_comps: list) -> np.ndarray:
 
 # -- corner plot ------------------------------------------------------------------------------------
 def corner_plot(samples: np.ndarray, names: list[str], truths: np.ndarray | None = None,
-                fig=None, bins: int = 30):
+                fig=None, bins: int = 30, log: Sequence[bool] | None = None):
     """Pairwise marginals of ``samples`` (n, p): histograms on the diagonal, 2-D histograms
-    below it, optional ``truths`` (p,) as lines. Returns the matplotlib Figure."""
+    below it, optional ``truths`` (p,) as lines. ``log``: which parameters to show in log10
+    coordinates (default: every parameter with positive draws except an AR1 phi, i.e. variances,
+    amplitudes and frequencies, whose posteriors span decades). Labels use the papers' notation.
+    Returns the matplotlib Figure."""
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
+
+    from gmwm.plots import param_label
 
     X = np.asarray(samples, dtype=float)
     if X.ndim != 2 or X.shape[1] != len(names):
         raise InputError(f"samples must be (n, {len(names)}), got {X.shape}")
     p = X.shape[1]
+    if log is None:
+        log = [not n.endswith(".phi") and bool(np.all(X[:, k] > 0)) for k, n in enumerate(names)]
+    log = [bool(v) for v in log]
+    X = X.copy()
+    t = None if truths is None else np.asarray(truths, dtype=float).copy()
+    for k in range(p):
+        if log[k]:
+            X[:, k] = np.log10(X[:, k])
+            if t is not None:
+                t[k] = np.log10(t[k]) if t[k] > 0 else np.nan
+    labels = [f"log10 {param_label(n, names)}" if lg else param_label(n, names)
+              for n, lg in zip(names, log, strict=True)]
     if fig is None:
         fig = plt.figure(figsize=(1.9 * p + 1, 1.9 * p + 1))
     axes = fig.subplots(p, p, squeeze=False)
@@ -770,19 +789,23 @@ def corner_plot(samples: np.ndarray, names: list[str], truths: np.ndarray | None
             if i == j:
                 ax.hist(X[:, i], bins=bins, color="0.35", histtype="stepfilled", alpha=0.8)
                 ax.set_yticks([])
-                if truths is not None:
-                    ax.axvline(truths[i], color="C3", lw=1)
+                if t is not None and np.isfinite(t[i]):
+                    ax.axvline(t[i], color="C3", lw=1)
             else:
                 ax.hist2d(X[:, j], X[:, i], bins=bins, cmap="Greys")
-                if truths is not None:
-                    ax.axvline(truths[j], color="C3", lw=0.8)
-                    ax.axhline(truths[i], color="C3", lw=0.8)
+                if t is not None:
+                    if np.isfinite(t[j]):
+                        ax.axvline(t[j], color="C3", lw=0.8)
+                    if np.isfinite(t[i]):
+                        ax.axhline(t[i], color="C3", lw=0.8)
+                ax.yaxis.set_major_locator(MaxNLocator(3))
+            ax.xaxis.set_major_locator(MaxNLocator(3))
             if i == p - 1:
-                ax.set_xlabel(names[j], fontsize=8)
+                ax.set_xlabel(labels[j], fontsize=8)
             else:
                 ax.set_xticklabels([])
             if j == 0 and i > 0:
-                ax.set_ylabel(names[i], fontsize=8)
+                ax.set_ylabel(labels[i], fontsize=8)
             elif j > 0:
                 ax.set_yticklabels([])
             ax.tick_params(labelsize=6)

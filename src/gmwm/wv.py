@@ -26,7 +26,6 @@ from typing import Any
 
 import numpy as np
 from numba import njit
-from scipy.special import chdtri
 
 from gmwm.errors import InputError
 
@@ -248,6 +247,8 @@ def chi2_ci(variance: np.ndarray, edof: np.ndarray, alpha: float = 0.05
             ) -> tuple[np.ndarray, np.ndarray]:
     """Chi-square CI ``[eta nu / q(1-alpha/2), eta nu / q(alpha/2)]``, ``q`` the quantiles of a
     chi-square with ``eta`` (non-integer) degrees of freedom (Percival's eta_3, SPEC 1.2)."""
+    from scipy.special import chdtri  # lazily: the CLI overlaps this import with the kernel load
+
     variance = np.asarray(variance, dtype=np.float64)
     edof = np.asarray(edof, dtype=np.float64)
     # chdtri(k, p) is the chi-square quantile of upper tail p (scipy.stats.chi2.ppf(1 - p, k)
