@@ -94,7 +94,14 @@ def main() -> None:
     gmwm = args.cli or shutil.which("gmwm") or "gmwm"
     cli = [gmwm, "wv", str(x_path), "--json", "--quiet"]
     base = [sys.executable, str(naive), str(x_path)]
-    print(f"# load average {os.getloadavg()[0]:.1f} / {os.cpu_count()} cores, T = {args.n}")
+    # an installed package has its bytecode; an editable checkout run with PYTHONDONTWRITEBYTECODE
+    # (as on the dev machine) would recompile cli.py, wv.py, ... in every process (~0.1 s)
+    import gmwm as _pkg
+
+    subprocess.run([sys.executable, "-m", "compileall", "-q", str(Path(_pkg.__file__).parent)],
+                   check=True)
+    print(f"# load average {os.getloadavg()[0]:.1f} / {os.cpu_count()} cores, T = {args.n}, "
+          f"bytecode compiled for {Path(_pkg.__file__).parent}")
     for module in ("gmwm.cli", "gmwm", "gmwm.wv"):
         print(f"import {module}: {_import_seconds(module):.3f} s (median of 3 fresh processes)")
     obj = json.loads(subprocess.run(cli, capture_output=True, text=True, check=True).stdout)
