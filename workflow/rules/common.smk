@@ -70,6 +70,19 @@ _TARGET_BUILDERS = {}
 _BENCHMARK_BUILDERS = {}
 
 
+INDEX_SECTIONS = {}
+"""Analyses that are not studies (uncertainty, navigation, SVO): name -> {model, description,
+n_samples, replicates, targets, benchmarks}, added with register_section; report.smk puts them in
+the index and the archive."""
+
+
+def register_section(name, section):
+    """Add one index/archive section (see INDEX_SECTIONS); a name may be registered once."""
+    if name in INDEX_SECTIONS:
+        raise WorkflowError(f"index section {name!r} registered twice")
+    INDEX_SECTIONS[name] = section
+
+
 def register_targets(kind, targets, benchmarks):
     """targets(name) -> final files of a study; benchmarks(name) -> its jobs' benchmark files."""
     _TARGET_BUILDERS[kind] = targets

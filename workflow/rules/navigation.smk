@@ -6,7 +6,7 @@
 #      both EKFs on the same measurements, vectorised over the chunk)
 #   -> nav_report (Fig. 7 trajectory, Fig. 8 ratio with 95 % CI, table of its maximum).
 # Iteration b draws from SeedSequence(seed, spawn_key=(crc32(name), b)): chunking changes nothing.
-# Registered in the index and the archive through INDEX_SECTIONS (report.smk).
+# Registered in the index and the archive with register_section (common.smk).
 
 import gmwm_studies.montecarlo as _gs_nav
 
@@ -68,12 +68,8 @@ def nav_benchmarks():
             f"{BENCH}/nav_report/navigation/report.tsv"]
 
 
-try:
-    INDEX_SECTIONS
-except NameError:
-    INDEX_SECTIONS = {}
 if _NAV_ON:
-    INDEX_SECTIONS["navigation"] = {
+    register_section("navigation", {
         "model": "EKF tuned with Model 1 vs Model 2 AR1+RW estimates",
         "description": ("Vibration-noise paper, navigation emulation (Figs. 7-8): 235 s flight, "
                         "IMU 100 Hz, GNSS 1 Hz with an outage "
@@ -83,7 +79,7 @@ if _NAV_ON:
         "replicates": NAV["iterations"],
         "targets": nav_targets(),
         "benchmarks": nav_benchmarks(),
-    }
+    })
 
 
 def nav_inputs(wildcards):

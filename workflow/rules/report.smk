@@ -9,12 +9,8 @@ localrules:
     index,
     archive,
 
-# Analyses that are not studies (e.g. uncertainty.smk) add {name: {model, description, n_samples,
-# replicates, targets, benchmarks}} to INDEX_SECTIONS; the index and the archive include them.
-try:
-    INDEX_SECTIONS
-except NameError:
-    INDEX_SECTIONS = {}
+# Analyses that are not studies (uncertainty, navigation, SVO) register their section with
+# register_section (common.smk, included first); the index and the archive include them.
 SECTION_TARGETS = [t for s in INDEX_SECTIONS.values() for t in s["targets"]]
 SECTION_BENCHMARKS = [b for s in INDEX_SECTIONS.values() for b in s["benchmarks"]]
 

@@ -72,12 +72,8 @@ def svo_benchmarks():
     return out
 
 
-try:
-    INDEX_SECTIONS
-except NameError:
-    INDEX_SECTIONS = {}
 if SVO["enabled"]:
-    INDEX_SECTIONS["svo"] = {
+    register_section("svo", {
         "model": "6-gyro arrays: " + ", ".join(SVO["cases"]) + " (SPEC 6.3)",
         "description": (
             f"Virtual gyroscope (paper 003): {SVO['train']} training arrays x "
@@ -91,7 +87,7 @@ if SVO["enabled"]:
         "replicates": int(SVO["train"]),
         "targets": svo_targets(),
         "benchmarks": svo_benchmarks(),
-    }
+    })
 
 
 wildcard_constraints:

@@ -136,13 +136,9 @@ def unc_section_benchmarks():
     ]
 
 
-# the index shows this section next to the studies (report.smk reads INDEX_SECTIONS)
-try:
-    INDEX_SECTIONS
-except NameError:
-    INDEX_SECTIONS = {}
+# the index shows this section next to the studies (register_section, common.smk)
 if UNC["enabled"]:
-    INDEX_SECTIONS["uncertainty"] = {
+    register_section("uncertainty", {
         "model": "fits of every study" + (" (Navchip: see below)" if _NAVCHIP_ON else ""),
         "description": (
             "Parametric bootstrap (Table 1: estimates, 95 % percentile and basic CIs, bootstrap vs "
@@ -156,7 +152,7 @@ if UNC["enabled"]:
         "replicates": 1,
         "targets": unc_section_targets(),
         "benchmarks": unc_section_benchmarks(),
-    }
+    })
 
 
 # --- coverage study (kind bootstrap_coverage) ----------------------------------------------------
