@@ -1,15 +1,41 @@
 # Shared helpers: which studies run, their chunks, file names, resource hints.
 # Adding a study kind = a rule file that registers its targets with register_targets(kind, fn).
 
+import os
+
 import gmwm_studies.montecarlo as gs
+import yaml
 from gmwm_studies.archive import config_hash
 from snakemake.exceptions import WorkflowError
 
-STUDY_DEFAULTS = {"enabled": True, "description": "", "levels": None, "estimators": ["gmwm"]}
+# Every default lives in workflow/schemas/config.schema.yaml, filled by validate() in the Snakefile
+# (sections navchip, navigation, svo, uncertainty and their sub-objects default to {}, so their
+# keys are always present). The only defaults the schema cannot state depend on other keys; they
+# are derived here, once:
+#   studies.<name>.chunk_size / seed  -> the global chunk_size / seed (_study_with_defaults)
+#   navigation.seed, svo.seed, uncertainty.seed -> the global seed
+for _section in ("navigation", "svo", "uncertainty"):
+    config[_section].setdefault("seed", config["seed"])
+
+
+def _schema_order(section, props):
+    """section's keys in the schema's order: dicts passed whole as params (nav=NAV) have a repr,
+    hence a params-change trigger, that does not depend on the key order of the config files."""
+    return {k: section[k] for k in props if k in section}
+
+
+with open(os.path.join(workflow.basedir, "workflow/schemas/config.schema.yaml")) as _fh:
+    _SCHEMA_PROPS = yaml.safe_load(_fh)["properties"]
+for _section in ("navchip", "navigation", "svo", "uncertainty"):
+    _props = _SCHEMA_PROPS[_section]["properties"]
+    config[_section] = _schema_order(config[_section], _props)
+    for _sub in ("coverage", "identifiability"):
+        if _sub in config[_section]:
+            config[_section][_sub] = _schema_order(config[_section][_sub], _props[_sub]["properties"])
 
 
 def _study_with_defaults(name, raw):
-    s = {**STUDY_DEFAULTS, **raw}
+    s = dict(raw)
     s.setdefault("chunk_size", config["chunk_size"])
     s.setdefault("seed", config["seed"])
     for est in s["estimators"]:
@@ -28,9 +54,9 @@ def _study_with_defaults(name, raw):
 STUDIES = {
     name: _study_with_defaults(name, raw)
     for name, raw in config["studies"].items()
-    if raw.get("enabled", True)
+    if raw["enabled"]
 }
-FIG_FORMATS = config.get("figures", {}).get("formats", ["png", "pdf"])
+FIG_FORMATS = config["figures"]["formats"]
 CONFIG_ID = config_hash(config)
 BENCH = "results/benchmarks"
 

@@ -9,17 +9,7 @@
 
 import os
 
-NAVCHIP = {
-    "enabled": True,
-    "dataset": "navchip_wv",
-    "data_dir": None,
-    "allow_download": True,
-    "model": "QN+WN+2*GM+RW+DR",
-    "sensors": ["gyroscope", "accelerometer"],
-    "fit": {},
-    "gof_threshold": 0.6,
-    **config.get("navchip", {}),
-}
+NAVCHIP = dict(config["navchip"])  # a copy: data_dir is made absolute below
 if NAVCHIP["data_dir"] is not None:  # relative to the repository root, not to `outdir`
     _repo_root = os.path.dirname(os.path.dirname(workflow.current_basedir.get_path_or_uri(secret_free=True)))
     NAVCHIP["data_dir"] = os.path.join(_repo_root, NAVCHIP["data_dir"])

@@ -10,27 +10,7 @@
 
 import gmwm_studies.montecarlo as _gs_nav
 
-NAV = {
-    "enabled": True,
-    "estimates_from": "misspec",
-    "models": ["model1", "model2"],
-    "iterations": 500,
-    "chunk_size": 25,
-    "seed": config["seed"],
-    "freq_calibration": 200.0,
-    "imu_rate": 100.0,
-    "duration": 235.0,
-    "gnss_rate": 1.0,
-    "outage": [160.0, 210.0],
-    "gnss_sd": 1.0,
-    "gyro_axes": ["x", "y", "z"],
-    "gyro_unit": "deg/s",
-    "accel_vrw": 0.1,
-    "initial_sd": {"position": 1.0, "velocity": 0.1, "roll_pitch": 0.5, "yaw": 1.0},
-    "record_rate": 10.0,
-    "level": 0.95,
-    **config.get("navigation", {}),
-}
+NAV = config["navigation"]  # defaults: config.schema.yaml; seed: common.smk
 _NAV_ON = NAV["enabled"] and NAV["estimates_from"] in STUDIES
 if NAV["enabled"] and not _NAV_ON:
     raise WorkflowError(f"config: navigation.estimates_from {NAV['estimates_from']!r} is not an "

@@ -11,21 +11,8 @@
 # Every array has its own SeedSequence keyed by (svo, case, role, replicate[, k]) under `seed`.
 # Paths are relative to the workdir (config `outdir`), like every other rule file.
 
-SVO = {
-    "enabled": True,
-    "seed": config["seed"],
-    "cases": ["case1", "case2"],
-    "n_samples": 1044000,
-    "levels": 19,
-    "freq": 10.0,
-    "train": 50,
-    "test_per_train": 10,
-    "chunk_size": 5,
-    **config.get("svo", {}),
-}
-SVO_COV = {"cases": ["case1"], "replicates": 1000, "chunk_size": 50, "n_boot": 500,
-           "block_const": 10.0, "alpha": 0.05, "schemes": ["paper", "time"],
-           **SVO.get("coverage", {})}
+SVO = config["svo"]  # defaults: config.schema.yaml; seed: common.smk
+SVO_COV = SVO["coverage"]
 
 
 def _svo_chunks(n, size):

@@ -17,20 +17,9 @@
 
 from gmwm_studies.seeds import stable_int
 
-UNC = {
-    "enabled": True,
-    "seed": config["seed"],
-    "B": 100,
-    "draws_per_job": 25,
-    "alpha": 0.05,
-    "table_studies": ["sim3"],
-    "navchip_sensors": ["gyroscope", "accelerometer"],
-    "navchip_axes": ["X", "Y", "Z"],
-    **config.get("uncertainty", {}),
-}
-UNC_ID = {"n_starts": 12, "posterior_studies": True, "max_steps": 10000, "studies": None,
-          **UNC.get("identifiability", {})}
-_NAVCHIP_ON = UNC["enabled"] and config.get("navchip", {}).get("enabled", True)
+UNC = config["uncertainty"]  # defaults: config.schema.yaml; seed: common.smk
+UNC_ID = UNC["identifiability"]
+_NAVCHIP_ON = UNC["enabled"] and config["navchip"]["enabled"]
 
 
 def unc_navchip_fits():
@@ -43,7 +32,7 @@ def unc_study_fits():
     """Studies whose replicate-0 fit is checked (identifiability.studies; null = all)."""
     if not UNC["enabled"]:
         return []
-    chosen = UNC_ID.get("studies") or list(STUDIES)
+    chosen = UNC_ID["studies"] or list(STUDIES)
     return [n for n in chosen if n in STUDIES]
 
 
