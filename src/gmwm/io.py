@@ -32,12 +32,16 @@ __all__ = [
     "atomic_path",
     "is_wv_table",
     "read_channels",
+    "read_result",
     "read_signal",
     "read_wv_table",
+    "result_from_dict",
+    "result_to_dict",
     "save_figure",
     "table_channels",
     "time_column_unit",
     "write_json_atomic",
+    "write_result",
     "write_signal",
     "write_text_atomic",
 ]
@@ -857,3 +861,144 @@ def save_figure(
         with atomic_path(target) as tmp:
             fig.savefig(tmp, dpi=dpi, bbox_inches="tight")
     return targets
+
+
+# -- lossless GMWMResult files ---------------------------------------------------------------------
+RESULT_FORMAT = "gmwm-result/1"
+_NONFINITE = {"NaN": np.nan, "Infinity": np.inf, "-Infinity": -np.inf}
+
+
+def _enc_float(v: float) -> float | str:
+    """A float as JSON: itself (Python's repr round-trips every float64) or "NaN"/"Infinity"."""
+    v = float(v)
+    if np.isfinite(v):
+        return v
+    return "NaN" if np.isnan(v) else ("Infinity" if v > 0 else "-Infinity")
+
+
+def _dec_float(v: float | str) -> float:
+    return _NONFINITE[v] if isinstance(v, str) else float(v)
+
+
+def _enc_array(a: Any) -> dict[str, Any]:
+    a = np.asarray(a)
+    flat = a.reshape(-1).tolist()
+    if a.dtype.kind in "fc":
+        flat = [_enc_float(v) for v in flat]
+    return {"__ndarray__": a.dtype.str, "shape": list(a.shape), "data": flat}
+
+
+def _dec_array(d: dict[str, Any]) -> np.ndarray:
+    dtype = np.dtype(d["__ndarray__"])
+    data = [_dec_float(v) for v in d["data"]] if dtype.kind in "fc" else d["data"]
+    return np.array(data, dtype=dtype).reshape(d["shape"])
+
+
+def _enc_tree(obj: Any) -> Any:
+    """settings/diagnostics: dicts (str keys), lists/tuples (read back as lists), arrays, scalars."""
+    if isinstance(obj, dict):
+        return {str(k): _enc_tree(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_enc_tree(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _enc_array(obj)
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return {"__float__": _enc_float(obj)}
+    if obj is None or isinstance(obj, bool | int | float | str):
+        return obj
+    raise InputError(f"cannot store a {type(obj).__name__} in a result file")
+
+
+def _dec_tree(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        if "__ndarray__" in obj:
+            return _dec_array(obj)
+        if "__float__" in obj:
+            return _dec_float(obj["__float__"])
+        return {k: _dec_tree(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_dec_tree(v) for v in obj]
+    return obj
+
+
+def result_to_dict(result: Any) -> dict[str, Any]:
+    """Lossless JSON-able dict of a :class:`gmwm.estimator.GMWMResult` (read back by
+    :func:`result_from_dict`): model spec and frequency, method, params, se, cov, objective,
+    weights, WV table (levels, scales, variance, CI, n, T, freq, alpha, efficiency), WV covariance,
+    settings (with a user ``weights_cov``), diagnostics and timings. Every float64 is stored
+    exactly; non-finite values as "NaN"/"Infinity" (strict JSON). Unlike
+    :meth:`GMWMResult.to_json_dict` (a readable summary), nothing is dropped."""
+    wv = result.wv
+    return {
+        "format": RESULT_FORMAT,
+        "model": result.model.spec,
+        "model_freq": float(result.model.freq),
+        "method": result.method,
+        "params": _enc_array(result.params),
+        "se": _enc_array(result.se),
+        "cov": _enc_array(result.cov),
+        "objective": _enc_float(result.objective),
+        "weights": _enc_array(result.weights),
+        "converged": bool(result.converged),
+        "message": str(result.message),
+        "wv": {"levels": _enc_array(wv.levels), "scales": _enc_array(wv.scales),
+               "variance": _enc_array(wv.variance), "ci_low": _enc_array(wv.ci_low),
+               "ci_high": _enc_array(wv.ci_high), "n": _enc_array(wv.n),
+               "n_samples": int(wv.n_samples), "freq": float(wv.freq), "alpha": float(wv.alpha),
+               "efficiency": float(wv.efficiency)},
+        "wv_cov": None if result.wv_cov is None else _enc_array(result.wv_cov),
+        "settings": _enc_tree(result.settings),
+        "diagnostics": _enc_tree(result.diagnostics),
+        "seconds_wv": float(result.seconds_wv),
+        "seconds_fit": float(result.seconds_fit),
+    }
+
+
+def result_from_dict(d: dict[str, Any]) -> Any:
+    """The :class:`gmwm.estimator.GMWMResult` stored by :func:`result_to_dict` (same arrays, bit
+    for bit; tuples in settings/diagnostics come back as lists)."""
+    from gmwm.estimator import GMWMResult
+    from gmwm.model import Model
+    from gmwm.wv import WaveletVariance
+
+    if not isinstance(d, dict) or d.get("format") != RESULT_FORMAT:
+        got = d.get("format") if isinstance(d, dict) else type(d).__name__
+        raise InputError(f"not a gmwm result ({RESULT_FORMAT!r} expected, got {got!r})")
+    try:
+        w = d["wv"]
+        wv = WaveletVariance(_dec_array(w["levels"]), _dec_array(w["scales"]),
+                             _dec_array(w["variance"]), _dec_array(w["ci_low"]),
+                             _dec_array(w["ci_high"]), _dec_array(w["n"]), int(w["n_samples"]),
+                             float(w["freq"]), float(w["alpha"]), float(w["efficiency"]))
+        return GMWMResult(
+            model=Model(d["model"], freq=float(d["model_freq"])),
+            params=_dec_array(d["params"]), se=_dec_array(d["se"]), cov=_dec_array(d["cov"]),
+            objective=_dec_float(d["objective"]), weights=_dec_array(d["weights"]),
+            converged=bool(d["converged"]), message=str(d["message"]), wv=wv,
+            method=str(d["method"]), diagnostics=_dec_tree(d["diagnostics"]),
+            seconds_wv=float(d["seconds_wv"]), seconds_fit=float(d["seconds_fit"]),
+            wv_cov=None if d["wv_cov"] is None else _dec_array(d["wv_cov"]),
+            settings=_dec_tree(d["settings"]))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(f"damaged gmwm result: {type(exc).__name__} {exc}") from None
+
+
+def write_result(path: str | os.PathLike, result: Any) -> Path:
+    """Write a GMWMResult losslessly as JSON (:func:`result_to_dict`), atomically."""
+    text = json.dumps(result_to_dict(result), allow_nan=False)
+    return write_text_atomic(path, text + "\n")
+
+
+def read_result(path: str | os.PathLike) -> Any:
+    """Read a GMWMResult written by :func:`write_result`."""
+    p = _existing_file(path)
+    try:
+        d = json.loads(p.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(f"{p} is not a JSON gmwm result ({exc})") from None
+    try:
+        return result_from_dict(d)
+    except InputError as exc:
+        raise InputError(f"{p}: {exc}") from None

@@ -195,7 +195,7 @@ rule uncertainty_estimate:
             else []
         ),
     output:
-        "results/uncertainty/fits/{fit}.pkl",
+        "results/uncertainty/fits/{fit}.json",
     params:
         spec=lambda w: unc_fit_spec(w.fit),
     log:
@@ -214,7 +214,7 @@ rule uncertainty_estimate:
 
 rule uncertainty_boot:
     input:
-        "results/uncertainty/fits/{fit}.pkl",
+        "results/uncertainty/fits/{fit}.json",
     output:
         "results/uncertainty/boot/{fit}_d{a}-{b}.nc",
     params:
@@ -245,7 +245,7 @@ def _unc_table_outputs(d, caption, what):
 
 rule uncertainty_table:
     input:
-        fits=lambda w: [f"results/uncertainty/fits/{f}.pkl" for f in unc_table_studies()],
+        fits=lambda w: [f"results/uncertainty/fits/{f}.json" for f in unc_table_studies()],
         boot=lambda w: unc_boot_files(unc_table_studies()),
     output:
         csv=_unc_table_outputs("reports/uncertainty", "uncertainty_table.rst", "Table 1 (simulated)"),
@@ -263,7 +263,7 @@ rule uncertainty_table:
 
 rule uncertainty_table_navchip:
     input:
-        fits=lambda w: [f"results/uncertainty/fits/{f}.pkl" for f in unc_navchip_fits()],
+        fits=lambda w: [f"results/uncertainty/fits/{f}.json" for f in unc_navchip_fits()],
         boot=lambda w: unc_boot_files(unc_navchip_fits()),
     output:
         csv=_unc_table_outputs("reports/navchip", "uncertainty_table.rst", "Table 1 (Navchip)"),
@@ -281,7 +281,7 @@ rule uncertainty_table_navchip:
 
 rule uncertainty_identify:
     input:
-        "results/uncertainty/fits/{fit}.pkl",
+        "results/uncertainty/fits/{fit}.json",
     output:
         json="results/uncertainty/identify/{fit}.json",
         samples="results/uncertainty/identify/{fit}_posterior.npz",
@@ -310,7 +310,7 @@ rule uncertainty_corner:
     input:
         json=lambda w: f"results/uncertainty/identify/{_corner_fit(w)}.json",
         samples=lambda w: f"results/uncertainty/identify/{_corner_fit(w)}_posterior.npz",
-        fit=lambda w: f"results/uncertainty/fits/{_corner_fit(w)}.pkl",
+        fit=lambda w: f"results/uncertainty/fits/{_corner_fit(w)}.json",
     output:
         "reports/{dir}/corner_{name}.png",
     wildcard_constraints:

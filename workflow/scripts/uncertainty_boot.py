@@ -1,18 +1,16 @@
 """Rule uncertainty_boot: parametric bootstrap draws [a, b) of one fitted model (NetCDF chunk)."""
 
-import pickle
-
 import numpy as np
 from wflog import get_logger
 
 from gmwm.bootstrap import parametric_bootstrap
+from gmwm.io import read_result
 from gmwm_studies.store import write_dataset
 from gmwm_studies.uncertainty import bootstrap_to_dataset
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)
-with open(snakemake.input[0], "rb") as fh:
-    est = pickle.load(fh)
+est = read_result(snakemake.input[0])
 a, b = snakemake.params.draws
 entropy, key = snakemake.params.seed
 seed = np.random.SeedSequence(entropy, spawn_key=(key,))

@@ -1,18 +1,15 @@
 """Rule uncertainty_corner: corner plot of the emcee quasi-posterior of one fitted model, with the
 GMWM estimate marked."""
 
-import pickle
-
 import numpy as np
 from wflog import get_logger
 
 from gmwm.identify import corner_plot
-from gmwm.io import save_figure
+from gmwm.io import read_result, save_figure
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)
-with open(snakemake.input.fit, "rb") as fh:
-    est = pickle.load(fh)
+est = read_result(snakemake.input.fit)
 z = np.load(snakemake.input.samples)
 samples, names = z["samples"], [str(n) for n in z["names"]]
 if not len(samples):

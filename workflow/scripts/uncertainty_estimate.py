@@ -1,11 +1,10 @@
 """Rule uncertainty_estimate: the fitted model that the bootstrap and the identifiability checks
-use (replicate 0 of a study, or one Navchip axis from the navchip rule's fits file), pickled."""
-
-import pickle
+use (replicate 0 of a study, or one Navchip axis from the navchip rule's fits file), as a lossless
+JSON result (gmwm.io.write_result; the consumers rebuild it with gmwm.io.read_result)."""
 
 from wflog import get_logger
 
-from gmwm.io import atomic_path
+from gmwm.io import write_result
 from gmwm_studies.montecarlo import replicate_fit
 from gmwm_studies.uncertainty import navchip_result
 
@@ -22,5 +21,4 @@ else:
                         study=spec["study"], base_seed=spec["seed"], settings=spec["settings"],
                         levels=spec["levels"], freq=spec["freq"])
 log.info("%s: %s\n%s", snakemake.wildcards.fit, spec, res.summary())
-with atomic_path(snakemake.output[0]) as tmp, open(tmp, "wb") as fh:
-    pickle.dump(res, fh)
+write_result(snakemake.output[0], res)

@@ -1,19 +1,16 @@
 """Rule uncertainty_identify: local, global and (if configured) emcee posterior identifiability
 checks of one fitted model; report as JSON, posterior draws as .npz (empty if not run)."""
 
-import pickle
-
 import numpy as np
 from wflog import get_logger
 
 from gmwm.identify import check
-from gmwm.io import atomic_path, write_json_atomic
+from gmwm.io import atomic_path, read_result, write_json_atomic
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)
 p = snakemake.params
-with open(snakemake.input[0], "rb") as fh:
-    est = pickle.load(fh)
+est = read_result(snakemake.input[0])
 rep = check(est, posterior=p.posterior, seed=p.seed, n_starts=p.n_starts, max_steps=p.max_steps)
 log.info("%s\n%s", snakemake.wildcards.fit, rep.summary())
 write_json_atomic(snakemake.output.json, rep.to_json_dict())

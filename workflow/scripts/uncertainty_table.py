@@ -1,12 +1,11 @@
 """Rule uncertainty_table(_navchip): Table 1, estimates with 95 % parametric bootstrap CIs
 (percentile and basic), bootstrap SE next to the sandwich SE, per fitted model (CSV + Markdown)."""
 
-import pickle
-
 import pandas as pd
 from wflog import get_logger
 
 from gmwm.bootstrap import BootstrapResult
+from gmwm.io import read_result
 from gmwm_studies.montecarlo import write_table
 from gmwm_studies.store import read_dataset
 from gmwm_studies.uncertainty import bootstrap_from_dataset, bootstrap_table
@@ -16,8 +15,7 @@ log = get_logger(snakemake)
 alpha = snakemake.params.alpha
 frames = []
 for fit, path in zip(snakemake.params.fits, snakemake.input.fits, strict=True):
-    with open(path, "rb") as fh:
-        est = pickle.load(fh)
+    est = read_result(path)
     parts = [bootstrap_from_dataset(read_dataset(f), est) for f in snakemake.input.boot
              if f.split("/")[-1].rsplit("_d", 1)[0] == fit]
     boot = BootstrapResult.combine(parts)
