@@ -201,3 +201,16 @@ def test_coverage_wilson_interval_never_degenerates():
     np.testing.assert_allclose(cov.lo[0], 100 / (100 + 1.959964**2), rtol=1e-5)
     assert cov.hi[0] == pytest.approx(1.0)
     np.testing.assert_allclose([cov.lo[1], cov.hi[1]], [0.4038, 0.5962], atol=2e-4)
+
+
+def test_basic_interval_of_a_boundary_estimate_stays_in_the_domain():
+    # white noise fitted with WN+RW: the RW variance is estimated at exactly 0, where the log
+    # form theta^2 / q does not exist and 2 theta - q would be negative: percentile instead
+    x = np.random.default_rng(5).standard_normal(2**14)
+    res = gmwm.fit(gmwm.wvar(x), "WN+RW")
+    assert res.params[1] == 0.0
+    boot = bs.parametric_bootstrap(res, 20, seed=1)
+    q, bc = boot.quantiles(), boot.basic_ci()
+    assert q[1, 1] > 0
+    np.testing.assert_array_equal(bc[1], q[1])
+    assert np.all(bc >= 0)

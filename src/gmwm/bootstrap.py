@@ -49,11 +49,12 @@ def _free(model: Model, theta: np.ndarray) -> np.ndarray:
 
 
 def _positive_params(model: Model) -> np.ndarray:
-    """Per parameter: its domain is (0, inf) (every parameter but AR1 phi, DR omega, SIN beta)."""
+    """Per parameter: its estimates live in [0, inf) (every parameter but AR1 phi and SIN beta;
+    DR omega counts: the WV identifies only |omega| and fits report omega >= 0)."""
     out = []
     for c in model.components:
         for n in c.process.param_names:
-            out.append(not ((c.process.name == "AR1" and n == "phi") or c.process.name == "DR"
+            out.append(not ((c.process.name == "AR1" and n == "phi")
                             or (c.process.name == "SIN" and n == "beta")))
     return np.array(out, dtype=bool)
 SeedLike = int | np.random.SeedSequence
@@ -280,7 +281,9 @@ class BootstrapResult:
     def basic_ci(self, alpha: float = 0.05) -> np.ndarray:
         """(p, 2) basic intervals ``[2 theta_hat - q(1-alpha/2), 2 theta_hat - q(alpha/2)]``,
         formed on the log scale for positive parameters (variances, amplitudes, GM beta) so that
-        they never leave the domain: ``[theta_hat^2 / q_hi, theta_hat^2 / q_lo]``."""
+        they never leave the domain: ``[theta_hat^2 / q_hi, theta_hat^2 / q_lo]``. Where the log
+        form does not exist (a positive parameter estimated at the boundary 0, or refits at 0) the
+        basic interval would reach below 0, so the percentile interval ``[q_lo, q_hi]`` is used."""
         q = self.quantiles(alpha)
         th = self.estimate.params
         out = np.column_stack([2 * th - q[:, 1], 2 * th - q[:, 0]])
@@ -289,6 +292,8 @@ class BootstrapResult:
             logci = np.column_stack([th**2 / q[:, 1], th**2 / q[:, 0]])
         ok = pos & (th > 0) & np.all(q > 0, axis=1)
         out[ok] = logci[ok]
+        edge = pos & ~ok
+        out[edge] = q[edge]
         return out
 
     def ci(self, alpha: float = 0.05, kind: str = "percentile") -> np.ndarray:
