@@ -340,15 +340,23 @@ class _VP:
         full[keep] = coef / norm_
         return rnorm**2, full
 
-    def profile_gain(self, G: np.ndarray, others: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    def residual(self, others: list[int]) -> tuple[np.ndarray | None, np.ndarray]:
+        """Orthonormal basis Q of the ``others`` columns (None if empty) and the whitened WV
+        with their span projected out."""
+        if not others:
+            return None, self.yw
+        Q, _ = np.linalg.qr(self.cols[:, others])
+        return Q, self.yw - Q @ (Q.T @ self.yw)
+
+    def profile_gain(self, G: np.ndarray, others: list[int],
+                     proj: tuple[np.ndarray | None, np.ndarray] | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
         """Drop in LS cost from adding each column of G to the others (Frisch-Waugh); only
-        columns entering with a positive coefficient count."""
-        if others:
-            Q, _ = np.linalg.qr(self.cols[:, others])
-            y = self.yw - Q @ (Q.T @ self.yw)
+        columns entering with a positive coefficient count. ``proj``: ``residual(others)``,
+        when the caller scans several grids against the same others."""
+        Q, y = self.residual(others) if proj is None else proj
+        if Q is not None:
             G = G - Q @ (Q.T @ G)
-        else:
-            y = self.yw
         num = G.T @ y
         den = np.einsum("jg,jg->g", G, G)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -360,7 +368,8 @@ class _VP:
         """Move shape k to its best value given the others (grid scan, then 1-D refinement)."""
         grid, G = self.grids[k], self.gcols[k]
         others = [i for i in (range(self.ncomp) if active is None else active) if i != k]
-        gain, coef = self.profile_gain(G, others)
+        proj = self.residual(others)
+        gain, coef = self.profile_gain(G, others, proj)
         top = np.argsort(-gain)[:3]
         values, step = grid[top], self.STEP
         if self.names[k] == "SIN" and refine:
@@ -375,7 +384,8 @@ class _VP:
                 n = int(np.clip(np.exp(hi) * tau_eff * (hi - lo) / 2, 16, 3000))
                 fine.append(np.linspace(lo, hi, n))
             fv = np.concatenate(fine)
-            gain_f, _ = self.profile_gain(self.white @ _unit_columns("SIN", fv, self.tau), others)
+            gain_f, _ = self.profile_gain(self.white @ _unit_columns("SIN", fv, self.tau), others,
+                                          proj)
             values = fv[np.argsort(-gain_f)[:3]]
             step = float(fine[0][1] - fine[0][0])
         if refine:
@@ -385,7 +395,7 @@ class _VP:
             local = np.clip((values[:, None] + step * np.linspace(-1, 1, 17)[None, :]).ravel(),
                             lo_b, hi_b)
             g_loc, _ = self.profile_gain(self.white @ _unit_columns(self.names[k], local,
-                                                                     self.tau), others)
+                                                                     self.tau), others, proj)
             g_loc = g_loc.reshape(values.size, 17)
             refined = []
             for row, v in zip(g_loc, values, strict=True):
@@ -484,9 +494,9 @@ class _VP:
                 best_pair, best_cost = None, np.inf
                 for gj in range(self.grids[j].size):
                     self.cols[:, j] = self.col(j, self.grids[j][gj])
-                    gain, _ = self.profile_gain(sin_cols, others)
-                    Q, _ = np.linalg.qr(self.cols[:, others])
-                    y = self.yw - Q @ (Q.T @ self.yw)
+                    proj = self.residual(others)
+                    gain, _ = self.profile_gain(sin_cols, others, proj)
+                    y = proj[1]
                     gk = int(np.argmax(gain))
                     if y @ y - gain[gk] < best_cost:
                         best_cost, best_pair = y @ y - gain[gk], (gj, gk)
