@@ -78,33 +78,37 @@ _GREG_L, _GREG_R = _gregory_weights()
 
 
 @njit(cache=True)
-def _e3(x: float) -> float:
-    """exp(-x) - 1 + x - x^2/2 for x >= 0 (series below 0.5)."""
+def _exp_tail(x: float, n: int) -> float:
+    """exp(-x) minus its Taylor polynomial of degree n - 1, for x >= 0 (series below 0.5)."""
+    term = 1.0
+    for k in range(1, n + 1):
+        term *= -x / k
     if x < 0.5:
-        term = -x * x * x / 6.0
         s = term
-        for k in range(4, 30):
+        for k in range(n + 1, 30):
             term *= -x / k
             s += term
             if abs(term) <= 1e-17 * abs(s):
                 break
         return s
-    return np.expm1(-x) + x - 0.5 * x * x
+    s = np.expm1(-x)
+    term = 1.0
+    for k in range(1, n):
+        term *= -x / k
+        s -= term
+    return s
+
+
+@njit(cache=True)
+def _e3(x: float) -> float:
+    """exp(-x) - 1 + x - x^2/2 for x >= 0."""
+    return _exp_tail(x, 3)
 
 
 @njit(cache=True)
 def _e2(x: float) -> float:
     """exp(-x) - 1 + x for x >= 0."""
-    if x < 0.5:
-        term = 0.5 * x * x
-        s = term
-        for k in range(3, 30):
-            term *= -x / k
-            s += term
-            if abs(term) <= 1e-17 * abs(s):
-                break
-        return s
-    return np.expm1(-x) + x
+    return _exp_tail(x, 2)
 
 
 @njit(cache=True)
