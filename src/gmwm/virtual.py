@@ -189,6 +189,32 @@ def _wccv_raw(x: np.ndarray, J: int) -> np.ndarray:
 
 
 @njit(cache=True)
+def _centred(x: np.ndarray) -> np.ndarray:
+    """Copy of ``x`` (T, p) minus its first row (keeps the Haar pyramid exact under offsets)."""
+    T, p = x.shape
+    cur = np.empty((T, p))
+    for t in range(T):
+        for i in range(p):
+            cur[t, i] = x[t, i] - x[0, i]
+    return cur
+
+
+@njit(cache=True, inline="always")
+def _haar_step(cur: np.ndarray, nxt: np.ndarray, t: int, lag: int, y: np.ndarray,
+               w: np.ndarray) -> float:
+    """One Haar step at time ``t``: wavelet coefficients into ``w``, the next level's scaling
+    coefficients into ``nxt[t]``; returns the projection ``w'y``."""
+    s = 0.0
+    for i in range(w.shape[0]):
+        a = cur[t, i]
+        b = cur[t - lag, i]
+        w[i] = 0.5 * (a - b)
+        nxt[t, i] = 0.5 * (a + b)
+        s += w[i] * y[i]
+    return s
+
+
+@njit(cache=True)
 def _mbb_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
                 starts: np.ndarray, block: int, last: int, refill: np.ndarray,
                 out: np.ndarray) -> None:
@@ -206,10 +232,7 @@ def _mbb_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray
     qj = npair if full else p
     MJ = T - (1 << J) + 1
     trimmed = np.zeros((MJ + 1, out.shape[1]))
-    cur = np.empty((T, p))
-    for t in range(T):
-        for i in range(p):
-            cur[t, i] = x[t, i] - x[0, i]
+    cur = _centred(x)
     nxt = np.empty((T, p))
     cum = np.empty((T + 1, qj))
     w = np.empty(p)
@@ -223,12 +246,7 @@ def _mbb_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray
         for q in range(qj):
             cum[0, q] = 0.0
         for m in range(Mj):
-            t = m + tau - 1
-            for i in range(p):
-                a = cur[t, i]
-                b = cur[t - lag, i]
-                w[i] = 0.5 * (a - b)
-                nxt[t, i] = 0.5 * (a + b)
+            s = _haar_step(cur, nxt, m + tau - 1, lag, y, w)
             if full:
                 q = 0
                 for i in range(p):
@@ -236,9 +254,6 @@ def _mbb_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray
                         f[q] = wf[j - 1] * w[i] * w[k]
                         q += 1
             else:
-                s = 0.0
-                for i in range(p):
-                    s += w[i] * y[i]
                 for i in range(p):
                     f[i] = wf[j - 1] * s * w[i]
             for q in range(qj):
@@ -276,10 +291,7 @@ def _mbb_time_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, starts: n
     H, nb = starts.shape
     npair = p * (p + 1) // 2
     qj = npair if full else p
-    cur = np.empty((T, p))
-    for t in range(T):
-        for i in range(p):
-            cur[t, i] = x[t, i] - x[0, i]
+    cur = _centred(x)
     nxt = np.empty((T, p))
     cum = np.empty((T + 1, qj))
     w = np.empty(p)
@@ -290,12 +302,7 @@ def _mbb_time_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, starts: n
         for q in range(qj):
             cum[0, q] = 0.0
         for m in range(Mj):
-            t = m + tau - 1
-            for i in range(p):
-                a = cur[t, i]
-                b = cur[t - lag, i]
-                w[i] = 0.5 * (a - b)
-                nxt[t, i] = 0.5 * (a + b)
+            s = _haar_step(cur, nxt, m + tau - 1, lag, y, w)
             if full:
                 q = 0
                 for i in range(p):
@@ -303,9 +310,6 @@ def _mbb_time_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, starts: n
                         cum[m + 1, q] = cum[m, q] + w[i] * w[k]
                         q += 1
             else:
-                s = 0.0
-                for i in range(p):
-                    s += w[i] * y[i]
                 for i in range(p):
                     cum[m + 1, i] = cum[m, i] + s * w[i]
         for h in range(H):
