@@ -180,6 +180,9 @@ def test_comparison_table_ratios_and_speedups():
     assert comparison_table(long).shape[0] == 4
     text = counts_text(comp, {"variants": {"mle": "moment", "mle_gmwm": "gmwm"}})
     assert "T = 1,000: 1 + 1 of 4" in text and "MLE (GMWM start)" in text
+    assert not text.startswith("GMWM:")
+    text = counts_text(comp, {"variants": {"mle": "moment"}}, {"n_starts": 8, "nested": False})
+    assert text.startswith("GMWM: single-model search") and "8 starts, ci weights" in text
 
 
 def test_standardized_boxplot_data_share_the_mle_scale():

@@ -37,6 +37,11 @@ def test_replicate_fit_equals_the_study_fit():
     ds = fit_chunk(chunk, SETTINGS)
     res = replicate_fit(MODEL, TRUTH, T, 3, study="s", base_seed=9, settings=SETTINGS)
     np.testing.assert_array_equal(res.params, ds["estimate"].values[0])
+    # the single-model setting (Simulation 1's gmwm_single) reaches the fit
+    single = replicate_fit(MODEL, TRUTH, T, 3, study="s", base_seed=9,
+                           settings={**SETTINGS, "nested": False})
+    assert res.diagnostics["settings"]["nested"] is True
+    assert single.diagnostics["settings"]["nested"] is False
     # AVSM-only keys are dropped, GMWM keys kept
     assert fit_kwargs({"n_starts": 2, "min_edof": 2, "max_nfev": 50}) == {"n_starts": 2,
                                                                              "max_nfev": 50}

@@ -48,7 +48,7 @@ __all__ = [
 ]
 
 Progress = Callable[[str], None]
-FIT_KEYS = ("weights", "n_starts", "reweight", "method")
+FIT_KEYS = ("weights", "n_starts", "reweight", "method", "nested")
 
 
 def _noop(_: str) -> None:

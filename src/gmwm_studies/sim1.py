@@ -43,6 +43,7 @@ __all__ = [
     "START_RULES",
     "comparison_table",
     "counts_text",
+    "gmwm_text",
     "method_label",
     "paired_mask",
     "run_chunk",
@@ -445,16 +446,28 @@ def study_tables(datasets: Sequence[xr.Dataset]) -> tuple[pd.DataFrame, pd.DataF
     return long, comparison_table(long)
 
 
-def counts_text(comp: pd.DataFrame, mle_settings: Mapping[str, Any]) -> str:
-    """Plain sentences (valid reStructuredText) with the MLE cap, the variants, the dropped
-    replicates and the used counts per T, for the figure captions and the tables."""
+def gmwm_text(gmwm_settings: Mapping[str, Any]) -> str:
+    """One sentence naming the GMWM's search settings (single model or nested, starts, weights)."""
+    nested = bool(gmwm_settings.get("nested", True))
+    search = ("nested search: the model and each of its submodels" if nested else
+              "single-model search, as in the paper (no nested submodel search)")
+    return (f"GMWM: {search}, {int(gmwm_settings.get('n_starts', 4))} starts, "
+            f"{gmwm_settings.get('weights', 'ci')} weights.")
+
+
+def counts_text(comp: pd.DataFrame, mle_settings: Mapping[str, Any],
+                gmwm_settings: Mapping[str, Any] | None = None) -> str:
+    """Plain sentences (valid reStructuredText) with the GMWM's settings (if given), the MLE cap,
+    the variants, the dropped replicates and the used counts per T, for the figure captions and
+    the tables."""
     settings = _mle_settings(mle_settings)
     first = comp[comp["variant"] == comp["variant"].iloc[0]]
 
     def per_t(df: pd.DataFrame, col: str) -> str:
         return "; ".join(f"T = {int(r.n_samples):,}: {getattr(r, col)}" for r in df.itertuples())
 
-    lines = [(
+    lines = [] if gmwm_settings is None else [gmwm_text(gmwm_settings)]
+    lines += [(
         f"GMWM replicates per sample size: {per_t(first, 'n_replicates')}. "
         f"MLE fitted on the first replicates only (cost cap): {per_t(first, 'n_mle')}. "
         f"MLE backend {settings['backend']!r} (exact likelihood, one start per variant). "

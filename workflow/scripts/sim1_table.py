@@ -12,7 +12,7 @@ log = get_logger(snakemake)
 out = snakemake.output
 name = snakemake.wildcards.study
 long, comp = study_tables([read_dataset(f) for f in snakemake.input])
-counts = counts_text(comp, snakemake.params.mle)
+counts = counts_text(comp, snakemake.params.mle, snakemake.params.gmwm)
 write_text_atomic(out.counts, counts)
 write_table(comp, out.comparison, out.comparison_md,
             title=(f"{name}: GMWM vs MLE variants, speed-up (MLE time / GMWM time on the same "
