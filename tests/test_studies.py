@@ -218,6 +218,28 @@ def test_archive_never_overwrites(tmp_path):
     assert not [p for p in (tmp_path / "arch").iterdir() if p.name.startswith(".")]
 
 
+def test_archived_summary_takes_each_study_from_its_newest_archive(tmp_path):
+    root = tmp_path / "archive"
+    runs = {"20260101T000000Z-aaa": [("fit", "s1", 10.0), ("fit", "s2", 20.0)],
+            "20260102T000000Z-bbb": [("fit", "s1", 1.0), ("table", "s1", 2.0)],
+            "20260103T000000Z-ccc": [("fit", "other", 5.0)]}
+    for name, rows in runs.items():
+        (root / name).mkdir(parents=True)
+        pd.DataFrame([{"rule": r, "study": st, "job": "j", "seconds": sec} for r, st, sec in rows]
+                     ).to_csv(root / name / "timings.csv", index=False)
+    (root / ".20260104T000000Z-ddd.tmp-1").mkdir()  # an unfinished archive has no timings
+    summary, sources = archive.archived_summary(root, ["s1", "s2", "missing"])
+    assert sources == {"s1": "20260102T000000Z-bbb", "s2": "20260101T000000Z-aaa"}
+    totals = summary.groupby("study")["seconds"].sum()
+    assert totals["s1"] == 3.0 and totals["s2"] == 20.0 and "missing" not in totals
+    page = archive.render_index(
+        [{"name": "s1", "model": "WN", "n_samples": [10], "replicates": 2, "table": "t.md"}],
+        summary, "cfg", sources)
+    assert "archived as `archive/20260102T000000Z-bbb`): 3.0 s" in page
+    empty, none = archive.archived_summary(tmp_path / "nowhere", ["s1"])
+    assert empty.empty and none == {}
+
+
 def _sim2_like(est: np.ndarray) -> xr.Dataset:
     names = ["AR1[1].phi", "AR1[1].sigma2", "SIN[1].alpha", "SIN[1].beta", "SIN[2].alpha",
              "SIN[2].beta"]

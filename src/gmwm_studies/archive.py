@@ -81,12 +81,40 @@ def run_summary(bench: pd.DataFrame) -> pd.DataFrame:
     )
 
 
+def archived_summary(archive_root: str | os.PathLike, studies: Iterable[str]
+                     ) -> tuple[pd.DataFrame, dict[str, str]]:
+    """:func:`run_summary` rows of each study from the newest archive under ``archive_root``
+    whose ``timings.csv`` has jobs of it, and the archive name per study found.
+
+    For the index of a partial rerun: studies that did not run this time keep the timings of
+    the run that produced their committed reports. Archive names start with a UTC timestamp, so
+    name order is time order."""
+    wanted = set(studies)
+    root = Path(archive_root)
+    frames, source = [], {}
+    runs = sorted((d for d in root.iterdir() if (d / "timings.csv").is_file()),
+                  key=lambda d: d.name, reverse=True) if root.is_dir() else []
+    for run in runs:
+        if not wanted:
+            break
+        table = pd.read_csv(run / "timings.csv")
+        found = wanted & set(table["study"])
+        if found:
+            frames.append(table[table["study"].isin(found)])
+            source.update({name: run.name for name in found})
+            wanted -= found
+    bench = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(
+        columns=["rule", "study", "job", "seconds"])
+    return run_summary(bench), source
+
+
 def render_index(studies: Sequence[Mapping[str, Any]], summary: pd.DataFrame,
-                 config_id: str) -> str:
+                 config_id: str, sources: Mapping[str, str] | None = None) -> str:
     """Markdown index page: per study its description, figures, key numbers and run time.
 
     Each entry of ``studies``: name, model, description, n_samples (list), replicates, figures
     (relative paths), table (relative path of the Markdown table), key (DataFrame of key numbers).
+    ``sources``: per study, the archive its run time comes from (when not from this run).
     """
     lines = [
         "# GMWM reproduction: studies at a glance",
@@ -118,7 +146,9 @@ def render_index(studies: Sequence[Mapping[str, Any]], summary: pd.DataFrame,
             per_rule = ", ".join(
                 f"{r.rule} {r.jobs} jobs {r.seconds:.1f} s" for r in own.itertuples(index=False)
             )
-            lines += [f"Run time (summed job wall time): {total:.1f} s ({per_rule}).", ""]
+            origin = (sources or {}).get(s["name"])
+            where = f", run archived as `archive/{origin}`" if origin else ""
+            lines += [f"Run time (summed job wall time{where}): {total:.1f} s ({per_rule}).", ""]
     return "\n".join(lines) + "\n"
 
 

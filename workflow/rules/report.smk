@@ -35,6 +35,7 @@ rule index:
         | {name: {k: v for k, v in s.items() if k != "benchmarks"} for name, s in INDEX_SECTIONS.items()},
         config_id=CONFIG_ID,
         benchmarks=all_benchmarks() + SECTION_BENCHMARKS,
+        archive_root="reports/archive",
     log:
         "logs/index.log",
     script:

@@ -6,7 +6,7 @@ import pandas as pd
 from wflog import get_logger
 
 from gmwm.io import write_text_atomic
-from gmwm_studies.archive import read_benchmarks, render_index, run_summary
+from gmwm_studies.archive import archived_summary, read_benchmarks, render_index, run_summary
 
 KEY_COLUMNS = ["method",  # STIM-300: GMWM / ARMAV / AVSM rows of one table
                "n_samples", "parameter", "truth", "rel_bias", "rel_sd", "std_bias",
@@ -39,5 +39,10 @@ for name, s in snakemake.params.studies.items():
         "key": key,
     })
 summary = run_summary(read_benchmarks(snakemake.params.benchmarks))
-write_text_atomic(out, render_index(entries, summary, snakemake.params.config_id))
+# studies that did not run here (a partial rerun) keep the timings of their archived run
+ran = set(summary["study"]) if len(summary) else set()
+older, sources = archived_summary(snakemake.params.archive_root,
+                                  [e["name"] for e in entries if e["name"] not in ran])
+summary = pd.concat([summary, older], ignore_index=True) if len(older) else summary
+write_text_atomic(out, render_index(entries, summary, snakemake.params.config_id, sources))
 log.info("wrote %s (%d studies)", out, len(entries))
