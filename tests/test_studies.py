@@ -236,6 +236,13 @@ def test_archived_summary_takes_each_study_from_its_newest_archive(tmp_path):
         [{"name": "s1", "model": "WN", "n_samples": [10], "replicates": 2, "table": "t.md"}],
         summary, "cfg", sources)
     assert "archived as `archive/20260102T000000Z-bbb`): 3.0 s" in page
+    # a section whose jobs sit under other directory names (SVO: case1, case2)
+    (root / "20260105T000000Z-eee").mkdir()
+    pd.DataFrame({"rule": ["svo_train"] * 2, "study": ["case1", "case2"], "job": ["a", "b"],
+                  "seconds": [4.0, 6.0]}).to_csv(root / "20260105T000000Z-eee" / "timings.csv",
+                                                 index=False)
+    svo, where = archive.archived_summary(root, ["svo"], {"case1": "svo", "case2": "svo"})
+    assert where == {"svo": "20260105T000000Z-eee"} and svo["seconds"].sum() == 10.0
     empty, none = archive.archived_summary(tmp_path / "nowhere", ["s1"])
     assert empty.empty and none == {}
 

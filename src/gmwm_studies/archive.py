@@ -81,14 +81,16 @@ def run_summary(bench: pd.DataFrame) -> pd.DataFrame:
     )
 
 
-def archived_summary(archive_root: str | os.PathLike, studies: Iterable[str]
+def archived_summary(archive_root: str | os.PathLike, studies: Iterable[str],
+                     aliases: Mapping[str, str] | None = None
                      ) -> tuple[pd.DataFrame, dict[str, str]]:
     """:func:`run_summary` rows of each study from the newest archive under ``archive_root``
     whose ``timings.csv`` has jobs of it, and the archive name per study found.
 
     For the index of a partial rerun: studies that did not run this time keep the timings of
     the run that produced their committed reports. Archive names start with a UTC timestamp, so
-    name order is time order."""
+    name order is time order. ``aliases`` maps a benchmark directory name to the study it
+    belongs to (e.g. the SVO section's ``case1``, ``case2``)."""
     wanted = set(studies)
     root = Path(archive_root)
     frames, source = [], {}
@@ -98,6 +100,7 @@ def archived_summary(archive_root: str | os.PathLike, studies: Iterable[str]
         if not wanted:
             break
         table = pd.read_csv(run / "timings.csv")
+        table["study"] = table["study"].replace(dict(aliases or {}))
         found = wanted & set(table["study"])
         if found:
             frames.append(table[table["study"].isin(found)])

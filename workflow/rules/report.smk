@@ -36,6 +36,9 @@ rule index:
         config_id=CONFIG_ID,
         benchmarks=all_benchmarks() + SECTION_BENCHMARKS,
         archive_root="reports/archive",
+        # directory names of each section's benchmark files (the study column of its timings)
+        study_dirs={name: sorted({os.path.basename(os.path.dirname(b)) for b in s["benchmarks"]})
+                    for name, s in INDEX_SECTIONS.items()},
     log:
         "logs/index.log",
     script:

@@ -9,15 +9,18 @@ from gmwm.io import write_text_atomic
 from gmwm_studies.archive import archived_summary, read_benchmarks, render_index, run_summary
 
 KEY_COLUMNS = ["method",  # STIM-300: GMWM / ARMAV / AVSM rows of one table
-               "n_samples", "parameter", "truth", "rel_bias", "rel_sd", "std_bias",
+               "n_samples", "variant", "parameter", "truth", "rel_bias", "rel_sd", "std_bias",
                "share_not_converged",
-               # Simulation 1 (GMWM vs MLE): per T, MLE replicates and failures, speed-up, RMSE ratios
-               "n_mle", "mle_not_converged", "speedup", "rmse_ratio_sigma2", "rmse_ratio_phi",
-               "rmse_ratio_ar1_sigma2", "rmse_ratio_gamma2",
+               # Simulation 1 (GMWM vs MLE variants): per T, MLE replicates, failures and wrong
+               # optima, speed-ups (MLE time / GMWM time), RMSE ratios
+               "n_mle", "not_converged", "wrong_optimum", "speedup_mean", "speedup_median",
+               "rmse_ratio_sigma2", "rmse_ratio_phi", "rmse_ratio_ar1_sigma2", "rmse_ratio_gamma2",
                # uncertainty: identifiability status per fit; coverage study: coverage, MC SE
                "fit", "status", "interval", "coverage", "wilson_lo", "wilson_hi", "mean_se_ratio",
                # navigation emulation: maximum of the position error ratio, its epoch and CI
                "window", "time_s", "max_ratio", "ci_lo", "ci_hi"]
+
+LABELS = {"method", "n_samples", "variant", "parameter", "fit", "status", "interval", "window"}
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)
@@ -31,6 +34,8 @@ for name, s in snakemake.params.studies.items():
     if csv is not None:
         table = pd.read_csv(csv)
         key = table[[c for c in KEY_COLUMNS if c in table.columns]]
+        if not any(c not in LABELS and pd.api.types.is_numeric_dtype(key[c]) for c in key):
+            key = None  # labels only (e.g. the SVO table): nothing worth a glance
     entries.append({
         "name": name, "model": s["model"], "description": s["description"],
         "n_samples": s["n_samples"], "replicates": s["replicates"],
@@ -38,11 +43,15 @@ for name, s in snakemake.params.studies.items():
         "table": next((str(r) for r in rel if r.suffix == ".md"), ""),
         "key": key,
     })
-summary = run_summary(read_benchmarks(snakemake.params.benchmarks))
+# a section's jobs may sit under other directory names (SVO: case1, case2)
+aliases = {d: name for name, dirs in snakemake.params.study_dirs.items() for d in dirs if d != name}
+bench = read_benchmarks(snakemake.params.benchmarks)
+bench["study"] = bench["study"].replace(aliases)
+summary = run_summary(bench)
 # studies that did not run here (a partial rerun) keep the timings of their archived run
 ran = set(summary["study"]) if len(summary) else set()
 older, sources = archived_summary(snakemake.params.archive_root,
-                                  [e["name"] for e in entries if e["name"] not in ran])
+                                  [e["name"] for e in entries if e["name"] not in ran], aliases)
 summary = pd.concat([summary, older], ignore_index=True) if len(older) else summary
 write_text_atomic(out, render_index(entries, summary, snakemake.params.config_id, sources))
 log.info("wrote %s (%d studies)", out, len(entries))
