@@ -236,6 +236,9 @@ def test_archived_summary_takes_each_study_from_its_newest_archive(tmp_path):
         [{"name": "s1", "model": "WN", "n_samples": [10], "replicates": 2, "table": "t.md"}],
         summary, "cfg", sources)
     assert "archived as `archive/20260102T000000Z-bbb`): 3.0 s" in page
+    real = archive.render_index([{"name": "nav", "model": "WN", "table": "nav/e.md",
+                                  "figures": ["nav/f.png"]}], summary, "cfg")
+    assert "Full table: [nav/e.md](nav/e.md)." in real and "Sample sizes" not in real
     # a section whose jobs sit under other directory names (SVO: case1, case2)
     (root / "20260105T000000Z-eee").mkdir()
     pd.DataFrame({"rule": ["svo_train"] * 2, "study": ["case1", "case2"], "job": ["a", "b"],

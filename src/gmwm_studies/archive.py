@@ -132,12 +132,13 @@ def render_index(studies: Sequence[Mapping[str, Any]], summary: pd.DataFrame,
         lines += [f"## {s['name']}: `{s['model']}`", ""]
         if s.get("description"):
             lines += [str(s["description"]), ""]
-        sizes = ", ".join(str(t) for t in s["n_samples"])
-        lines += [
-            (f"Sample sizes {sizes}; {s['replicates']} replicates each. "
-             f"Full table: [{s['table']}]({s['table']})."),
-            "",
-        ]
+        if "n_samples" in s:
+            sizes = ", ".join(str(t) for t in s["n_samples"])
+            lines.append(f"Sample sizes {sizes}; {s['replicates']} replicates each. "
+                         f"Full table: [{s['table']}]({s['table']}).")
+        else:  # a real-data section: no design to state
+            lines.append(f"Full table: [{s['table']}]({s['table']}).")
+        lines.append("")
         for fig in s.get("figures", []):
             lines += [f"![{Path(fig).stem}]({fig})", ""]
         key = s.get("key")

@@ -36,6 +36,16 @@ rule index:
         config_id=CONFIG_ID,
         benchmarks=all_benchmarks() + SECTION_BENCHMARKS,
         archive_root="reports/archive",
+        # real-data reports linked, not read: they are not inputs, so that a missing data file
+        # stops only their own jobs (navchip.smk)
+        linked={"navchip": {
+            "model": "QN+WN+2*GM+RW+DR per axis",
+            "description": ("Navchip IMU (paper 004 Table 1 layout, Figs 3-4): GMWM fits of the "
+                            "six axes, datasheet comparison and goodness of fit; bootstrap CIs "
+                            "and identifiability in the uncertainty section. Built by the "
+                            "navchip rules when the data file is available."),
+            "targets": [t for t in navchip_targets() if t.startswith("reports/")],
+        }} if navchip_targets() else {},
         # directory names of each section's benchmark files (the study column of its timings)
         study_dirs={name: sorted({os.path.basename(os.path.dirname(b)) for b in s["benchmarks"]})
                     for name, s in INDEX_SECTIONS.items()},
