@@ -43,6 +43,14 @@ for name, s in snakemake.params.studies.items():
         "table": next((str(r) for r in rel if r.suffix == ".md"), ""),
         "key": key,
     })
+for name, s in snakemake.params.linked.items():
+    rel = [Path(t).relative_to(out.parent) if Path(t).is_relative_to(out.parent) else Path(t)
+           for t in s["targets"]]
+    entries.append({
+        "name": name, "model": s["model"], "description": s["description"],
+        "figures": [str(r) for r in rel if r.suffix == ".png"],
+        "table": next((str(r) for r in rel if r.suffix == ".md"), ""), "key": None,
+    })
 # a section's jobs may sit under other directory names (SVO: case1, case2)
 aliases = {d: name for name, dirs in snakemake.params.study_dirs.items() for d in dirs if d != name}
 bench = read_benchmarks(snakemake.params.benchmarks)
