@@ -25,10 +25,18 @@ LABELS = {"method", "n_samples", "variant", "parameter", "fit", "status", "inter
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)
 out = Path(snakemake.output[0])
+
+
+def relative(targets):
+    """Target paths relative to the index's directory (the links on the page)."""
+    paths = [Path(t) for t in targets]
+    return [p.relative_to(out.parent) if p.is_relative_to(out.parent) else p for p in paths]
+
+
 entries = []
 for name, s in snakemake.params.studies.items():
     targets = [Path(t) for t in s["targets"]]
-    rel = [t.relative_to(out.parent) if t.is_relative_to(out.parent) else t for t in targets]
+    rel = relative(targets)
     csv = next((t for t in targets if t.suffix == ".csv"), None)
     key = None
     if csv is not None:
@@ -44,8 +52,7 @@ for name, s in snakemake.params.studies.items():
         "key": key,
     })
 for name, s in snakemake.params.linked.items():
-    rel = [Path(t).relative_to(out.parent) if Path(t).is_relative_to(out.parent) else Path(t)
-           for t in s["targets"]]
+    rel = relative(s["targets"])
     entries.append({
         "name": name, "model": s["model"], "description": s["description"],
         "figures": [str(r) for r in rel if r.suffix == ".png"],
