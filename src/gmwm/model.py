@@ -240,9 +240,13 @@ class Model:
         if n < 1:
             raise ModelError(f"number of samples must be positive, got {n}")
         rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
-        x = np.zeros(n)
+        x = None
         for c in self.components:
-            x += c.process.simulate(theta[c.slice], n, rng, self.freq)
+            part = c.process.simulate(theta[c.slice], n, rng, self.freq)
+            if x is None:  # each process returns a fresh array: the first one holds the sum
+                x = part.astype(float, copy=False)
+            else:
+                x += part
         return x
 
     # -- unconstrained parametrisation ----------------------------------------------------------
