@@ -130,6 +130,10 @@ def test_figures_have_one_panel_per_parameter(accel_fits):
     fig1 = ac.figure_boxplots(groups, "accel", FREQ, title="t")
     assert sum(ax.get_visible() for ax in fig1.axes) == 4
     assert fig1.axes[0].get_title() == "Q"
+    # one figure legend (estimators + truth) outside the panels, none inside a panel
+    assert len(fig1.legends) == 1 and all(ax.get_legend() is None for ax in fig1.axes)
+    assert [t.get_text() for t in fig1.legends[0].get_texts()] == [
+        "GMWM", "ARMAV (weighted)", "ARMAV (OLS)", "AVSM", "truth"]
     table = ac.summarize_table_units(groups, "accel", FREQ)
     fig2 = ac.figure_rmse(table)
     assert sum(ax.get_visible() for ax in fig2.axes) == 4

@@ -290,10 +290,11 @@ def figure_boxplots(groups: Mapping[tuple[str, int], xr.Dataset], sensor: str, f
             ax.set_yscale("log")
         else:
             _clip_outliers(ax, allv, truth)
-        if k == 0:
-            ax.legend(loc="best", fontsize=7)
-        elif ax.get_legend() is not None:
+        if ax.get_legend() is not None:
             ax.get_legend().remove()
+    # one legend for all panels, below them: inside a panel it covered the outliers
+    handles, labels = axes.ravel()[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=7)
     if title:
         fig.suptitle(title)
     return fig
