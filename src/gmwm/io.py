@@ -19,6 +19,7 @@ import uuid
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
+from dataclasses import fields as dataclass_fields
 from pathlib import Path
 from typing import Any
 
@@ -863,7 +864,7 @@ def save_figure(
 
 
 # -- lossless GMWMResult files ---------------------------------------------------------------------
-RESULT_FORMAT = "gmwm-result/1"
+RESULT_FORMAT = "gmwm-result/2"  # 2: fields by name, non-finite scalars as {"__float__"}
 _NONFINITE = {"NaN": np.nan, "Infinity": np.inf, "-Infinity": -np.inf}
 
 
@@ -924,35 +925,18 @@ def _dec_tree(obj: Any) -> Any:
 
 def result_to_dict(result: Any) -> dict[str, Any]:
     """Lossless JSON-able dict of a :class:`gmwm.estimator.GMWMResult` (read back by
-    :func:`result_from_dict`): model spec and frequency, method, params, se, cov, objective,
-    weights, WV table (levels, scales, variance, CI, n, T, freq, alpha, efficiency), WV covariance,
-    settings (with a user ``weights_cov``), diagnostics and timings. Every float64 is stored
-    exactly; non-finite values as "NaN"/"Infinity" (strict JSON). Unlike
-    :meth:`GMWMResult.to_json_dict` (a readable summary), nothing is dropped."""
-    wv = result.wv
-    return {
-        "format": RESULT_FORMAT,
-        "model": result.model.spec,
-        "model_freq": float(result.model.freq),
-        "method": result.method,
-        "params": _enc_array(result.params),
-        "se": _enc_array(result.se),
-        "cov": _enc_array(result.cov),
-        "objective": _enc_float(result.objective),
-        "weights": _enc_array(result.weights),
-        "converged": bool(result.converged),
-        "message": str(result.message),
-        "wv": {"levels": _enc_array(wv.levels), "scales": _enc_array(wv.scales),
-               "variance": _enc_array(wv.variance), "ci_low": _enc_array(wv.ci_low),
-               "ci_high": _enc_array(wv.ci_high), "n": _enc_array(wv.n),
-               "n_samples": int(wv.n_samples), "freq": float(wv.freq), "alpha": float(wv.alpha),
-               "efficiency": float(wv.efficiency)},
-        "wv_cov": None if result.wv_cov is None else _enc_array(result.wv_cov),
-        "settings": _enc_tree(result.settings),
-        "diagnostics": _enc_tree(result.diagnostics),
-        "seconds_wv": float(result.seconds_wv),
-        "seconds_fit": float(result.seconds_fit),
-    }
+    :func:`result_from_dict`): the model as spec and frequency, every other field of the result
+    and of its WV by name. Every float64 is stored exactly; non-finite values as "NaN"/"Infinity"
+    (strict JSON). Unlike :meth:`GMWMResult.to_json_dict` (a readable summary), nothing is
+    dropped."""
+    out = {"format": RESULT_FORMAT, "model": result.model.spec,
+           "model_freq": float(result.model.freq),
+           "wv": {f.name: _enc_tree(getattr(result.wv, f.name))
+                  for f in dataclass_fields(result.wv)}}
+    for f in dataclass_fields(result):
+        if f.name not in out:
+            out[f.name] = _enc_tree(getattr(result, f.name))
+    return out
 
 
 def result_from_dict(d: dict[str, Any]) -> Any:
@@ -966,20 +950,10 @@ def result_from_dict(d: dict[str, Any]) -> Any:
         got = d.get("format") if isinstance(d, dict) else type(d).__name__
         raise InputError(f"not a gmwm result ({RESULT_FORMAT!r} expected, got {got!r})")
     try:
-        w = d["wv"]
-        wv = WaveletVariance(_dec_array(w["levels"]), _dec_array(w["scales"]),
-                             _dec_array(w["variance"]), _dec_array(w["ci_low"]),
-                             _dec_array(w["ci_high"]), _dec_array(w["n"]), int(w["n_samples"]),
-                             float(w["freq"]), float(w["alpha"]), float(w["efficiency"]))
-        return GMWMResult(
-            model=Model(d["model"], freq=float(d["model_freq"])),
-            params=_dec_array(d["params"]), se=_dec_array(d["se"]), cov=_dec_array(d["cov"]),
-            objective=_dec_float(d["objective"]), weights=_dec_array(d["weights"]),
-            converged=bool(d["converged"]), message=str(d["message"]), wv=wv,
-            method=str(d["method"]), diagnostics=_dec_tree(d["diagnostics"]),
-            seconds_wv=float(d["seconds_wv"]), seconds_fit=float(d["seconds_fit"]),
-            wv_cov=None if d["wv_cov"] is None else _dec_array(d["wv_cov"]),
-            settings=_dec_tree(d["settings"]))
+        wv = WaveletVariance(**{k: _dec_tree(v) for k, v in d["wv"].items()})
+        rest = {f.name: _dec_tree(d[f.name]) for f in dataclass_fields(GMWMResult)
+                if f.name not in ("model", "wv")}
+        return GMWMResult(model=Model(d["model"], freq=float(d["model_freq"])), wv=wv, **rest)
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"damaged gmwm result: {type(exc).__name__} {exc}") from None
 
