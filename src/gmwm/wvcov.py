@@ -80,10 +80,10 @@ _GREG_L, _GREG_R = _gregory_weights()
 @njit(cache=True)
 def _exp_tail(x: float, n: int) -> float:
     """exp(-x) minus its Taylor polynomial of degree n - 1, for x >= 0 (series below 0.5)."""
-    term = 1.0
-    for k in range(1, n + 1):
-        term *= -x / k
     if x < 0.5:
+        term = 1.0
+        for k in range(1, n + 1):
+            term *= -x / k
         s = term
         for k in range(n + 1, 30):
             term *= -x / k
