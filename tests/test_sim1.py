@@ -14,6 +14,7 @@ from gmwm_studies.sim1 import (
     COMPARED,
     comparison_table,
     counts_text,
+    gmwm_text,
     paired_mask,
     run_chunk,
     run_replicate,
@@ -183,6 +184,9 @@ def test_comparison_table_ratios_and_speedups():
     assert not text.startswith("GMWM:")
     text = counts_text(comp, {"variants": {"mle": "moment"}}, {"n_starts": 8, "nested": False})
     assert text.startswith("GMWM: single-model search") and "8 starts, ci weights" in text
+    # settings not given are gmwm.fit's defaults (nested search, 4 starts, CI weights)
+    assert gmwm_text({}) == ("GMWM: nested search: the model and each of its submodels, "
+                             "4 starts, ci weights.")
 
 
 def test_standardized_boxplot_data_share_the_mle_scale():

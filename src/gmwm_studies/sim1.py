@@ -447,12 +447,16 @@ def study_tables(datasets: Sequence[xr.Dataset]) -> tuple[pd.DataFrame, pd.DataF
 
 
 def gmwm_text(gmwm_settings: Mapping[str, Any]) -> str:
-    """One sentence naming the GMWM's search settings (single model or nested, starts, weights)."""
-    nested = bool(gmwm_settings.get("nested", True))
-    search = ("nested search: the model and each of its submodels" if nested else
+    """One sentence naming the GMWM's search settings (single model or nested, starts, weights);
+    a setting not given is ``gmwm.fit``'s default."""
+    from inspect import signature
+
+    from gmwm import fit
+
+    s = {**{k: p.default for k, p in signature(fit).parameters.items()}, **gmwm_settings}
+    search = ("nested search: the model and each of its submodels" if s["nested"] else
               "single-model search, as in the paper (no nested submodel search)")
-    return (f"GMWM: {search}, {int(gmwm_settings.get('n_starts', 4))} starts, "
-            f"{gmwm_settings.get('weights', 'ci')} weights.")
+    return f"GMWM: {search}, {int(s['n_starts'])} starts, {s['weights']} weights."
 
 
 def counts_text(comp: pd.DataFrame, mle_settings: Mapping[str, Any],
