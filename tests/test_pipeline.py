@@ -86,6 +86,17 @@ def test_outputs_exist_and_are_sensible(run):
     assert sim2.share_not_converged.between(0, 1).all()
 
 
+def test_archive_covers_navchip_when_data_is_local(run):
+    """The Navchip file is on disk (../shared/data): its reports and job timings are archived
+    with the studies', so one archive covers every report of the run."""
+    (archive,) = (run / "reports" / "archive").iterdir()
+    for name in ("estimates.csv", "gof.csv", "bootstrap_ci.csv", "identifiability.csv"):
+        assert (archive / "reports" / "navchip" / name).stat().st_size > 0, name
+    timings = pd.read_csv(archive / "timings.csv")
+    assert {"navchip_fit", "navchip_report", "uncertainty_table"} <= set(timings.rule)
+    assert (timings.study == "navchip").sum() >= 3
+
+
 def test_sim1_and_uncertainty_outputs(run):
     sim1 = run / "reports" / "sim1"
     for name in ("comparison.csv", "rmse_bias_time.csv", "fig1_rmse.png", "fig2_runtime.png",

@@ -9,10 +9,32 @@
 
 import os
 
+from gmwm_studies.data import dataset_entry, load_registry
+
 NAVCHIP = dict(config["navchip"])  # a copy: data_dir is made absolute below
 if NAVCHIP["data_dir"] is not None:  # relative to the repository root, not to `outdir`
     _repo_root = os.path.dirname(os.path.dirname(workflow.current_basedir.get_path_or_uri(secret_free=True)))
     NAVCHIP["data_dir"] = os.path.join(_repo_root, NAVCHIP["data_dir"])
+
+
+def navchip_local_copy():
+    """Whether the Navchip file is already on disk (the configured data_dir, else the registry's
+    local_dir). Then its reports are archive inputs too (report.smk): nothing can fail for want of
+    the data. Without a local copy they stay outside the archive, so that a failed download stops
+    only the navchip rules."""
+    if not NAVCHIP["enabled"]:
+        return False
+    reg = load_registry()  # the registry obtain_navchip reads
+    base = NAVCHIP["data_dir"] or reg.get("local_dir_resolved")
+    entry = dataset_entry(NAVCHIP["dataset"], reg)
+    return base is not None and os.path.isfile(os.path.join(base, entry["file"]))
+
+
+def navchip_benchmarks():
+    """Benchmark files of the navchip rules (with navchip_targets)."""
+    if not NAVCHIP["enabled"]:
+        return []
+    return [f"{BENCH}/navchip_{r}/navchip/{r}.tsv" for r in ("data", "fit", "report")]
 
 
 def navchip_targets():

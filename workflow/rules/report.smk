@@ -13,6 +13,11 @@ localrules:
 # register_section (common.smk, included first); the index and the archive include them.
 SECTION_TARGETS = [t for s in INDEX_SECTIONS.values() for t in s["targets"]]
 SECTION_BENCHMARKS = [b for s in INDEX_SECTIONS.values() for b in s["benchmarks"]]
+# the real-data reports join the archive when their data file is on disk (navchip.smk)
+ARCHIVE_NAVCHIP = navchip_local_copy()
+NAVCHIP_REPORTS = [t for t in [*navchip_targets(), *uncertainty_navchip_targets()]
+                   if t.startswith("reports/")] if ARCHIVE_NAVCHIP else []
+NAVCHIP_BENCHMARKS = [*navchip_benchmarks(), *unc_navchip_benchmarks()] if ARCHIVE_NAVCHIP else []
 
 
 rule index:
@@ -60,11 +65,11 @@ rule index:
 # to date outputs: nothing to do; any rerun of a study output or a new config: a new archive.
 rule archive:
     input:
-        files=[*all_study_targets(), *SECTION_TARGETS, "reports/index.md"],
+        files=[*all_study_targets(), *SECTION_TARGETS, *NAVCHIP_REPORTS, "reports/index.md"],
     output:
         f"results/archive/{CONFIG_ID}.json",
     params:
-        benchmarks=all_benchmarks() + SECTION_BENCHMARKS,
+        benchmarks=all_benchmarks() + SECTION_BENCHMARKS + NAVCHIP_BENCHMARKS,
         archive_root="reports/archive",
     log:
         "logs/archive.log",

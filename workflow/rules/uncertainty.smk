@@ -111,6 +111,20 @@ def uncertainty_navchip_targets():
     ]
 
 
+def unc_navchip_benchmarks():
+    """Benchmark files of the jobs behind uncertainty_navchip_targets."""
+    fits = unc_navchip_fits()
+    if not fits:
+        return []
+    return [
+        *[f"{BENCH}/uncertainty_{r}/uncertainty/{f}.tsv" for f in fits for r in ("estimate", "identify")],
+        *[f"{BENCH}/uncertainty_boot/uncertainty/{f}_d{a}-{b}.tsv" for f in fits for a, b in unc_chunks(f)],
+        *[f"{BENCH}/uncertainty_corner/navchip/{f.removeprefix('navchip_')}.tsv" for f in fits],
+        f"{BENCH}/uncertainty_table/navchip/navchip.tsv",
+        f"{BENCH}/uncertainty_identifiability/navchip/navchip.tsv",
+    ]
+
+
 def unc_section_benchmarks():
     fits = unc_study_fits()
     table = unc_table_studies()
