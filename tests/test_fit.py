@@ -209,3 +209,33 @@ def test_sandwich_se_survives_parameters_on_very_different_scales():
     assert np.isfinite(se[:, 0]).all() and np.isfinite(se[:, 1]).sum() >= 6
     ratio = np.nanmedian(se, axis=0) / np.std(est, axis=0, ddof=1)
     assert np.all((ratio > 0.2) & (ratio < 5)), ratio
+
+
+def _wn_rw_wv(seed: int) -> WaveletVariance:
+    model = Model("WN+RW")
+    theta = model.theta({"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-4})
+    return wvar(model.simulate(theta, 2**18, np.random.default_rng(seed)))
+
+
+def test_solve_within_limits_keeps_phi_below_one():
+    # an AR1 fitted to a random walk runs phi to 1: its free coordinate (2 atanh phi) reaches
+    # ~47, where 2 expit(eta) - 1 rounds to exactly 1.0 (a random walk, outside the domain)
+    from gmwm.inference import Problem, weight_matrix
+
+    wv = _wn_rw_wv(5)
+    model = Model("WN+AR1")
+    prob = Problem(model, wv, weight_matrix(wv, "ci"))
+    start = model.theta({"WN[1].sigma2": 1.0, "AR1[1].phi": 0.999, "AR1[1].sigma2": 1e-4})
+    assert prob.solve(start).theta[1] == 1.0
+    sol = prob.solve(start, within_limits=True)
+    assert sol.theta[1] < 1.0 and "AR1[1].phi" in sol.edge
+    model.check(sol.theta)
+
+
+def test_phi_rounding_onto_one_is_reported_not_a_crash():
+    # this efficient-weights fit used to stop with "AR1[1]: phi must lie in (-1, 1), got 1"
+    res = gmwm.fit(_wn_rw_wv(2), "WN+AR1", weights="efficient")
+    phi = res.as_dict()["AR1[1].phi"]
+    assert 1 - 1e-12 < phi < 1.0
+    res.model.check(res.params)
+    assert any("edge of the stationary domain" in w for w in res.warnings)

@@ -44,7 +44,7 @@ import numpy as np
 from scipy.optimize import nnls
 from scipy.special import ndtri
 
-from .errors import IdentifiabilityError, InputError
+from .errors import IdentifiabilityError, InputError, ModelError
 from .inference import METHODS, Problem, Whitener, check_cov, omega_from_cov, weight_matrix, wv_cov
 from .model import Model, as_model
 from .processes import PROCESSES, ar1_unit_wv_many, sin_unit_wv
@@ -666,6 +666,21 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
     return node
 
 
+def _into_domain(prob: Problem, node: _Node) -> _Node:
+    """The search's winner, solved again inside the free coordinates' limits if one of its
+    parameters rounded onto a domain bound (an AR1 phi of exactly 1): every estimate a fit
+    returns lies in the model's domain."""
+    try:
+        prob.model.check(node.theta, boundary_ok=True)
+        return node
+    except ModelError:
+        pass
+    sol = prob.solve(node.theta, within_limits=True)
+    return dataclasses.replace(node, theta=prob.model.canonical(sol.theta),
+                               objective=sol.objective, converged=sol.ok,
+                               message=sol.message, edge=sol.edge, from_submodel=None)
+
+
 def fit(data: np.ndarray | WaveletVariance, model: str | Model, *, levels: int | None = None,
         freq: float | None = None, weights: str | np.ndarray = "ci", method: str = "gmwm",
         n_starts: int = 4, seed: int = 0, reweight: int = 0, alpha: float = 0.05,
@@ -736,20 +751,21 @@ def fit(data: np.ndarray | WaveletVariance, model: str | Model, *, levels: int |
         omega = weight_matrix(wv, "ci" if efficient else weights, method)
         prob = Problem(model, wv, omega, method)
         cache: dict[str, Any] = {}
-        node = _search(prob, model, n_starts, seed, drift_sign, max_nfev, nested, cache)
+        node = _into_domain(prob, _search(prob, model, n_starts, seed, drift_sign, max_nfev,
+                                          nested, cache))
         for _ in range(0 if user_cov or efficient else reweight):
             omega = weight_matrix(wv, "gaussian", method, model_wv=model.wv(node.theta, prob.tau))
             prob = Problem(model, wv, omega, method)
             cache = {}
-            node = _search(prob, model, n_starts, seed, drift_sign, max_nfev, nested, cache,
-                           extra_starts=[node.theta])
+            node = _into_domain(prob, _search(prob, model, n_starts, seed, drift_sign, max_nfev,
+                                              nested, cache, extra_starts=[node.theta]))
         if efficient:
             V1 = wv_cov("model", model, node.theta, wv)
             omega = omega_from_cov(V1, wv.variance, method)
             prob = Problem(model, wv, omega, method)
             cache = {}
-            node = _search(prob, model, n_starts, seed, drift_sign, max_nfev, nested, cache,
-                           extra_starts=[node.theta])
+            node = _into_domain(prob, _search(prob, model, n_starts, seed, drift_sign, max_nfev,
+                                              nested, cache, extra_starts=[node.theta]))
     seconds_fit = time.perf_counter() - t0
     theta = node.theta
     with np.errstate(all="ignore"):

@@ -253,9 +253,11 @@ class Problem:
         return -(self.white @ self.jac_theta(theta)) * self.model.dtheta_deta(eta) / self.scale
 
     def solve(self, theta0: np.ndarray, *, max_nfev: int = 1000, box: float = BOX,
-              center: np.ndarray | None = None) -> Solution:
+              center: np.ndarray | None = None, within_limits: bool = False) -> Solution:
         """Bounded trust-region least squares in free coordinates from ``theta0`` within
-        ``center +- box`` (default: around the start), with the analytic Jacobian. ``edge``
+        ``center +- box`` (default: around the start), with the analytic Jacobian.
+        ``within_limits`` also keeps the coordinates inside ``Model.free_limits`` (past them a
+        transform rounds onto its domain's bound, e.g. phi = 1). ``edge``
         names parameters that ended within 1e-3 of the box (a variance running to the boundary
         0, i.e. a vanishing component, is not counted)."""
         model = self.model
@@ -264,6 +266,10 @@ class Problem:
         eta0 = np.clip(np.nan_to_num(eta0, nan=0.0, posinf=30.0, neginf=-30.0), -60, 60)
         c = eta0 if center is None else center
         lo, hi = c - box, c + box
+        if within_limits:
+            lim_lo, lim_hi = model.free_limits()
+            hi = np.minimum(hi, lim_hi)
+            lo = np.minimum(np.maximum(lo, lim_lo), hi - 1.0)
         try:
             with np.errstate(all="ignore"):
                 sol = least_squares(self.free_residual, np.clip(eta0, lo + 1e-9, hi - 1e-9),

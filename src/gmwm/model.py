@@ -258,6 +258,11 @@ class Model:
         eta = np.asarray(eta, dtype=float)
         return np.concatenate([c.process.from_free(eta[c.slice]) for c in self.components])
 
+    def free_limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """Limits of the free coordinates (see ``Process.free_limits``)."""
+        lims = [c.process.free_limits() for c in self.components]
+        return np.concatenate([a for a, _ in lims]), np.concatenate([b for _, b in lims])
+
     def dtheta_deta(self, eta: np.ndarray) -> np.ndarray:
         """Diagonal of d theta / d eta (every transform acts on one parameter)."""
         eta = np.asarray(eta, dtype=float)

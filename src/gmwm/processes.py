@@ -57,6 +57,11 @@ class Process:
     def from_free(self, eta: np.ndarray) -> np.ndarray:
         return _exp(eta)
 
+    def free_limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """Limits of the free coordinates within which ``from_free`` stays inside the open
+        domain in floating point (none by default)."""
+        return np.full(self.n_params, -np.inf), np.full(self.n_params, np.inf)
+
     def dp_deta(self, eta: np.ndarray) -> np.ndarray:
         return _exp(eta)
 
@@ -283,6 +288,10 @@ class AR1(Process):
     name = "AR1"
     param_names = ("phi", "sigma2")
     scale_index = 1
+
+    def free_limits(self):
+        # 2 expit(eta) - 1 rounds to 1 from eta ~ 37 on: phi = 1 is a random walk, not an AR1
+        return np.array([-36.0, -np.inf]), np.array([36.0, np.inf])
 
     def wv(self, p, tau, freq=1.0):
         return p[1] * ar1_unit_wv(p[0], tau)[0]
