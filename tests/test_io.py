@@ -388,3 +388,15 @@ def test_read_channels_hdf5_time_dataset(tmp_path, x):
     ch = read_channels(p, "all")
     assert list(ch.signals) == ["imu/gz"] and ch.freq == pytest.approx(400.0)
     assert ch.freq_source == "time dataset /imu/timestamp_ns"
+
+
+def test_saved_figures_carry_no_creation_date(tmp_path):
+    # the committed reports are compared byte for byte after a rerun: a date would differ
+    from matplotlib.figure import Figure
+
+    fig = Figure()
+    fig.add_subplot().plot([1, 2], [3, 4])
+    png, pdf, svg = save_figure(fig, tmp_path / "fig", formats=("png", "pdf", "svg"))
+    assert b"CreationDate" not in pdf.read_bytes() and pdf.read_bytes()[:4] == b"%PDF"
+    assert b"<dc:date>" not in svg.read_bytes()
+    assert png.read_bytes()[:4] == b"\x89PNG"

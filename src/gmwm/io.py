@@ -859,8 +859,13 @@ def save_figure(
     targets = [p] if ext in _FIGURE_FORMATS else [p.with_name(f"{p.name}.{f.lstrip('.')}") for f in formats]
     for target in targets:
         with atomic_path(target) as tmp:
-            fig.savefig(tmp, dpi=dpi, bbox_inches="tight")
+            # no creation date in the file: a rerun with the same numbers writes the same bytes
+            fig.savefig(tmp, dpi=dpi, bbox_inches="tight",
+                        metadata=_NO_DATE.get(target.suffix.lower().lstrip(".")))
     return targets
+
+
+_NO_DATE = {"pdf": {"CreationDate": None}, "svg": {"Date": None}}
 
 
 # -- lossless GMWMResult files ---------------------------------------------------------------------
