@@ -143,6 +143,18 @@ def _http_fetch(url: str, timeout: float = 60.0) -> bytes:
         return resp.read()
 
 
+def local_copy(name: str, local_dir: str | os.PathLike | None = None, *,
+               registry: Mapping | str | os.PathLike | None = None) -> Path | None:
+    """Path of dataset ``name`` in ``local_dir`` (default: the registry's ``local_dir``), or
+    None when no such file is on disk. The first place :func:`obtain` looks."""
+    reg = load_registry(registry)
+    base = Path(local_dir) if local_dir is not None else reg.get("local_dir_resolved")
+    if base is None:
+        return None
+    path = Path(base) / dataset_entry(name, reg)["file"]
+    return path if path.is_file() else None
+
+
 def obtain(name: str, dest: str | os.PathLike, local_dir: str | os.PathLike | None = None,
            allow_download: bool = True, *, registry: Mapping | str | os.PathLike | None = None,
            fetch: Fetch | None = None) -> Path:
@@ -155,9 +167,9 @@ def obtain(name: str, dest: str | os.PathLike, local_dir: str | os.PathLike | No
     entry = dataset_entry(name, reg)
     target = _dest_file(dest, entry)
     base = Path(local_dir) if local_dir is not None else reg.get("local_dir_resolved")
-    local = Path(base) / entry["file"] if base is not None else None
+    local = local_copy(name, local_dir, registry=registry)
 
-    if local is not None and local.is_file():
+    if local is not None:
         check_layout(local, list(entry["columns"]))
         if entry.get("csv_sha256"):
             check_sha256(local, entry["csv_sha256"], f"local copy {local}")

@@ -9,7 +9,7 @@
 
 import os
 
-from gmwm_studies.data import dataset_entry, load_registry
+from gmwm_studies.data import local_copy
 
 NAVCHIP = dict(config["navchip"])  # a copy: data_dir is made absolute below
 if NAVCHIP["data_dir"] is not None:  # relative to the repository root, not to `outdir`
@@ -22,12 +22,7 @@ def navchip_local_copy():
     local_dir). Then its reports are archive inputs too (report.smk): nothing can fail for want of
     the data. Without a local copy they stay outside the archive, so that a failed download stops
     only the navchip rules."""
-    if not NAVCHIP["enabled"]:
-        return False
-    reg = load_registry()  # the registry obtain_navchip reads
-    base = NAVCHIP["data_dir"] or reg.get("local_dir_resolved")
-    entry = dataset_entry(NAVCHIP["dataset"], reg)
-    return base is not None and os.path.isfile(os.path.join(base, entry["file"]))
+    return NAVCHIP["enabled"] and local_copy(NAVCHIP["dataset"], NAVCHIP["data_dir"]) is not None
 
 
 def navchip_benchmarks():
