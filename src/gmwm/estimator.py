@@ -41,10 +41,10 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from scipy.optimize import nnls
+from scipy.optimize import least_squares, nnls
 from scipy.special import ndtri
 
-from .errors import IdentifiabilityError, InputError, ModelError
+from .errors import IdentifiabilityError, InputError
 from .inference import METHODS, Problem, Whitener, check_cov, omega_from_cov, weight_matrix, wv_cov
 from .model import Model, as_model
 from .processes import PROCESSES, ar1_unit_wv_many, sin_unit_wv
@@ -55,7 +55,9 @@ __all__ = ["GMWMResult", "fit", "weight_matrix"]
 #: A component whose WV share is below this at every scale is "at the boundary 0".
 VANISH_SHARE = 1e-6
 #: Evaluation budget of each exploratory trust-region solve (the winner continues to max_nfev).
-EXPLORE_NFEV = 150
+EXPLORE_NFEV = 60
+#: default number of starts of :func:`fit`
+N_STARTS = 4
 #: Condition number of the whitened free-coordinate Jacobian above which a fit is flagged.
 COND_WARN = 1e8
 
@@ -322,6 +324,15 @@ class _VP:
             self._cols[key] = c
         return c
 
+    def prefetch(self, k: int, values: np.ndarray) -> None:
+        """Whitened columns of component k at several shapes, computed in one call."""
+        name = self.names[k]
+        new = [float(v) for v in values if (name, float(v)) not in self._cols]
+        if len(new) > 1:
+            cols = self.white @ _unit_columns(name, np.array(new), self.tau)
+            for i, v in enumerate(new):
+                self._cols[(name, v)] = cols[:, i]
+
     def floors(self, shapes: list[float]) -> np.ndarray:
         out = np.empty(self.ncomp)
         for k in range(self.ncomp):
@@ -407,6 +418,7 @@ class _VP:
                         u += step / 8 * 0.5 * (row[i - 1] - row[i + 1]) / den
                 refined.append(float(np.clip(u, lo_b, hi_b)))
             values = np.concatenate([values, refined])
+        self.prefetch(k, values)
         exact = []
         for v in values:
             self.cols[:, k] = self.col(k, v)
@@ -431,11 +443,42 @@ class _VP:
                 break
         return shapes, best[0], best[1]
 
+    def polish(self, shapes: list[float]) -> tuple[list[float], float, np.ndarray]:
+        """Minimise the projected cost over the shapes alone (NNLS for the scales inside).
+        Where two components trade variance (an AR1 with phi ~ 0 against the WN, two AR1 of
+        close phi) the full-parameter solve crawls along a curved valley; over the shapes
+        the same valley is a smooth low-dimensional problem."""
+        idx = self.shaped
+        lo = np.array([self.grids[k][0] for k in idx])
+        hi = np.array([self.grids[k][-1] for k in idx])
+        tau = self.tau
+
+        def resid(u: np.ndarray) -> np.ndarray:
+            for k, uk in zip(idx, u, strict=True):
+                self.cols[:, k] = self.white @ _unit_columns(self.names[k], np.array([uk]),
+                                                            tau)[:, 0]
+            return self.yw - self.cols @ self.cost()[1]
+
+        x0 = np.clip([shapes[k] for k in idx], lo + 1e-9, hi - 1e-9)
+        try:
+            with np.errstate(all="ignore"):
+                sol = least_squares(resid, x0, bounds=(lo, hi), method="trf", diff_step=1e-6,
+                                    xtol=1e-12, ftol=1e-14, gtol=1e-12, max_nfev=200)
+            x = sol.x
+        except (ValueError, np.linalg.LinAlgError):
+            x = x0
+        out = list(shapes)
+        for k, uk in zip(idx, x, strict=True):
+            out[k] = float(uk)
+        self.set_shapes(out)
+        c, coef = self.cost()
+        return out, c, coef
+
     def theta(self, shapes: list[float], coef: np.ndarray) -> np.ndarray:
         return self.model.canonical(_theta_from_vp(self.model, shapes, coef, self.drift_sign,
                                                    self.floors(shapes)))
 
-    def starts(self, n_starts: int) -> list[tuple[float, np.ndarray]]:
+    def starts(self, n_starts: int, n_random: int | None = None) -> list[tuple[float, np.ndarray]]:
         """Distinct good starts (VP cost, theta), best first."""
         found: list[tuple[float, np.ndarray]] = []
 
@@ -459,7 +502,7 @@ class _VP:
             return found
         # random placements: cheap coarse descents, the best few refined
         coarse = []
-        for _ in range(max(self.N_INIT, n_starts)):
+        for _ in range(max(self.N_INIT, n_starts) if n_random is None else n_random):
             sh = [0.0] * self.ncomp
             for k in self.shaped:
                 sh[k] = float(self.rng.choice(self.grids[k]))
@@ -490,16 +533,8 @@ class _VP:
                     continue
                 shapes = list(base)
                 self.set_shapes(shapes)
-                others = [i for i in range(self.ncomp) if i != k]
-                best_pair, best_cost = None, np.inf
-                for gj in range(self.grids[j].size):
-                    self.cols[:, j] = self.col(j, self.grids[j][gj])
-                    proj = self.residual(others)
-                    gain, _ = self.profile_gain(sin_cols, others, proj)
-                    y = proj[1]
-                    gk = int(np.argmax(gain))
-                    if y @ y - gain[gk] < best_cost:
-                        best_cost, best_pair = y @ y - gain[gk], (gj, gk)
+                fixed = [i for i in range(self.ncomp) if i not in (j, k)]
+                best_pair = self.pair_scan(fixed, j, sin_cols)
                 shapes[j] = float(self.grids[j][best_pair[0]])
                 shapes[k] = float(sin_grid[best_pair[1]])
                 self.set_shapes(shapes)
@@ -509,6 +544,47 @@ class _VP:
                 moved.append((c, self.theta(shapes, coef)))
         c, th = min(moved, key=lambda x: x[0])
         add(c, th)
+
+    def hop_sins(self, theta: np.ndarray) -> tuple[float, np.ndarray] | None:
+        """A SIN's WV oscillates in beta, so a solve ends in whichever of its narrow basins it
+        started in: rescan each SIN's beta finely with the other shapes at ``theta``'s. Returns
+        (VP cost, theta) of the best placement, or None if no SIN moved."""
+        sins = [k for k in self.shaped if self.names[k] == "SIN"]
+        if not sins:
+            return None
+        shapes = _shapes_of(self.model, theta, self.tau)
+        self.set_shapes(shapes)
+        before = list(shapes)
+        for k in sins:
+            self.best_along(shapes, k, True)
+        if shapes == before:
+            return None
+        c, coef = self.cost()
+        return c, self.theta(shapes, coef)
+
+    def pair_scan(self, fixed: list[int], j: int, S: np.ndarray) -> tuple[int, int]:
+        """(grid index of component j, column of S) with the least LS cost of the whitened WV
+        on the ``fixed`` columns, j's grid column and one column of S, a positive coefficient
+        on the S column. All pairs at once: the fixed span is projected out once, and each
+        j column enters as a rank-one update (Frisch-Waugh)."""
+        Q, y = self.residual(fixed)
+        G = self.gcols[j] if self.names[j] != "SIN" else self.white @ _unit_columns(
+            "SIN", self.grids[j], self.tau)
+        if Q is not None:
+            G = G - Q @ (Q.T @ G)
+            S = S - Q @ (Q.T @ S)
+        nrm = np.linalg.norm(G, axis=0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            q = G / nrm
+            a = q.T @ y                       # (Gj,)
+            B = q.T @ S                       # (Gj, Gs)
+            num = (S.T @ y)[None, :] - a[:, None] * B
+            den = np.einsum("js,js->s", S, S)[None, :] - B**2
+            gain = np.where((num > 0) & (den > 0), num**2 / den, 0.0)
+            cost = (y @ y - a**2)[:, None] - gain
+        cost[~np.isfinite(cost) | (nrm == 0)[:, None]] = np.inf
+        gj, gk = np.unravel_index(int(np.argmin(cost)), cost.shape)
+        return int(gj), int(gk)
 
     def extend(self, theta_sub: np.ndarray, k_new: int) -> tuple[float, np.ndarray]:
         """Start from a submodel optimum (shapes of ``theta_sub``, embedded in this model, with
@@ -622,7 +698,10 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
         cache[model.spec] = node
         return node
 
-    pool = list(vp.starts(n_starts))
+    # nested: the submodels' optima, extended, are the diverse starts that random placements
+    # provide otherwise; random placements only beyond the default number of starts
+    n_random = max(n_starts - N_STARTS, 0) if nested and len(model.components) > 1 else None
+    pool = list(vp.starts(n_starts, n_random))
     subs: list[tuple[str, np.ndarray]] = []
     if nested and len(model.components) > 1:
         for sub, k in _drop_one(model):
@@ -647,10 +726,26 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
     # crawl); the winner, if it was stopped by the budget, continues with the full one
     budget = min(max_nfev, EXPLORE_NFEV)
     sols = [prob.solve(theta0, max_nfev=budget) for theta0 in cand]
+    if prob.method == "gmwm" and vp.shaped:
+        # a solve stopped by the budget is crawling along a valley: polish its shapes in the
+        # projected problem (the valley is straightened there), then solve again from there
+        for i, sol in enumerate(sols):
+            if sol.capped:
+                sh, _, coef = vp.polish(_shapes_of(model, sol.theta, tau))
+                again = prob.solve(vp.theta(sh, coef), max_nfev=budget)
+                if again.objective < sol.objective:
+                    sols[i] = again
     if sols:
         i = int(np.argmin([s_.objective for s_ in sols]))
         if sols[i].capped and max_nfev > budget:
             sols[i] = prob.solve(sols[i].theta, max_nfev=max_nfev - budget)
+    if prob.method == "gmwm" and sols:
+        i = int(np.argmin([s_.objective for s_ in sols]))
+        hop = vp.hop_sins(sols[i].theta)
+        if hop is not None and hop[0] < sols[i].objective * (1 - 1e-9):
+            again = prob.solve(hop[1], max_nfev=max_nfev)
+            if again.objective < sols[i].objective:
+                sols.append(again)
     for sol in sols:
         runs.append((sol.objective, model.canonical(sol.theta), sol.message, sol.ok, sol.edge,
                      None))
@@ -666,24 +761,9 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
     return node
 
 
-def _into_domain(prob: Problem, node: _Node) -> _Node:
-    """The search's winner, solved again inside the free coordinates' limits if one of its
-    parameters rounded onto a domain bound (an AR1 phi of exactly 1): every estimate a fit
-    returns lies in the model's domain."""
-    try:
-        prob.model.check(node.theta, boundary_ok=True)
-        return node
-    except ModelError:
-        pass
-    sol = prob.solve(node.theta, within_limits=True)
-    return dataclasses.replace(node, theta=prob.model.canonical(sol.theta),
-                               objective=sol.objective, converged=sol.ok,
-                               message=sol.message, edge=sol.edge, from_submodel=None)
-
-
 def fit(data: np.ndarray | WaveletVariance, model: str | Model, *, levels: int | None = None,
         freq: float | None = None, weights: str | np.ndarray = "ci", method: str = "gmwm",
-        n_starts: int = 4, seed: int = 0, reweight: int = 0, alpha: float = 0.05,
+        n_starts: int = N_STARTS, seed: int = 0, reweight: int = 0, alpha: float = 0.05,
         max_nfev: int = 1000, se_cov: str | np.ndarray = "model",
         nested: bool = True) -> GMWMResult:
     """Estimate ``model`` by GMWM (or ARMAV) from a signal or a precomputed wavelet variance.
@@ -751,21 +831,20 @@ def fit(data: np.ndarray | WaveletVariance, model: str | Model, *, levels: int |
         omega = weight_matrix(wv, "ci" if efficient else weights, method)
         prob = Problem(model, wv, omega, method)
         cache: dict[str, Any] = {}
-        node = _into_domain(prob, _search(prob, model, n_starts, seed, drift_sign, max_nfev,
-                                          nested, cache))
+        node = _search(prob, model, n_starts, seed, drift_sign, max_nfev, nested, cache)
         for _ in range(0 if user_cov or efficient else reweight):
             omega = weight_matrix(wv, "gaussian", method, model_wv=model.wv(node.theta, prob.tau))
             prob = Problem(model, wv, omega, method)
             cache = {}
-            node = _into_domain(prob, _search(prob, model, n_starts, seed, drift_sign, max_nfev,
-                                              nested, cache, extra_starts=[node.theta]))
+            node = _search(prob, model, n_starts, seed, drift_sign, max_nfev, nested, cache,
+                           extra_starts=[node.theta])
         if efficient:
             V1 = wv_cov("model", model, node.theta, wv)
             omega = omega_from_cov(V1, wv.variance, method)
             prob = Problem(model, wv, omega, method)
             cache = {}
-            node = _into_domain(prob, _search(prob, model, n_starts, seed, drift_sign, max_nfev,
-                                              nested, cache, extra_starts=[node.theta]))
+            node = _search(prob, model, n_starts, seed, drift_sign, max_nfev, nested, cache,
+                           extra_starts=[node.theta])
     seconds_fit = time.perf_counter() - t0
     theta = node.theta
     with np.errstate(all="ignore"):

@@ -22,7 +22,8 @@ _ETA_MAX = 300.0
 
 
 def _exp(eta: np.ndarray | float) -> np.ndarray:
-    return np.exp(np.clip(eta, -_ETA_MAX, _ETA_MAX))
+    # minimum/maximum rather than np.clip: same values, a fraction of the call overhead
+    return np.exp(np.minimum(np.maximum(eta, -_ETA_MAX), _ETA_MAX))
 
 
 class Process:
@@ -187,8 +188,16 @@ def _series_matrix(m: tuple[float, ...]) -> np.ndarray:
 
 
 def ar1_wv_a(a: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """WV of an AR1 with unit innovation variance and phi = exp(-a) > 0, and its derivative in a."""
+    """WV of an AR1 with unit innovation variance and phi = exp(-a) > 0, and its derivative in a
+    (read-only arrays: memoised, since an optimiser step asks for the WV and then the Jacobian
+    at the same point)."""
     tau = np.asarray(tau, dtype=float)
+    return _ar1_wv_a(float(a), tau.tobytes())
+
+
+@lru_cache(maxsize=256)
+def _ar1_wv_a(a: float, tau_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
+    tau = np.frombuffer(tau_bytes, dtype=float)
     m = tau / 2
     nu = np.empty_like(tau)
     dnu = np.empty_like(tau)
@@ -208,9 +217,11 @@ def ar1_wv_a(a: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         dnu[big] = 2 / t2 * (gp * pp - g * ppp) / pp**2
     small = ~big
     if np.any(small):
-        c = _series_coefs(m[small])
+        c = _series_matrix(tuple(m[small]))
         nu[small] = sum(ck * a**k for k, ck in enumerate(c))
         dnu[small] = sum(k * ck * a ** (k - 1) for k, ck in enumerate(c) if k > 0)
+    nu.setflags(write=False)
+    dnu.setflags(write=False)
     return nu, dnu
 
 
