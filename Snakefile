@@ -11,6 +11,13 @@ min_version("8.0")
 
 
 import os
+import sys
+
+# Jobs import this checkout's library, whichever copy of gmwm is installed (or none): the archive
+# names this checkout's commit, so its code is what must run. Script jobs inherit PYTHONPATH.
+_SRC = os.path.join(workflow.basedir, "src")
+sys.path.insert(0, _SRC)
+os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (_SRC, os.environ.get("PYTHONPATH")) if p)
 
 # Paths from the Snakefile's directory: cluster jobs re-read this file from another directory.
 configfile: os.path.join(workflow.basedir, "config/config.yaml")

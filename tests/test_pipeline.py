@@ -250,3 +250,19 @@ def test_sigkill_then_same_command_resumes(quick_run, tmp_path_factory):
         cols = [c for c in ref_t.columns if "time" not in c and "seconds" not in c]
         pd.testing.assert_frame_equal(got_t[cols], ref_t[cols])
     assert git_status(work) == ""
+
+
+def test_workflow_imports_this_checkouts_library(tmp_path):
+    # another copy of the packages first on the path (a stale editable install elsewhere, an
+    # older checkout): the workflow must still plan with this checkout's code, whose commit the
+    # archive names
+    for name in ("gmwm", "gmwm_studies"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "__init__.py").write_text("raise ImportError('the wrong copy')\n")
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    proc = subprocess.run(snakemake_cmd("-n", *QUICK_ARGS), cwd=root, env=env,
+                          capture_output=True, text=True, check=False)
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0, out[-3000:]
+    assert "the wrong copy" not in out
