@@ -451,12 +451,10 @@ class _VP:
         idx = self.shaped
         lo = np.array([self.grids[k][0] for k in idx])
         hi = np.array([self.grids[k][-1] for k in idx])
-        tau = self.tau
 
         def resid(u: np.ndarray) -> np.ndarray:
             for k, uk in zip(idx, u, strict=True):
-                self.cols[:, k] = self.white @ _unit_columns(self.names[k], np.array([uk]),
-                                                            tau)[:, 0]
+                self.cols[:, k] = self.col(k, uk)
             return self.yw - self.cols @ self.cost()[1]
 
         x0 = np.clip([shapes[k] for k in idx], lo + 1e-9, hi - 1e-9)

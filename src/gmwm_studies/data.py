@@ -143,16 +143,20 @@ def _http_fetch(url: str, timeout: float = 60.0) -> bytes:
         return resp.read()
 
 
-def local_copy(name: str, local_dir: str | os.PathLike | None = None, *,
-               registry: Mapping | str | os.PathLike | None = None) -> Path | None:
-    """Path of dataset ``name`` in ``local_dir`` (default: the registry's ``local_dir``), or
-    None when no such file is on disk. The first place :func:`obtain` looks."""
-    reg = load_registry(registry)
+def _local_file(reg: Mapping, name: str, local_dir: str | os.PathLike | None) -> Path | None:
+    """Dataset ``name`` in ``local_dir`` (default: the loaded registry's ``local_dir``), or None."""
     base = Path(local_dir) if local_dir is not None else reg.get("local_dir_resolved")
     if base is None:
         return None
     path = Path(base) / dataset_entry(name, reg)["file"]
     return path if path.is_file() else None
+
+
+def local_copy(name: str, local_dir: str | os.PathLike | None = None, *,
+               registry: Mapping | str | os.PathLike | None = None) -> Path | None:
+    """Path of dataset ``name`` in ``local_dir`` (default: the registry's ``local_dir``), or
+    None when no such file is on disk. The first place :func:`obtain` looks."""
+    return _local_file(load_registry(registry), name, local_dir)
 
 
 def obtain(name: str, dest: str | os.PathLike, local_dir: str | os.PathLike | None = None,
@@ -167,7 +171,7 @@ def obtain(name: str, dest: str | os.PathLike, local_dir: str | os.PathLike | No
     entry = dataset_entry(name, reg)
     target = _dest_file(dest, entry)
     base = Path(local_dir) if local_dir is not None else reg.get("local_dir_resolved")
-    local = local_copy(name, local_dir, registry=registry)
+    local = _local_file(reg, name, local_dir)
 
     if local is not None:
         check_layout(local, list(entry["columns"]))
