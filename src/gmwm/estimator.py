@@ -54,7 +54,7 @@ __all__ = ["GMWMResult", "fit", "weight_matrix"]
 
 #: A component whose WV share is below this at every scale is "at the boundary 0".
 VANISH_SHARE = 1e-6
-#: Evaluation budget of each exploratory trust-region solve (the winner continues to max_nfev).
+#: Evaluation budget of each exploratory solve (the winner continues to max_nfev).
 EXPLORE_NFEV = 60
 #: default number of starts of :func:`fit`
 N_STARTS = 4
