@@ -9,6 +9,7 @@ import importlib
 import importlib.util
 import json
 import subprocess
+import sys
 
 import h5py
 import numpy as np
@@ -553,7 +554,22 @@ def test_wv_json_separates_first_call_and_steady_state(capsys, signal_files):
     code, out, _ = run(capsys, "wv", signal_files["npy"], "--json", "--quiet")
     obj = json.loads(out)
     assert code == 0 and obj["seconds"] >= 0 and obj["seconds_first_call"] >= 0
-    assert obj["seconds_read"] >= 0
+    assert obj["seconds_read"] >= 0 and obj["seconds_import_scipy"] >= 0
+    assert obj["wv_kernel"] == "c"
+
+
+def test_wv_command_never_loads_numba(tmp_path):
+    # the C kernel is what makes `gmwm wv` fast: Numba's runtime alone costs ~0.6 s per process
+    x = np.random.default_rng(3).standard_normal(5000)
+    np.save(tmp_path / "x.npy", x)
+    code = ("import sys\n"
+            "from gmwm.cli import main\n"
+            "rc = main(['wv', sys.argv[1], '--json', '--quiet'])\n"
+            "print(rc, sorted(m for m in sys.modules if m.split('.')[0] == 'numba')[:3])\n")
+    res = subprocess.run([sys.executable, "-c", code, str(tmp_path / "x.npy")],
+                         capture_output=True, text=True, check=True)
+    last = res.stdout.strip().splitlines()[-1]
+    assert last == "0 []", last
 
 
 # ---- fast start and progress (issue 11 part 6) ---------------------------------------------------

@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 
 import gmwm
+from gmwm._wvkernels import _m_scale
 from gmwm.cli import main
 from gmwm.errors import InputError
 from gmwm.model import Model
-from gmwm.wv import _m_scale, _start_scale, biweight_tuning, haar_coefficients, wvar
+from gmwm.wv import _start_scale, biweight_tuning, haar_coefficients, wvar
 
 WN_RW = Model("WN+RW")
 TRUTH = WN_RW.theta({"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-4})

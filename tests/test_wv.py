@@ -383,3 +383,69 @@ def test_bad_inputs() -> None:
     np.testing.assert_allclose(wvar(x.astype(np.float32)).variance,
                                wvar(x.astype(np.float32).astype(float)).variance, rtol=0)
     assert wvar(np.arange(8), 3).variance[0] == pytest.approx(0.25)   # ints are fine
+
+
+# ---- the C kernel and its Numba twin (issue 11 part 6) -----------------------------------------
+
+
+def _llvm_picks_512_bit_vectors() -> bool:
+    """True on hosts where Numba's LLVM vectorises with 512-bit registers (AMD Zen 4/5, the
+    machine the reports are made on): there the C kernel reproduces its reduction order."""
+    import llvmlite.binding as llvm
+
+    return llvm.get_host_cpu_name() in ("znver4", "znver5")
+
+
+def test_c_kernel_is_built() -> None:
+    # the fallback is for installs without a C compiler; this project's own installs have one
+    from gmwm.wv import kernel_name, load_kernel
+
+    assert load_kernel() == "c" and kernel_name() == "c"
+
+
+def _kernel_cases():
+    rng = np.random.default_rng(11)
+    cases = [(T, J, None) for T in (4, 5, 7, 31, 32, 33, 35, 63, 64, 65, 100, 129, 255, 1000)
+             for J in sorted({1, T.bit_length() - 2 or 1, T.bit_length() - 1})]
+    cases += [(4097, 11, None), (100_003, 15, None), (300_007, 18, None), (5000, 12, (3, 40, 2)),
+              (70_000, 15, (5, 1000, 1)), (123_457, 16, (2, 64, 2))]
+    for i, (T, J, layout) in enumerate(cases):
+        x = rng.standard_normal(T)
+        if i % 3 == 1:
+            x = np.cumsum(x) + 1e6      # random walk on a large offset
+        elif i % 3 == 2:
+            x = 5.0 + 1e-3 * x          # small noise on an offset
+        yield T, J, layout, x
+
+
+def test_c_kernel_matches_numba_kernel() -> None:
+    from gmwm import _haar, _wvkernels
+
+    exact = _llvm_picks_512_bit_vectors()
+    n_cases = 0
+    for T, J, layout, x in _kernel_cases():
+        ws = _Workspace(T, J, *(layout or ()))
+        got = {}
+        for name, kern in (("c", _haar.wv_sums), ("numba", _wvkernels.wv_sums)):
+            s = np.zeros(J)
+            kern(x, J, ws.n_block, s, ws.buf_a, ws.buf_b, ws.v_l, ws.pan_a, ws.pan_b)
+            got[name] = s
+        if exact:   # same operations in the same order: identical bits
+            assert np.array_equal(got["c"], got["numba"]), (T, J, layout)
+        else:       # the same values; only the order of the additions differs
+            assert rel_err(got["c"], got["numba"]) < 1e-13, (T, J, layout)
+        n_cases += 1
+    assert n_cases > 40
+
+
+def test_c_kernel_rejects_work_arrays_that_do_not_fit() -> None:
+    from gmwm import _haar
+
+    x = np.zeros(1000)
+    ws = _Workspace(1000, 8)
+    with pytest.raises(ValueError, match="sums is shorter"):
+        _haar.wv_sums(x, 8, ws.n_block, np.zeros(3), ws.buf_a, ws.buf_b, ws.v_l, ws.pan_a,
+                      ws.pan_b)
+    with pytest.raises(ValueError, match="level counts"):
+        _haar.wv_sums(x, 12, ws.n_block, np.zeros(12), ws.buf_a, ws.buf_b, ws.v_l, ws.pan_a,
+                      ws.pan_b)

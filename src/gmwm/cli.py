@@ -691,27 +691,34 @@ def _wvar(args: argparse.Namespace, x: np.ndarray):
     return wvar(x, levels=args.levels, alpha=args.alpha, freq=args.freq_hz, **_robust_kw(args))
 
 
-def _import_quietly(name: str) -> None:
-    """Import ``name`` for its side effect (module cache); errors surface at the real import."""
+def _import_quietly(name: str, took: dict[str, float]) -> None:
+    """Import ``name`` for its side effect (module cache) and record its wall time in
+    ``took[name]``; errors surface at the real import."""
+    t0 = time.perf_counter()
     with contextlib.suppress(Exception):  # a failing import is reported by the real import
         importlib.import_module(name)
+    took[name] = time.perf_counter() - t0
 
 
 def _compute_wvs(args: argparse.Namespace, signals: dict[str, np.ndarray]) -> tuple[dict, dict]:
     """WV per signal and the timings: ``first_call_s`` (loading the compiled kernel, measured on
-    a short warm-up call) apart from the steady-state ``wv_s`` per signal."""
+    a short warm-up call) apart from ``wv_s`` per signal (the WV and its CI, wall; the first
+    signal's includes waiting for the end of scipy.special's import, ``import_s``, which runs
+    beside it); ``kernel`` names the classical WV kernel ("c" or "numba")."""
     for x in signals.values():
         _check_levels(x.size, args.levels)
     first = next(iter(signals.values()))
     t0 = time.perf_counter()
-    # The CI's chi-square quantiles need scipy.special (~0.2 s to import): import it on the second
-    # core while this thread imports Numba and loads the cached kernel (LLVM releases the GIL).
-    prefetch = threading.Thread(target=_import_quietly, args=("scipy.special",), daemon=True)
+    # The CI's chi-square quantiles need scipy.special (~0.2 s to import): import it on a second
+    # thread while this one loads the kernel and computes the first WV (the C kernel releases the
+    # GIL; so do LLVM's compile and load steps of the Numba fallback). chi2_ci's own import waits
+    # for it if it has not finished.
+    took: dict[str, float] = {}
+    prefetch = threading.Thread(target=_import_quietly, args=("scipy.special", took), daemon=True)
     prefetch.start()
-    from gmwm.wv import wvar
+    from gmwm.wv import load_kernel
 
-    wvar(first[:max(4, min(first.size, _WARMUP_SAMPLES))])
-    prefetch.join()
+    kernel = load_kernel(min(first.size, _WARMUP_SAMPLES))
     first_call = time.perf_counter() - t0
     wvs, seconds = {}, {}
     for name, x in signals.items():
@@ -719,7 +726,9 @@ def _compute_wvs(args: argparse.Namespace, signals: dict[str, np.ndarray]) -> tu
         t0 = time.perf_counter()
         wvs[name] = _wvar(args, x)
         seconds[name] = time.perf_counter() - t0
-    return wvs, {"first_call_s": first_call, "wv_s": seconds}
+    prefetch.join()
+    return wvs, {"first_call_s": first_call, "wv_s": seconds, "kernel": kernel,
+                 "import_s": took.get("scipy.special", 0.0)}
 
 
 def _channel_table(wvs: dict[str, Any], fields: Sequence[tuple[str, Any]], what: str
@@ -763,7 +772,8 @@ def cmd_wv(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         from gmwm.plots import plot_wv
 
         _plot_channels(wvs, lambda wv, ax, c: plot_wv(wv, ax=ax, units=units[c]), args.plot)
-    secs = {"seconds_read": read_s, "seconds_first_call": timing["first_call_s"]}
+    secs = {"seconds_read": read_s, "seconds_first_call": timing["first_call_s"],
+            "seconds_import_scipy": timing["import_s"], "wv_kernel": timing["kernel"]}
     if not multi:
         name, wv = next(iter(wvs.items()))
         headers = ["level", "scale", "scale_s", "variance", "ci_low", "ci_high", "n"]
@@ -827,7 +837,8 @@ def cmd_av(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                                                       readings=readings[c] if args.adev else None),
                        args.plot)
     multi = args.columns is not None
-    secs = {"seconds_read": read_s, "seconds_first_call": timing["first_call_s"]}
+    secs = {"seconds_read": read_s, "seconds_first_call": timing["first_call_s"],
+            "seconds_import_scipy": timing["import_s"], "wv_kernel": timing["kernel"]}
     if not multi:
         name, av = next(iter(avs.items()))
         m = np.asarray(av.clusters, dtype=float)

@@ -95,7 +95,7 @@ def _avg_p(src: np.ndarray, dst: np.ndarray, lo: int, hi: int, lag: int) -> None
 @njit(cache=True)
 def _pyramid_p(a: np.ndarray, b: np.ndarray, n: int, n_levels: int, unit: int, acc_from: int,
                sums: np.ndarray, first: int, dbuf: np.ndarray) -> int:
-    """``gmwm.wv._pyramid`` for p signals: levels ``1..n_levels`` on rows ``[0, n)`` with lags in
+    """``gmwm._wvkernels._pyramid`` for p signals: levels ``1..n_levels`` on rows ``[0, n)`` with lags in
     multiples of ``unit`` rows; products at rows ``>= acc_from`` go to ``sums[first + j - 1]``."""
     src, dst = a, b
     which = 0
@@ -119,7 +119,7 @@ def _wccv_sums(x: np.ndarray, n_levels: int, n_block: int, sums: np.ndarray, buf
                buf_b: np.ndarray, v_l: np.ndarray, pan_a: np.ndarray, pan_b: np.ndarray,
                dbuf: np.ndarray) -> None:
     """Add ``sum_t (2 W_{i,j,t})(2 W_{k,j,t})`` (packed ``i <= k``) to ``sums[j-1]``: the two-phase
-    layout of ``gmwm.wv._wv_sums`` (time blocks with a recomputed halo for levels ``1..L``, then
+    layout of ``gmwm._wvkernels.wv_sums`` (time blocks with a recomputed halo for levels ``1..L``, then
     interleaved sub-series of ``V_L`` for the levels above), every row holding the p signals."""
     T = x.shape[0]
     p = x.shape[1]
