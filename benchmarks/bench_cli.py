@@ -105,8 +105,21 @@ def main() -> None:
     for module in ("gmwm.cli", "gmwm", "gmwm.wv"):
         print(f"import {module}: {_import_seconds(module):.3f} s (median of 3 fresh processes)")
     obj = json.loads(subprocess.run(cli, capture_output=True, text=True, check=True).stdout)
-    print(f"gmwm wv --json: steady-state WV {obj['seconds']:.3f} s, first call (kernel load) "
-          f"{obj['seconds_first_call']:.3f} s, read {obj['seconds_read']:.3f} s")
+    print(f"gmwm wv --json ({obj['wv_kernel']} kernel): WV + CI {obj['seconds']:.3f} s (includes the "
+          f"wait for scipy.special, imported beside it in {obj['seconds_import_scipy']:.3f} s), "
+          f"first call (kernel load) {obj['seconds_first_call']:.3f} s, read "
+          f"{obj['seconds_read']:.3f} s")
+    from gmwm.wv import kernel_name, wvar
+
+    x = np.load(x_path)
+    wvar(x)
+    steady = []
+    for _ in range(3):
+        t0 = time.perf_counter()
+        wvar(x)
+        steady.append(time.perf_counter() - t0)
+    print(f"steady state in one process ({kernel_name()} kernel): wvar of {args.n} samples "
+          f"{statistics.median(steady):.3f} s (median of 3, after a warm-up call)")
     if shutil.which("farm-bench"):
         print("## gmwm --help")
         print(_farm([gmwm, "--help"], args.runs))
