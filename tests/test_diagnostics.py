@@ -68,3 +68,18 @@ def test_global_check_reports_a_better_optimum_honestly():
     assert poor.better_found and any("better optimum" in r for r in poor.reasons)
     good = identify.global_check(res, n_starts=8)
     assert not good.better_found
+
+
+def test_sinusoid_slower_than_the_longest_scale_is_called_a_drift():
+    # Simulation 2's efficient-weights replicate 42 ended at SIN beta = 5.4e-13, alpha = 1375:
+    # a period of 1e13 samples, whose WV is a drift's. The exact WV of WN + DR, fitted with
+    # WN + SIN, lands on that ridge; the fit must say so, and a sinusoid inside the scales must not.
+    sc = 2.0 ** np.arange(1, 21)
+    drift = gmwm.WaveletVariance.from_table(sc, Model("WN+DR").wv(np.array([1.0, 1e-7]), sc),
+                                            n_samples=2**21)
+    res = gmwm.fit(drift, "WN+SIN")
+    slow = [w for w in res.warnings if "drift" in w and w.startswith("SIN[1]")]
+    assert res.params[2] < 2 * np.pi / (10 * 2**20) and len(slow) == 1
+    inside = Model("WN+SIN").wv(np.array([1.0, 0.3, 2 * np.pi / 5e4]), sc)
+    res = gmwm.fit(gmwm.WaveletVariance.from_table(sc, inside, n_samples=2**21), "WN+SIN")
+    assert not [w for w in res.warnings if "drift" in w]

@@ -60,6 +60,9 @@ EXPLORE_NFEV = 60
 N_STARTS = 4
 #: Condition number of the whitened free-coordinate Jacobian above which a fit is flagged.
 COND_WARN = 1e8
+#: a SIN whose period exceeds this many times the longest scale has a drift's WV (within 2 % at
+#: that scale: (sin x / x)**4 with x = beta * tau / 4 <= pi / 20)
+SLOW_SIN_PERIODS = 10.0
 
 
 # -- result ---------------------------------------------------------------------------------------
@@ -855,7 +858,7 @@ def fit(data: np.ndarray | WaveletVariance, model: str | Model, *, levels: int |
             theta[c.start + c.process.scale_index] = 0.0
     V = weights if user_cov else wv_cov(se_cov, model, theta, wv)
     cov, se, cond = prob.sandwich(theta, V, fixed)
-    warnings = _warnings(model, theta, se, cond, vanished, fixed, data)
+    warnings = _warnings(model, theta, se, cond, vanished, fixed, data, float(wv.scales[-1]))
     unsupported = _unsupported(prob, model, node, V, vanished, cache) if nested else []
     if unsupported:
         warnings.append("component(s) " + ", ".join(n for n, _ in unsupported) + " not supported "
@@ -885,8 +888,9 @@ def fit(data: np.ndarray | WaveletVariance, model: str | Model, *, levels: int |
 
 
 def _warnings(model: Model, theta: np.ndarray, se: np.ndarray, cond: float,
-              vanished: list[str], fixed: np.ndarray, data: Any) -> list[str]:
-    """Human-readable problems of a fit (boundary, weak identification, missing SEs)."""
+              vanished: list[str], fixed: np.ndarray, data: Any, tau_max: float) -> list[str]:
+    """Human-readable problems of a fit (boundary, weak identification, missing SEs);
+    ``tau_max`` = the longest scale fitted, in samples."""
     out: list[str] = []
     if vanished:
         out.append("component(s) " + ", ".join(vanished) + " contribute less than "
@@ -903,6 +907,13 @@ def _warnings(model: Model, theta: np.ndarray, se: np.ndarray, cond: float,
                        " over the observed scales, not an AR1")
         if name == "SIN" and p[1] > np.pi * (1 - 1e-6):
             out.append(f"{c.name}.beta = {p[1]:.6g} is at the Nyquist bound pi")
+        if name == "SIN" and 0 < p[1] and 2 * np.pi / p[1] > SLOW_SIN_PERIODS * tau_max:
+            # beta * tau / 4 -> 0: the WV tends to alpha**2 beta**2 tau**2 / 16, a drift's
+            out.append(f"{c.name}: its period 2 pi / beta = {2 * np.pi / p[1]:.3g} samples is over "
+                       f"{SLOW_SIN_PERIODS:g} times the longest scale ({tau_max:.0f} samples), so "
+                       "its WV is that of a drift of slope alpha * beta = "
+                       f"{p[0] * p[1]:.3g}: alpha and beta are not identified separately "
+                       "(a DR fits the same)")
     if np.isfinite(cond) and cond > COND_WARN or not np.isfinite(cond):
         out.append(f"the WV Jacobian is ill-conditioned (condition number {cond:.3g}): more "
                    "parameters than the WV can identify; try a smaller model or `--check`")
