@@ -14,6 +14,7 @@ import pytest
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy.stats import chi2
 
+from conftest import needs_c_kernel
 from gmwm.errors import GMWMError, InputError
 from gmwm.wv import AllanVariance, WaveletVariance, _Workspace, avar, wvar, wvar_many
 
@@ -396,6 +397,7 @@ def _llvm_picks_512_bit_vectors() -> bool:
     return llvm.get_host_cpu_name() in ("znver4", "znver5")
 
 
+@needs_c_kernel
 def test_c_kernel_is_built() -> None:
     # the fallback is for installs without a C compiler; this project's own installs have one
     from gmwm.wv import kernel_name, load_kernel
@@ -418,6 +420,7 @@ def _kernel_cases():
         yield T, J, layout, x
 
 
+@needs_c_kernel
 def test_c_kernel_matches_numba_kernel() -> None:
     from gmwm import _haar, _wvkernels
 
@@ -438,6 +441,7 @@ def test_c_kernel_matches_numba_kernel() -> None:
     assert n_cases > 40
 
 
+@needs_c_kernel
 def test_c_kernel_rejects_work_arrays_that_do_not_fit() -> None:
     from gmwm import _haar
 
