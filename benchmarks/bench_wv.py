@@ -3,8 +3,10 @@
 Usage: python benchmarks/bench_wv.py [--big] [--repeat 3] [--tune]
 Prints, per signal length T: best-of-N wall and CPU time of ``wvar`` (all default levels, CI included) after a
 warm-up call, the same for the NumPy baseline, the wall-time ratio, the agreement between the two, and the
-peak extra memory of each (tracemalloc, in units of the signal's size). Then the numba first-call
-time with a cold and with a warm on-disk cache (fresh NUMBA_CACHE_DIR, separate processes).
+peak extra memory of each (tracemalloc, in units of the signal's size), and the CPU time of the WV
+sums alone with the C kernel (gmwm._haar) and with its Numba twin (gmwm._wvkernels). Then, in
+separate processes, the import of gmwm.wv, the first wvar call (the C kernel's load) and the Numba
+kernel's first call with a cold and with a warm on-disk cache (fresh NUMBA_CACHE_DIR).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from functools import partial
 
 import numpy as np
 
-from gmwm.wv import _layout, _Workspace, wvar
+from gmwm.wv import _layout, _Workspace, kernel_name, wvar
 
 
 def numpy_cumsum_wv(x: np.ndarray, levels: int) -> np.ndarray:
@@ -61,24 +63,43 @@ def peak_extra_bytes(fn: Callable[[], object]) -> int:
 _COMPILE_SNIPPET = """
 import time, numpy as np
 t0 = time.perf_counter()
-from gmwm.wv import _layout, _Workspace, wvar
+from gmwm.wv import _Workspace, wvar
 t1 = time.perf_counter()
-wvar(np.random.default_rng(0).standard_normal(5000))
+x = np.random.default_rng(0).standard_normal(5000)
+wvar(x)
 t2 = time.perf_counter()
-print(f"{t1 - t0:.3f} {t2 - t1:.3f}")
+from gmwm._wvkernels import wv_sums
+ws = _Workspace(5000, 11)
+wv_sums(x, 11, ws.n_block, np.zeros(11), ws.buf_a, ws.buf_b, ws.v_l, ws.pan_a, ws.pan_b)
+t3 = time.perf_counter()
+print(f"{t1 - t0:.3f} {t2 - t1:.3f} {t3 - t2:.3f}")
 """
 
 
-def first_call_times() -> tuple[float, float, float]:
-    """(import s, first-call s with a cold cache, first-call s with a warm cache)."""
+def first_call_times() -> tuple[float, float, float, float]:
+    """(import s, first wvar call s, Numba kernel's first call s with a cold cache, the same
+    with a warm cache)."""
     with tempfile.TemporaryDirectory() as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
         runs = []
         for _ in range(2):
             out = subprocess.run([sys.executable, "-c", _COMPILE_SNIPPET], env=env, check=True,
                                  capture_output=True, text=True).stdout.split()
-            runs.append((float(out[0]), float(out[1])))
-    return runs[1][0], runs[0][1], runs[1][1]
+            runs.append(tuple(float(v) for v in out))
+    return runs[1][0], runs[1][1], runs[0][2], runs[1][2]
+
+
+def kernel_cpu(x: np.ndarray, J: int, repeat: int) -> tuple[float, float]:
+    """Best CPU seconds of the WV sums alone: (C kernel, Numba kernel), same workspace."""
+    from gmwm import _haar, _wvkernels
+
+    ws = _Workspace(x.size, J)
+    out = []
+    for kern in (_haar.wv_sums, _wvkernels.wv_sums):
+        call = partial(kern, x, J, ws.n_block, np.zeros(J), ws.buf_a, ws.buf_b, ws.v_l, ws.pan_a,
+                       ws.pan_b)
+        out.append(best_time(call, repeat)[1])
+    return out[0], out[1]
 
 
 def bench_row(T: int, rng: np.random.Generator, repeat: int) -> str:
@@ -90,9 +111,10 @@ def bench_row(T: int, rng: np.random.Generator, repeat: int) -> str:
     t_ours, t_np = best_time(ours, repeat), best_time(base, repeat)
     diff = np.max(np.abs(ours().variance / base() - 1.0))
     mem_ours, mem_np = peak_extra_bytes(ours) / x.nbytes, peak_extra_bytes(base) / x.nbytes
+    c_cpu, nb_cpu = kernel_cpu(x, J, repeat)
     return (f"{T:>9.0e} {J:>3} {t_ours[0]:>7.3f} / {t_ours[1]:>6.3f} {t_np[0]:>8.3f} / "
             f"{t_np[1]:>6.3f} {t_np[0] / t_ours[0]:>6.1f} {diff:>12.1e} {mem_ours:>8.2f}x "
-            f"{mem_np:>8.2f}x")
+            f"{mem_np:>8.2f}x {c_cpu:>8.3f} {nb_cpu:>8.3f}")
 
 
 def tune(T: int, repeat: int) -> None:
@@ -121,12 +143,14 @@ def main(argv: list[str] | None = None) -> int:
     sizes = [10**6, 10**7] + ([10**8] if args.big else [])
     rng = np.random.default_rng(12345)
     print(f"{'T':>9} {'J':>3} {'wvar wall/cpu s':>16} {'numpy wall/cpu s':>17} {'ratio':>6} "
-          f"{'max rel diff':>12} {'mem wvar':>9} {'mem numpy':>9}")
+          f"{'max rel diff':>12} {'mem wvar':>9} {'mem numpy':>9} {'C cpu':>8} {'numba cpu':>8}")
+    print(f"# wvar uses the {kernel_name()} kernel; C / numba cpu = the WV sums alone")
     for T in sizes:
         print(bench_row(T, rng, args.repeat), flush=True)
-    t_imp, cold, warm = first_call_times()
-    print(f"import gmwm.wv: {t_imp:.2f} s; first wvar call: {cold:.2f} s with a cold numba cache "
-          f"(compile), {warm:.2f} s with a warm cache")
+    t_imp, first, cold, warm = first_call_times()
+    print(f"import gmwm.wv: {t_imp:.3f} s; first wvar call ({kernel_name()} kernel): {first:.3f} s; "
+          f"Numba kernel's first call: {cold:.2f} s with a cold cache (compile), {warm:.2f} s "
+          "with a warm cache")
     return 0
 
 
