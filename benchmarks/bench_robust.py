@@ -44,8 +44,7 @@ def _fit(data, model):
 
 
 def accuracy(reps: int, eff: float) -> None:
-    print("| model | contamination | estimator | " + " | ".join(["parameter: truth -> median "
-                                                                   "[10 %, 90 %]"]) + " |")
+    print("| model | contamination | estimator | parameter: truth -> median [10 %, 90 %] |")
     print("|---|---|---|---|")
     for mi, (spec, truth) in enumerate(MODELS.items()):
         model = Model(spec)

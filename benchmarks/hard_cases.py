@@ -9,6 +9,7 @@ by NNLS, plus the default with 32 starts, each refined by the same bounded trust
 
     python benchmarks/hard_cases.py            # print default vs best known, time per case
     python benchmarks/hard_cases.py --update   # recompute and store best known (JSON beside)
+    python benchmarks/hard_cases.py --submodels  # also: no submodel fitted alone ends below it
 
 The test suite (tests/test_hard_cases.py) checks the fast part against the stored values.
 """
@@ -16,6 +17,7 @@ The test suite (tests/test_hard_cases.py) checks the fast part against the store
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import sys
 import time
@@ -135,14 +137,42 @@ def best_known(wv: gmwm.WaveletVariance, spec: str, n_random: int = 256, seed: i
     return float(best)
 
 
+def all_submodels(spec: str) -> list[str]:
+    """Every distinct proper submodel of ``spec`` (any components dropped)."""
+    comps = [c.process.name for c in Model(spec).components]
+    out = set()
+    for r in range(1, len(comps)):
+        for keep in itertools.combinations(range(len(comps)), r):
+            counts: dict[str, int] = {}
+            for i in keep:
+                counts[comps[i]] = counts.get(comps[i], 0) + 1
+            out.add("+".join(f"{n}*{k}" if n > 1 else k for k, n in counts.items()))
+    return sorted(out)
+
+
+def submodel_check(wv: gmwm.WaveletVariance, spec: str, objective: float) -> tuple[int, list]:
+    """Fit every submodel alone; return the number of submodels and those ending below
+    ``objective`` (the model's own default fit) by more than 1e-9 relative."""
+    subs = all_submodels(spec)
+    below = []
+    for sub in subs:
+        o = gmwm.fit(wv, sub, se_cov="gaussian").objective
+        if objective > o * (1 + 1e-9):
+            below.append((sub, o))
+    return len(subs), below
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--update", action="store_true", help="recompute and store best known")
     ap.add_argument("--n-random", type=int, default=256)
+    ap.add_argument("--submodels", action="store_true",
+                    help="also fit every submodel alone and count those ending below the model")
     args = ap.parse_args()
     stored = json.loads(BEST_FILE.read_text()) if BEST_FILE.exists() else {}
     rows = []
     added = False
+    n_pairs = n_below = 0
     for cid, wv, spec in cases():
         t0 = time.perf_counter()
         res = gmwm.fit(wv, spec, se_cov="gaussian")
@@ -153,8 +183,14 @@ def main() -> int:
         best = stored[cid]
         rel = (res.objective - best) / best
         rows.append((cid, res.objective, best, rel, dt, len(res.warnings)))
+        extra = ""
+        if args.submodels:
+            n_sub, below = submodel_check(wv, spec, res.objective)
+            n_pairs += n_sub
+            n_below += len(below)
+            extra = f"  submodels {n_sub}, below it {len(below)} {below or ''}"
         print(f"{cid:<48} default {res.objective:<14.10g} best {best:<14.10g} "
-              f"rel {rel:+.1e}  {dt * 1e3:6.0f} ms  J={wv.n_levels}", flush=True)
+              f"rel {rel:+.1e}  {dt * 1e3:6.0f} ms  J={wv.n_levels}{extra}", flush=True)
     if args.update or added:
         BEST_FILE.write_text(json.dumps(stored, indent=1, sort_keys=True) + "\n")
     bad = [r for r in rows if r[3] > 1e-6]
@@ -162,7 +198,9 @@ def main() -> int:
     print(f"\n{len(rows)} cases; default at the best known (within 1e-6 relative) in "
           f"{len(rows) - len(bad)}; time median {np.median(times) * 1e3:.0f} ms, "
           f"max {times.max() * 1e3:.0f} ms")
-    return 1 if bad else 0
+    if args.submodels:
+        print(f"submodels fitted alone: {n_pairs}; ending below their model: {n_below}")
+    return 1 if bad or n_below else 0
 
 
 if __name__ == "__main__":
