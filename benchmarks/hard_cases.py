@@ -1,8 +1,10 @@
 """Hard cases for the GMWM optimiser: the default fit against the best objective known.
 
-Cases: the six Navchip axes (real WV tables, ../shared/data) with four models, and simulated
+Cases: the six Navchip axes (real WV tables, ../shared/data) with four models, simulated
 WVs built to be hard (a SIN bump next to an AR1 of similar time scale, two AR1 of close phi, a
-negative phi, vanishing components, two slow components). "Best known" is the minimum over
+negative phi, vanishing components, two slow components), and five stored parametric-bootstrap
+WVs of the Navchip 8-parameter fits on which a cheaper nested search failed
+(hard_cases_boot.json). "Best known" is the minimum over
 an exhaustive search independent of the default's start machinery: 256 starts with every shape
 drawn uniformly over its whole domain (AR1 phi in (-1, 1)) and the linear parameters projected
 by NNLS, plus the default with 32 starts, each refined by the same bounded trust-region solve.
@@ -32,6 +34,8 @@ from gmwm_studies.data import load_navchip_wv
 
 HERE = Path(__file__).resolve().parent
 BEST_FILE = HERE / "hard_cases_best.json"
+#: stored bootstrap WVs of the Navchip 8-parameter fits (see "_about" inside)
+BOOT_FILE = HERE / "hard_cases_boot.json"
 NAVCHIP = HERE.parent.parent / "shared" / "data" / "wv" / "navchip_wv.csv"
 NAVCHIP_MODELS = ("QN+WN+2*GM+RW+DR", "WN+2*AR1+RW", "QN+WN+AR1+RW", "WN+AR1+RW")
 
@@ -70,12 +74,29 @@ def simulated_wv(name: str) -> gmwm.WaveletVariance:
     return gmwm.wvar(m.simulate(m.theta(truth), T, np.random.default_rng([20261122, seed])))
 
 
+def boot_names() -> list[str]:
+    """Names of the stored bootstrap WVs (``boot_navchip_<sensor>_<axis>_<draw>``)."""
+    return [k for k in json.loads(BOOT_FILE.read_text()) if k.startswith("boot_")]
+
+
+def boot_wv(name: str) -> tuple[gmwm.WaveletVariance, str]:
+    """A stored bootstrap WV and its model."""
+    data = json.loads(BOOT_FILE.read_text())
+    rec = data[name]
+    wv = gmwm.WaveletVariance.from_table(2.0 ** np.asarray(rec["levels"]), rec["variance"],
+                                         n_samples=rec["n_samples"], freq=rec["freq"])
+    return wv, data["model"]
+
+
 def cases(navchip: bool = True) -> list[tuple[str, gmwm.WaveletVariance, str]]:
     """(case id, WV, model) for every hard case (Navchip only when the data file exists)."""
     out = []
     for name, (_, _, _, _, models) in SIMULATED.items():
         wv = simulated_wv(name)
         out += [(f"{name}|{m}", wv, m) for m in models]
+    for name in boot_names():
+        wv, m = boot_wv(name)
+        out.append((f"{name}|{m}", wv, m))
     if navchip and NAVCHIP.exists():
         for sensor in ("gyroscope", "accelerometer"):
             for axis in "XYZ":

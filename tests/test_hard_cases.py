@@ -25,6 +25,8 @@ NAVCHIP_FAST += [f"navchip_{s}_{a}|QN+WN+2*GM+RW+DR" for s in ("gyroscope", "acc
 
 def _wv(cid: str):
     name = cid.split("|")[0]
+    if name.startswith("boot_"):
+        return hc.boot_wv(name)[0]
     if name.startswith("navchip_"):
         if not hc.NAVCHIP.exists():
             pytest.skip("Navchip data not available (../shared/data)")
