@@ -23,6 +23,7 @@ import itertools
 import json
 import sys
 import time
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -74,14 +75,19 @@ def simulated_wv(name: str) -> gmwm.WaveletVariance:
     return gmwm.wvar(m.simulate(m.theta(truth), T, np.random.default_rng([20261122, seed])))
 
 
+@cache
+def _boot_data() -> dict:
+    return json.loads(BOOT_FILE.read_text())
+
+
 def boot_names() -> list[str]:
     """Names of the stored bootstrap WVs (``boot_navchip_<sensor>_<axis>_<draw>``)."""
-    return [k for k in json.loads(BOOT_FILE.read_text()) if k.startswith("boot_")]
+    return [k for k in _boot_data() if k.startswith("boot_")]
 
 
 def boot_wv(name: str) -> tuple[gmwm.WaveletVariance, str]:
     """A stored bootstrap WV and its model."""
-    data = json.loads(BOOT_FILE.read_text())
+    data = _boot_data()
     rec = data[name]
     wv = gmwm.WaveletVariance.from_table(2.0 ** np.asarray(rec["levels"]), rec["variance"],
                                          n_samples=rec["n_samples"], freq=rec["freq"])

@@ -3,11 +3,12 @@
  * start-up (~0.6 s) for a 0.15 s computation.
  *
  * Same algorithm and the same floating-point operations in the same order as the Numba kernel
- * compiled for an AVX-512 x86-64 host (the element-wise values: one add, one subtraction and an
- * exact halving; the sum of squares: the lane layout LLVM chose for the `reassoc` reduction,
- * written out here as explicit partial sums). On such a host both kernels give identical bits
- * (tests/test_wv.py checks it); the order below is fixed, so this kernel gives those bits on any
- * IEEE-754 machine. Build with -ffp-contract=off: a fused multiply-add would change the bits.
+ * compiled for a host where LLVM vectorises with 512-bit registers (AMD Zen 4/5, the machine the
+ * reports are made on; LLVM keeps 256-bit vectors on most Intel AVX-512 parts): the element-wise
+ * values are one add, one subtraction and an exact halving; the sum of squares follows the lane
+ * layout LLVM chose for the `reassoc` reduction, written out here as explicit partial sums. On
+ * such a host both kernels give identical bits (tests/test_wv.py checks it); the order below is
+ * fixed, so this kernel gives those bits on any IEEE-754 machine. Build with -ffp-contract=off: a fused multiply-add would change the bits.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>

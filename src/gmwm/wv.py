@@ -44,7 +44,7 @@ def _layout(T: int, n_levels: int) -> tuple[int, int, int]:
 def _wv_kernel() -> Any:
     """The classical WV sums kernel: the C one (``gmwm._haar``, built at install; no Numba
     start-up, releases the GIL) or else its Numba twin (``gmwm._wvkernels``). Both compute
-    the same operations in the same order (bit-identical on AVX-512 hosts, tests/test_wv.py)."""
+    the same operations in the same order (bit-identical on Zen 4/5 hosts, tests/test_wv.py)."""
     try:
         from gmwm._haar import wv_sums
     except ImportError:
