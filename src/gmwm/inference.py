@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import least_squares, leastsq
 
 from .errors import InputError
 from .model import Model
@@ -39,6 +39,39 @@ METHODS = ("gmwm", "armav")
 WEIGHT_KINDS = ("ci", "gaussian", "identity", "efficient")
 #: Half-width of the bounded search box in free coordinates around a start (a factor e^40).
 BOX = 40.0
+
+
+# -- Levenberg-Marquardt ----------------------------------------------------------------------------
+#: MINPACK's exit codes as ``least_squares`` reports them: (status, message).
+_LM_STATUS = {
+    1: (2, "`ftol` termination condition is satisfied."),
+    2: (3, "`xtol` termination condition is satisfied."),
+    3: (4, "Both `ftol` and `xtol` termination conditions are satisfied."),
+    4: (1, "`gtol` termination condition is satisfied."),
+    5: (0, "The maximum number of function evaluations is exceeded."),
+}
+
+
+@dataclass
+class _LMResult:
+    x: np.ndarray
+    cost: float
+    status: int
+    message: str
+    nfev: int
+
+
+def _lm(fun: Any, jac: Any, x0: np.ndarray, *, ftol: float, xtol: float, gtol: float,
+        max_nfev: int) -> _LMResult:
+    """MINPACK's lmder with Jacobian-norm scaling: the iterates of ``least_squares(method="lm",
+    x_scale="jac")`` without its per-call wrappers and its final extra Jacobian (about a third
+    of a small solve's time). Status and message follow ``least_squares``."""
+    x, _, info, _, ier = leastsq(fun, x0, Dfun=jac, full_output=True, ftol=ftol, xtol=xtol,
+                                 gtol=gtol, maxfev=max_nfev, factor=100.0, diag=None)
+    f = info["fvec"]
+    status, message = _LM_STATUS.get(ier, (-1, "Improper input parameters status returned "
+                                                 "from `leastsq`"))
+    return _LMResult(np.atleast_1d(x), 0.5 * float(f @ f), status, message, int(info["nfev"]))
 
 
 # -- weights --------------------------------------------------------------------------------------
@@ -280,8 +313,10 @@ class Problem:
                 # Levenberg-Marquardt (MINPACK) first: several times less overhead per step than
                 # the bounded trust region. The box only guards against runaway, so the bounded
                 # solve reruns when LM ends outside it (or fails)
-                sol = least_squares(self.free_residual, x0, method="lm", **opts)
-        except (ValueError, FloatingPointError, np.linalg.LinAlgError):
+                sol = _lm(self.free_residual, self.free_jac, x0, ftol=opts["ftol"],
+                          xtol=opts["xtol"], gtol=opts["gtol"], max_nfev=max_nfev)
+        except (TypeError, ValueError, FloatingPointError, np.linalg.LinAlgError):
+            # (leastsq raises TypeError when there are fewer levels than parameters)
             sol = None
         if sol is not None and sol.status >= 0 and np.all(np.isfinite(sol.x)):
             # a vanishing scale (variance, amplitude, drift) runs to -inf in free coordinates;
