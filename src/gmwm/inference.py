@@ -50,6 +50,7 @@ _LM_STATUS = {
     4: (1, "`gtol` termination condition is satisfied."),
     5: (0, "The maximum number of function evaluations is exceeded."),
 }
+_LM_IMPROPER = (-1, "Improper input parameters status returned from `leastsq`")
 
 
 @dataclass
@@ -69,8 +70,7 @@ def _lm(fun: Any, jac: Any, x0: np.ndarray, *, ftol: float, xtol: float, gtol: f
     x, _, info, _, ier = leastsq(fun, x0, Dfun=jac, full_output=True, ftol=ftol, xtol=xtol,
                                  gtol=gtol, maxfev=max_nfev, factor=100.0, diag=None)
     f = info["fvec"]
-    status, message = _LM_STATUS.get(ier, (-1, "Improper input parameters status returned "
-                                                 "from `leastsq`"))
+    status, message = _LM_STATUS.get(ier, _LM_IMPROPER)
     return _LMResult(np.atleast_1d(x), 0.5 * float(f @ f), status, message, int(info["nfev"]))
 
 

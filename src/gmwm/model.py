@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ModelError
-from .processes import PROCESSES, SINGLETONS, Process, ar1_unit_wv_many, sin_unit_wv
+from .processes import PROCESSES, SINGLETONS, FreeMap, Process, ar1_unit_wv_many, sin_unit_wv
 
 _TERM = re.compile(r"^\s*(?:(\d+)\s*\*\s*)?([A-Za-z][A-Za-z0-9]*)\s*$")
 
@@ -95,6 +95,8 @@ class Model:
         self.spec = "+".join(f"{n}*{name}" if n > 1 else name
                              for name in PROCESSES if (n := counts.get(name, 0)))
         self.param_names = [n for c in self.components for n in c.param_names]
+        self._free = FreeMap(tuple(k for c in self.components for k in c.process.free_map_kinds))
+        self._parts = [(c.process, c.slice) for c in self.components]
 
     def __repr__(self) -> str:
         return f"Model({self.spec!r}, freq={self.freq:g})"
@@ -175,9 +177,10 @@ class Model:
     def wv(self, theta: np.ndarray, scales: np.ndarray) -> np.ndarray:
         """Theoretical Haar WV of the model (sum over independent components)."""
         tau = np.asarray(scales, dtype=float)
+        theta = np.asarray(theta, dtype=float)
         total = np.zeros_like(tau)
-        for nu in self.component_wv(theta, tau).values():
-            total += nu
+        for proc, sl in self._parts:  # the loop of component_wv, without its dictionary
+            total += proc.wv(theta[sl], tau, self.freq)
         return total
 
     def wv_many(self, thetas: np.ndarray, scales: np.ndarray) -> np.ndarray:
@@ -226,8 +229,8 @@ class Model:
         tau = np.asarray(scales, dtype=float)
         theta = np.asarray(theta, dtype=float)
         jac = np.empty((tau.size, self.n_params))
-        for c in self.components:
-            jac[:, c.slice] = c.process.jacobian(theta[c.slice], tau, self.freq)
+        for proc, sl in self._parts:
+            jac[:, sl] = proc.jacobian(theta[sl], tau, self.freq)
         return jac
 
     # -- simulation -----------------------------------------------------------------------------
@@ -255,8 +258,7 @@ class Model:
         return np.concatenate([c.process.to_free(theta[c.slice]) for c in self.components])
 
     def from_free(self, eta: np.ndarray) -> np.ndarray:
-        eta = np.asarray(eta, dtype=float)
-        return np.concatenate([c.process.from_free(eta[c.slice]) for c in self.components])
+        return self._free.from_free(eta)
 
     def free_limits(self) -> tuple[np.ndarray, np.ndarray]:
         """Limits of the free coordinates (see ``Process.free_limits``)."""
@@ -265,8 +267,7 @@ class Model:
 
     def dtheta_deta(self, eta: np.ndarray) -> np.ndarray:
         """Diagonal of d theta / d eta (every transform acts on one parameter)."""
-        eta = np.asarray(eta, dtype=float)
-        return np.concatenate([c.process.dp_deta(eta[c.slice]) for c in self.components])
+        return self._free.dp_deta(eta)
 
 
 def as_model(model: str | Model, freq: float | None = None) -> Model:

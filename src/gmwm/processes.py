@@ -11,7 +11,9 @@ optimisers work unconstrained; ``dp_deta`` is the (diagonal) derivative of that 
 
 from __future__ import annotations
 
-from functools import lru_cache
+import math
+from functools import cached_property, lru_cache
+from typing import Any
 
 import numpy as np
 from scipy.signal import lfilter
@@ -24,6 +26,56 @@ _ETA_MAX = 300.0
 def _exp(eta: np.ndarray | float) -> np.ndarray:
     # minimum/maximum rather than np.clip: same values, a fraction of the call overhead
     return np.exp(np.minimum(np.maximum(eta, -_ETA_MAX), _ETA_MAX))
+
+
+#: Kinds of free coordinate: "log" p = e^eta (positive parameters), "phi" p = 2 expit(eta) - 1
+#: (AR1 phi in (-1, 1)), "pi" p = pi expit(eta) (SIN beta in (0, pi)).
+FREE_KINDS = ("log", "phi", "pi")
+
+
+class FreeMap:
+    """The map free coordinates -> parameters of a parameter vector whose entries have the given
+    kinds (``FREE_KINDS``), applied to the whole vector at once; its inverse and derivative.
+    Processes and models both use it, so each transform is written once."""
+
+    def __init__(self, kinds: tuple[str, ...]):
+        k = np.array(kinds, dtype=object)
+        unknown = set(kinds) - set(FREE_KINDS)
+        if unknown:
+            raise ValueError(f"unknown free-coordinate kind(s) {sorted(unknown)}")
+        self.n = len(kinds)
+        self.log = np.flatnonzero(k == "log")
+        self.phi = np.flatnonzero(k == "phi")
+        self.pi = np.flatnonzero(k == "pi")
+
+    def from_free(self, eta: np.ndarray) -> np.ndarray:
+        eta = np.asarray(eta, dtype=float)
+        out = _exp(eta)  # every "log" entry; the others are overwritten
+        if self.phi.size:
+            out[self.phi] = 2 * expit(eta[self.phi]) - 1
+        if self.pi.size:
+            out[self.pi] = np.pi * expit(eta[self.pi])
+        return out
+
+    def dp_deta(self, eta: np.ndarray) -> np.ndarray:
+        eta = np.asarray(eta, dtype=float)
+        out = _exp(eta)
+        if self.phi.size:
+            s = expit(eta[self.phi])
+            out[self.phi] = 2 * s * (1 - s)
+        if self.pi.size:
+            s = expit(eta[self.pi])
+            out[self.pi] = np.pi * s * (1 - s)
+        return out
+
+    def to_free(self, p: np.ndarray) -> np.ndarray:
+        p = np.asarray(p, dtype=float)
+        out = np.log(p)  # every "log" entry; the others are overwritten
+        if self.phi.size:
+            out[self.phi] = logit((p[self.phi] + 1) / 2)
+        if self.pi.size:
+            out[self.pi] = logit(np.clip(p[self.pi] / np.pi, 1e-300, 1 - 1e-12))
+        return out
 
 
 class Process:
@@ -52,11 +104,22 @@ class Process:
                  freq: float = 1.0) -> np.ndarray:
         raise NotImplementedError
 
+    #: Kind of each parameter's free coordinate (``FREE_KINDS``).
+    free_kinds: tuple[str, ...] = ()
+
+    @property
+    def free_map_kinds(self) -> tuple[str, ...]:
+        return self.free_kinds or ("log",) * self.n_params
+
+    @cached_property
+    def free_map(self) -> FreeMap:
+        return FreeMap(self.free_map_kinds)
+
     def to_free(self, p: np.ndarray) -> np.ndarray:
-        return np.log(np.asarray(p, dtype=float))
+        return self.free_map.to_free(p)
 
     def from_free(self, eta: np.ndarray) -> np.ndarray:
-        return _exp(eta)
+        return self.free_map.from_free(eta)
 
     def free_limits(self) -> tuple[np.ndarray, np.ndarray]:
         """Limits of the free coordinates within which ``from_free`` stays inside the open
@@ -64,7 +127,7 @@ class Process:
         return np.full(self.n_params, -np.inf), np.full(self.n_params, np.inf)
 
     def dp_deta(self, eta: np.ndarray) -> np.ndarray:
-        return _exp(eta)
+        return self.free_map.dp_deta(eta)
 
     def check(self, p: np.ndarray) -> str | None:
         """Return a message if ``p`` is outside the domain, else None."""
@@ -195,31 +258,51 @@ def ar1_wv_a(a: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return _ar1_wv_a(float(a), tau.tobytes())
 
 
-@lru_cache(maxsize=256)
-def _ar1_wv_a(a: float, tau_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
+@lru_cache(maxsize=64)
+def _scale_consts(tau_bytes: bytes) -> tuple[Any, ...]:
+    """Per scale set: tau, m = tau / 2, tau^2, the series coefficients (5, J), those of the
+    series' derivative (4, J) and whether the scales increase (then the series applies to a
+    leading block of scales, and slices replace masks)."""
     tau = np.frombuffer(tau_bytes, dtype=float)
     m = tau / 2
+    c = _series_matrix(tuple(m))
+    dc = c[1:] * np.arange(1.0, 5.0)[:, None]
+    return tau, m, tau * tau, c, dc, bool(np.all(np.diff(m) >= 0))
+
+
+@lru_cache(maxsize=256)
+def _ar1_wv_a(a: float, tau_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
+    tau, m, t2, c, dc, increasing = _scale_consts(tau_bytes)
     nu = np.empty_like(tau)
     dnu = np.empty_like(tau)
-    big = m * a >= _SERIES_SWITCH
-    if np.any(big):
+    ma = m * a
+    if increasing:  # m a < switch exactly on the first k scales
+        k = int(np.searchsorted(ma, _SERIES_SWITCH, side="left"))
+        big: Any = slice(k, None)
+        small: Any = slice(0, k)
+        n_big, n_small = tau.size - k, k
+    else:
+        big = ma >= _SERIES_SWITCH
+        small = ~big
+        n_big = int(np.count_nonzero(big))
+        n_small = tau.size - n_big
+    if n_big:
         mb = m[big]
-        phi = np.exp(-a)
-        e = -np.expm1(-mb * a)
-        u1 = -np.expm1(-a)
-        u2 = -np.expm1(-2 * a)
+        phi = math.exp(-a)
+        e = -np.expm1(-ma[big])
+        u1 = -math.expm1(-a)
+        u2 = -math.expm1(-2 * a)
         g = mb * u2 - phi * e * (2 + e)
-        gp = 2 * mb * phi**2 + phi * e * (2 + e) - 2 * phi * mb * (1 - e) * (1 + e)
-        pp = u1**2 * u2
-        ppp = 2 * u1 * phi * u2 + 2 * u1**2 * phi**2
-        t2 = tau[big] ** 2
-        nu[big] = 2 * g / (t2 * pp)
-        dnu[big] = 2 / t2 * (gp * pp - g * ppp) / pp**2
-    small = ~big
-    if np.any(small):
-        c = _series_matrix(tuple(m[small]))
-        nu[small] = sum(ck * a**k for k, ck in enumerate(c))
-        dnu[small] = sum(k * ck * a ** (k - 1) for k, ck in enumerate(c) if k > 0)
+        gp = 2 * mb * (phi * phi) + phi * e * (2 + e) - 2 * phi * mb * (1 - e) * (1 + e)
+        pp = u1 * u1 * u2
+        ppp = 2 * u1 * phi * u2 + 2 * (u1 * u1) * (phi * phi)
+        tb = t2[big]
+        nu[big] = 2 * g / (tb * pp)
+        dnu[big] = 2 / tb * (gp * pp - g * ppp) / (pp * pp)
+    if n_small:
+        pw = a ** np.arange(5.0)
+        nu[small] = pw @ c[:, small]
+        dnu[small] = pw[:4] @ dc[:, small]
     nu.setflags(write=False)
     dnu.setflags(write=False)
     return nu, dnu
@@ -241,7 +324,8 @@ def ar1_unit_wv(phi: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(nu, d nu / d phi) of an AR1 with unit innovation variance."""
     tau = np.asarray(tau, dtype=float)
     if phi > 0:
-        nu, dnu_da = ar1_wv_a(-np.log(phi), tau)
+        phi = float(phi)
+        nu, dnu_da = _ar1_wv_a(-math.log(phi), tau.tobytes())
         return nu, -dnu_da / phi
     return _ar1_wv_direct(phi, tau)
 
@@ -298,6 +382,7 @@ class AR1(Process):
 
     name = "AR1"
     param_names = ("phi", "sigma2")
+    free_kinds = ("phi", "log")
     scale_index = 1
 
     def free_limits(self):
@@ -314,15 +399,6 @@ class AR1(Process):
     def simulate(self, p, n, rng, freq=1.0):
         return _simulate_ar1(p[0], p[1], n, rng)
 
-    def to_free(self, p):
-        return np.array([logit((p[0] + 1) / 2), np.log(p[1])])
-
-    def from_free(self, eta):
-        return np.array([2 * expit(eta[0]) - 1, _exp(eta[1])])
-
-    def dp_deta(self, eta):
-        s = expit(eta[0])
-        return np.array([2 * s * (1 - s), _exp(eta[1])])
 
     def check(self, p):
         if not np.all(np.isfinite(p)):
@@ -376,32 +452,27 @@ class Sinusoid(Process):
 
     name = "SIN"
     param_names = ("alpha", "beta")
+    free_kinds = ("log", "pi")
 
     def wv(self, p, tau, freq=1.0):
         return p[0] ** 2 * sin_unit_wv(p[1], tau)
 
     def jacobian(self, p, tau, freq=1.0):
-        alpha, beta = p
-        s = np.sin(beta * tau / 4)
-        c = np.cos(beta * tau / 4)
-        s1 = np.sin(beta / 2)
-        da = 4 * alpha * s**4 / (tau**2 * s1**2)
-        db = 2 * alpha**2 / tau**2 * s**3 * (tau * c * s1 - s * np.cos(beta / 2)) / s1**3
-        return np.column_stack([da, db])
+        alpha, beta = float(p[0]), float(p[1])
+        x = beta * tau / 4
+        s = np.sin(x)
+        c = np.cos(x)
+        s1, c1 = math.sin(beta / 2), math.cos(beta / 2)
+        s3 = s * s * s
+        out = np.empty((tau.size, 2))
+        out[:, 0] = 4 * alpha * s3 * s / (tau * tau * (s1 * s1))
+        out[:, 1] = 2 * alpha * alpha / (tau * tau) * s3 * (tau * c * s1 - s * c1) / (s1 * s1 * s1)
+        return out
 
     def simulate(self, p, n, rng, freq=1.0):
         u = rng.uniform(0.0, 2 * np.pi)
         return p[0] * np.sin(p[1] * np.arange(1, n + 1, dtype=float) + u)
 
-    def to_free(self, p):
-        return np.array([np.log(p[0]), logit(np.clip(p[1] / np.pi, 1e-300, 1 - 1e-12))])
-
-    def from_free(self, eta):
-        return np.array([_exp(eta[0]), np.pi * expit(eta[1])])
-
-    def dp_deta(self, eta):
-        s = expit(eta[1])
-        return np.array([_exp(eta[0]), np.pi * s * (1 - s)])
 
     def check(self, p):
         if not np.all(np.isfinite(p)):
