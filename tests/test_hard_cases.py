@@ -67,3 +67,20 @@ def test_negative_phi_is_found():
     wv = hc.simulated_wv("negative_phi")
     res = gmwm.fit(wv, "WN+AR1+RW", se_cov="gaussian")
     assert -0.7 < res.as_dict()["AR1[1].phi"] < -0.5
+
+
+@pytest.mark.parametrize("spec, n_nodes", [
+    # QN, WN, RW, DR linear; 2 GM shaped: {2, 1, 0 GM} x (all linear, or one linear dropped)
+    ("QN+WN+2*GM+RW+DR", 3 * (1 + 4)),
+    # no linear component: every shaped submodel, 3 x 3 - 1
+    ("2*AR1+2*SIN", 8),
+])
+def test_nested_search_size(spec, n_nodes):
+    # linear-drop submodels are searched with shaped drops only below them; a change of the
+    # lattice (e.g. back to all 2^L linear subsets: 47 nodes for the Navchip model) shows here
+    wv = hc.boot_wv("boot_navchip_gyroscope_X_28")[0] if "GM" in spec else \
+        hc.simulated_wv("sim2_like")
+    res = gmwm.fit(wv, spec, se_cov="gaussian")
+    assert res.diagnostics["n_models_searched"] == n_nodes
+    assert gmwm.fit(wv, spec, se_cov="gaussian", nested=False).diagnostics[
+        "n_models_searched"] == 1
