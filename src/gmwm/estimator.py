@@ -329,25 +329,27 @@ class _VP:
 
     STEP = 0.45          # grid spacing in shape coordinates
     N_INIT = 4           # random placements besides the greedy one
-    PAIR_DESCENTS = 2    # joint (SIN, other) placements descended in pair_moves
 
     def __init__(self, model: Model, tau: np.ndarray, nu_hat: np.ndarray, white: Whitener,
                  drift_sign: float, rng: np.random.Generator,
-                 col_cache: dict[tuple[str, float], np.ndarray] | None = None):
+                 col_cache: dict[tuple[Any, ...], np.ndarray] | None = None):
         self.model, self.tau, self.nu_hat = model, tau, nu_hat
         self.white, self.drift_sign, self.rng = white, drift_sign, rng
         self.names = [c.process.name for c in model.components]
         key = tuple(float(t) for t in tau)
         self.grids: list[np.ndarray | None] = []
         self.gcols: list[np.ndarray | None] = []
+        self.rawcols: list[np.ndarray | None] = []  # unwhitened (SIN: the smooth envelope)
         for n in self.names:
             if _shape_bounds(n, tau) is None:
                 self.grids.append(None)
                 self.gcols.append(None)
+                self.rawcols.append(None)
             else:
                 g, c = _grid_columns(n, key, self.STEP)
                 self.grids.append(g)
                 self.gcols.append(white @ c)
+                self.rawcols.append(c)
         self.shaped = [k for k, g in enumerate(self.grids) if g is not None]
         self.yw = white @ nu_hat
         self.ncomp = len(self.names)
@@ -426,16 +428,20 @@ class _VP:
             # the SIN WV oscillates in beta at long scales (nulls at beta tau / 4 = k pi): its
             # basins are ~1/(beta tau_J) wide, so scan finely around the best coarse points
             # (0.5 rad of phase per step at the longest scale where the SIN still reaches 1 %)
-            fine = []
+            fine, fcols = [], []
             for i in top:
                 lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-                share = coef[i] * _sin_envelope_columns(grid[i:i + 1], self.tau)[:, 0] / self.nu_hat
+                share = coef[i] * self.rawcols[k][:, i] / self.nu_hat
                 tau_eff = self.tau[share >= 0.01].max(initial=self.tau[0])
                 n = int(np.clip(np.exp(hi) * tau_eff * (hi - lo) / 2, 16, 3000))
                 fine.append(np.linspace(lo, hi, n))
+                # the same (grid point, length) recurs through a search: whitened columns cached
+                fkey = ("SIN-fine", int(i), n)
+                if fkey not in self._cols:
+                    self._cols[fkey] = self.white @ _unit_columns("SIN", fine[-1], self.tau)
+                fcols.append(self._cols[fkey])
             fv = np.concatenate(fine)
-            gain_f, _ = self.profile_gain(self.white @ _unit_columns("SIN", fv, self.tau), others,
-                                          proj)
+            gain_f, _ = self.profile_gain(np.concatenate(fcols, axis=1), others, proj)
             values = fv[np.argsort(-gain_f)[:3]]
             step = float(fine[0][1] - fine[0][0])
         if refine:
@@ -470,23 +476,30 @@ class _VP:
         for k in self.shaped:
             self.cols[:, k] = self.col(k, shapes[k])
 
-    def sweep(self, shapes: list[float], refine: bool, dirty: set[int]) -> None:
-        """One coordinate-descent round over the shaped components in ``dirty``. A component's
-        move depends only on the other shapes (``best_along`` does not look at its own), so it
-        is redone only after another shape changed: a move marks the others dirty."""
-        for k in self.shaped:
-            if k not in dirty:
-                continue
-            old = shapes[k]
-            self.best_along(shapes, k, refine)
-            dirty.discard(k)
-            if shapes[k] != old:
-                dirty.update(j for j in self.shaped if j != k)
+    def move(self, shapes: list[float], k: int, refine: bool, dirty: set[int]) -> None:
+        """Move shape k to its best value given the others. A move depends only on the other
+        shapes (``best_along`` does not look at shape k itself), so k is clean afterwards and
+        stays so until another shape changes: a change marks the others dirty."""
+        old = shapes[k]
+        self.best_along(shapes, k, refine)
+        dirty.discard(k)
+        if shapes[k] != old:
+            dirty.update(j for j in self.shaped if j != k)
 
-    def descend(self, shapes: list[float], refine: bool) -> tuple[list[float], float, np.ndarray]:
+    def sweep(self, shapes: list[float], refine: bool, dirty: set[int]) -> None:
+        """One coordinate-descent round over the dirty shaped components."""
+        for k in self.shaped:
+            if k in dirty:
+                self.move(shapes, k, refine, dirty)
+
+    def descend(self, shapes: list[float], refine: bool, first: tuple[int, ...] = ()
+                ) -> tuple[list[float], float, np.ndarray]:
+        """Coordinate descent from ``shapes`` (components ``first`` moved first, in that order)."""
         self.set_shapes(shapes)
-        best = self.cost()
         dirty = set(self.shaped)
+        for k in first:
+            self.move(shapes, k, refine, dirty)
+        best = self.cost()
         for _ in range(4 if refine else 3):
             previous = best[0]
             self.sweep(shapes, refine, dirty)
@@ -578,26 +591,19 @@ class _VP:
         sg = self.grids[sins[0]]
         sin_grid = np.linspace(sg[0], sg[-1], 4 * sg.size)
         sin_cols = self.white @ _unit_columns("SIN", sin_grid, self.tau)
-        scans = []
-        self.set_shapes(base)
+        moved = []
         for k in sins:
             for j in self.shaped:
                 if j == k:
                     continue
+                shapes = list(base)
+                self.set_shapes(shapes)
                 fixed = [i for i in range(self.ncomp) if i not in (j, k)]
-                gj, gk, cost = self.pair_scan(fixed, j, sin_cols)
-                scans.append((cost, j, k, float(self.grids[j][gj]), float(sin_grid[gk])))
-        # only the best joint placements are worth a descent (one start is kept in the end)
-        scans.sort(key=lambda x: x[0])
-        moved = []
-        for _, j, k, uj, uk in scans[:self.PAIR_DESCENTS]:
-            shapes = list(base)
-            shapes[j], shapes[k] = uj, uk
-            self.set_shapes(shapes)
-            self.best_along(shapes, k, True)
-            self.best_along(shapes, j, True)
-            shapes, c, coef = self.descend(shapes, refine=True)
-            moved.append((c, self.theta(shapes, coef)))
+                best_pair = self.pair_scan(fixed, j, sin_cols)
+                shapes[j] = float(self.grids[j][best_pair[0]])
+                shapes[k] = float(sin_grid[best_pair[1]])
+                shapes, c, coef = self.descend(shapes, refine=True, first=(k, j))
+                moved.append((c, self.theta(shapes, coef)))
         c, th = min(moved, key=lambda x: x[0])
         add(c, th)
 
@@ -618,9 +624,9 @@ class _VP:
         c, coef = self.cost()
         return c, self.theta(shapes, coef)
 
-    def pair_scan(self, fixed: list[int], j: int, S: np.ndarray) -> tuple[int, int, float]:
-        """(grid index of component j, column of S, that cost) of the pair with the least LS
-        cost of the whitened WV on the ``fixed`` columns, j's grid column and one column of S, a positive coefficient
+    def pair_scan(self, fixed: list[int], j: int, S: np.ndarray) -> tuple[int, int]:
+        """(grid index of component j, column of S) with the least LS cost of the whitened WV
+        on the ``fixed`` columns, j's grid column and one column of S, a positive coefficient
         on the S column. All pairs at once: the fixed span is projected out once, and each
         j column enters as a rank-one update (Frisch-Waugh)."""
         Q, y = self.residual(fixed)
@@ -640,7 +646,7 @@ class _VP:
             cost = (y @ y - a**2)[:, None] - gain
         cost[~np.isfinite(cost) | (nrm == 0)[:, None]] = np.inf
         gj, gk = np.unravel_index(int(np.argmin(cost)), cost.shape)
-        return int(gj), int(gk), float(cost[gj, gk])
+        return int(gj), int(gk)
 
     def extend(self, theta_sub: np.ndarray, k_new: int) -> tuple[float, np.ndarray]:
         """Start from a submodel optimum (shapes of ``theta_sub``, embedded in this model, with
@@ -649,8 +655,7 @@ class _VP:
         self.set_shapes(shapes)
         dirty = set(self.shaped)
         if k_new in self.shaped:
-            self.sweep(shapes, True, {k_new})
-            dirty.discard(k_new)  # placed given the others; redone only if they move
+            self.move(shapes, k_new, True, dirty)
         c, coef = self.cost()
         for _ in range(2):  # a short descent: the submodel's shapes are already optimal
             previous = c
