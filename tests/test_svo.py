@@ -360,3 +360,16 @@ def test_study_chunks_merge_and_wilson():
         np.testing.assert_allclose(m["se"][:, order], ab["se"])
     rows = coverage_table(merge([a, b]))
     assert len(rows) == 12 and {r["mbb"] for r in rows} == {"paper", "time"}
+
+
+def test_svo_reuses_a_given_wccv_bit_for_bit():
+    # coverage runs both MBB schemes on one array: the WCCV of the first fit is passed to the
+    # second; the result must be the one computed from scratch
+    X = case("case1").simulate(2**14, np.random.default_rng(5))
+    first = svo(X, "short", levels=10, n_boot=50, seed=1, mbb="paper")
+    again = svo(X, "short", levels=10, n_boot=50, seed=2, mbb="time")
+    reuse = svo(X, "short", levels=10, n_boot=50, seed=2, mbb="time", wccv_of_x=first.wccv)
+    assert np.array_equal(again.coef, reuse.coef)
+    assert np.array_equal(again.cov, reuse.cov)
+    with pytest.raises(InputError, match="wccv_of_x"):
+        svo(X[:-8], "short", levels=10, n_boot=50, wccv_of_x=first.wccv)

@@ -799,7 +799,7 @@ def _wccv_of(X: Any, levels: int | None, alpha: float, freq: float,
 def svo(X: Any, weights: Any = "short", *, levels: int | None = None, n_boot: int = 500,
         block: int | None = None, block_const: float = 10.0, alpha: float = 0.05,
         freq: float = 1.0, names: Sequence[str] | None = None, seed: Any = 0,
-        mbb: str = "paper") -> SVOResult:
+        mbb: str = "paper", wccv_of_x: WaveletCrossCovariance | None = None) -> SVOResult:
     """Optimal virtual gyroscope by SVO from the signals ``X`` ``(T, p)`` (one per column) or
     their :class:`WaveletCrossCovariance` (then no bootstrap: ``se`` is NaN).
 
@@ -810,10 +810,18 @@ def svo(X: Any, weights: Any = "short", *, levels: int | None = None, n_boot: in
     over the last ``M_J`` times, one random original stretch refills each level); ``"time"`` =
     blocks over the whole time axis, each level averaging the resampled coefficients it has (no
     refill stretch; at the default J the refill is about half of every low level and keeps little
-    of its variability, see docs/pipeline.md)."""
+    of its variability, see docs/pipeline.md). ``wccv_of_x``: the WCCV of the array ``X`` at these
+    ``levels``, ``alpha``, ``freq`` if already computed (e.g. ``result.wccv`` of another MBB
+    scheme on the same array); it is used as given."""
     if not 0.0 < alpha < 1.0:
         raise InputError(f"alpha must be in (0, 1), got {alpha}")
-    arr, W = _wccv_of(X, levels, alpha, freq, names)
+    if wccv_of_x is not None and not isinstance(X, WaveletCrossCovariance):
+        arr, W = _as_array(X), wccv_of_x
+        if W.n_samples != arr.shape[0] or W.n_signals != arr.shape[1]:
+            raise InputError(f"wccv_of_x is of {W.n_samples} x {W.n_signals} samples, X of "
+                             f"{arr.shape[0]} x {arr.shape[1]}")
+    else:
+        arr, W = _wccv_of(X, levels, alpha, freq, names)
     omega = svo_weights(weights, W.n_levels)
     c = svo_coef(W.cov, omega)
     cov = None
