@@ -30,7 +30,7 @@ import numpy as np
 
 import gmwm
 from gmwm.inference import Problem, Whitener, weight_matrix
-from gmwm.model import Model
+from gmwm.model import Model, spec_of
 from gmwm_studies.data import load_navchip_wv
 
 HERE = Path(__file__).resolve().parent
@@ -173,7 +173,7 @@ def all_submodels(spec: str) -> list[str]:
             counts: dict[str, int] = {}
             for i in keep:
                 counts[comps[i]] = counts.get(comps[i], 0) + 1
-            out.add("+".join(f"{n}*{k}" if n > 1 else k for k, n in counts.items()))
+            out.add(spec_of(counts))
     return sorted(out)
 
 

@@ -8,7 +8,8 @@
  * values are one add, one subtraction and an exact halving; the sum of squares follows the lane
  * layout LLVM chose for the `reassoc` reduction, written out here as explicit partial sums. On
  * such a host both kernels give identical bits (tests/test_wv.py checks it); the order below is
- * fixed, so this kernel gives those bits on any IEEE-754 machine. Build with -ffp-contract=off: a fused multiply-add would change the bits.
+ * fixed, so this kernel gives those bits on any IEEE-754 machine. Build with -ffp-contract=off:
+ * a fused multiply-add would change the bits.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>

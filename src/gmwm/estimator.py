@@ -55,7 +55,7 @@ from scipy.special import ndtri
 
 from .errors import IdentifiabilityError, InputError
 from .inference import METHODS, Problem, Whitener, check_cov, omega_from_cov, weight_matrix, wv_cov
-from .model import Model, as_model
+from .model import Model, as_model, spec_of
 from .processes import PROCESSES, ar1_unit_wv_many, sin_unit_wv
 from .wv import WaveletVariance, wvar
 
@@ -675,7 +675,7 @@ def _drop_one(model: Model) -> list[tuple[Model, int]]:
         for cc in model.components:
             counts[cc.process.name] = counts.get(cc.process.name, 0) + 1
         counts[c.process.name] -= 1
-        spec = "+".join(f"{n}*{name}" if n > 1 else name for name, n in counts.items() if n)
+        spec = spec_of(counts)
         if spec and spec not in out:
             out[spec] = (Model(spec, model.freq), k)
     return list(out.values())

@@ -31,7 +31,7 @@ import numpy as np
 from scipy.optimize import least_squares, leastsq
 
 from .errors import InputError
-from .model import Model
+from .model import Model, spec_of
 from .wv import WaveletVariance
 
 _LOG10E = np.log10(np.e)
@@ -199,7 +199,7 @@ def nonzero_part(model: Model, theta: np.ndarray, exclude: tuple[str, ...] = ()
     counts: dict[str, int] = {}
     for c in keep:
         counts[c.process.name] = counts.get(c.process.name, 0) + 1
-    sub = Model("+".join(f"{n}*{k}" if n > 1 else k for k, n in counts.items()), model.freq)
+    sub = Model(spec_of(counts), model.freq)
     # components of one type keep their relative (canonical) order
     order = [c.process.name for c in sub.components]
     grouped = {name: [theta[c.slice] for c in keep if c.process.name == name] for name in counts}

@@ -43,6 +43,12 @@ class Component:
         return [f"{self.name}.{p}" for p in self.process.param_names]
 
 
+def spec_of(counts: Mapping[str, int]) -> str:
+    """Model string of process counts in the given order, zero counts skipped:
+    ``{"AR1": 2, "WN": 1}`` -> ``"2*AR1+WN"``."""
+    return "+".join(f"{n}*{name}" if n > 1 else name for name, n in counts.items() if n > 0)
+
+
 def parse_model(spec: str) -> dict[str, int]:
     """Count of each process type in a model string, e.g. ``"2*AR1+WN"`` -> {AR1: 2, WN: 1}."""
     if not isinstance(spec, str) or not spec.strip():
@@ -92,8 +98,7 @@ class Model:
                 self.components.append(Component(proc, k, start))
                 start += proc.n_params
         self.n_params = start
-        self.spec = "+".join(f"{n}*{name}" if n > 1 else name
-                             for name in PROCESSES if (n := counts.get(name, 0)))
+        self.spec = spec_of({name: counts.get(name, 0) for name in PROCESSES})
         self.param_names = [n for c in self.components for n in c.param_names]
         self._free = FreeMap(tuple(k for c in self.components for k in c.process.free_map_kinds))
         self._parts = [(c.process, c.slice) for c in self.components]

@@ -43,7 +43,6 @@ class FreeMap:
         unknown = set(kinds) - set(FREE_KINDS)
         if unknown:
             raise ValueError(f"unknown free-coordinate kind(s) {sorted(unknown)}")
-        self.n = len(kinds)
         self.log = np.flatnonzero(k == "log")
         self.phi = np.flatnonzero(k == "phi")
         self.pi = np.flatnonzero(k == "pi")
@@ -324,8 +323,7 @@ def ar1_unit_wv(phi: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(nu, d nu / d phi) of an AR1 with unit innovation variance."""
     tau = np.asarray(tau, dtype=float)
     if phi > 0:
-        phi = float(phi)
-        nu, dnu_da = _ar1_wv_a(-math.log(phi), tau.tobytes())
+        nu, dnu_da = ar1_wv_a(-math.log(phi), tau)
         return nu, -dnu_da / phi
     return _ar1_wv_direct(phi, tau)
 
@@ -345,7 +343,7 @@ def ar1_unit_wv_many(phi: np.ndarray, tau: np.ndarray) -> np.ndarray:
         out = 2 * (m * u2 - np.exp(-a) * e * (2 + e)) / (tau**2 * u1**2 * u2)
         small = ma < _SERIES_SWITCH
         if small.any():
-            coefs = _series_matrix(tuple(m[0]))  # (5, J)
+            coefs = _scale_consts(tau[0].tobytes())[3]  # (5, J), built once per scale set
             series = (a ** np.arange(5)) @ coefs  # (N, J)
             out = np.where(small, series, out)
         neg = phi[:, 0] <= 0

@@ -59,7 +59,7 @@ from typing import Any
 import numpy as np
 
 from .errors import GMWMError, InputError, ModelError
-from .model import Model, as_model, parse_model
+from .model import Model, as_model, parse_model, spec_of
 from .wv import WaveletVariance, wvar
 
 __all__ = ["CRITERIA", "RankedModel", "Ranking", "auto_candidates", "optimism", "rank_models",
@@ -184,7 +184,7 @@ def _factor(criterion: str, n_samples: int) -> float:
 
 # -- candidates -----------------------------------------------------------------------------------
 def _spec(counts: dict[str, int]) -> str:
-    return Model("+".join(f"{n}*{k}" if n > 1 else k for k, n in counts.items() if n > 0)).spec
+    return Model(spec_of(counts)).spec
 
 
 def auto_candidates(base: str | Model, *, max_ar: int = MAX_AR, max_sin: int = MAX_SIN
