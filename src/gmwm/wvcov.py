@@ -39,6 +39,7 @@ at load ~20 (benchmarks/bench_wvcov.py).
 from __future__ import annotations
 
 from collections.abc import Iterable
+from functools import lru_cache
 from math import comb
 
 import numpy as np
@@ -451,8 +452,17 @@ def _lag_count(T: int, tj: np.ndarray, tk: np.ndarray, h: np.ndarray) -> np.ndar
 def _qn_cumulant_term(q2: float, T: int, tau: np.ndarray) -> np.ndarray:
     """Fourth-cumulant part of Cov(nu_hat) for QN: W_{j,t} = (v_{t+1} - 2 v_{t+1-m} + v_{t+1-2m})
     / tau_j with iid v of variance Q2 and fourth cumulant -1.2 Q2^2."""
-    J = tau.size
     M = T - tau + 1
+    return _QN_KAPPA4 * q2 * q2 * _qn_lag_weights(int(T), tuple(int(t) for t in tau)) \
+        / np.outer(M, M)
+
+
+@lru_cache(maxsize=64)
+def _qn_lag_weights(T: int, scales: tuple[int, ...]) -> np.ndarray:
+    """The Q2-free sum of :func:`_qn_cumulant_term` (read-only J x J), cached: it depends on the
+    length and scales only, and a Monte Carlo chunk fits one (T, scales) hundreds of times."""
+    tau = np.array(scales, dtype=np.int64)
+    J = tau.size
     out = np.zeros((J, J))
     w = np.array([1.0, 4.0, 1.0])
     for j in range(J):
@@ -463,7 +473,8 @@ def _qn_cumulant_term(q2: float, T: int, tau: np.ndarray) -> np.ndarray:
             cnt = _lag_count(T, tau[j], tau[k], h)
             out[j, k] = (w[:, None] * w[None, :] * cnt).sum() / (float(tau[j]) ** 2
                                                                   * float(tau[k]) ** 2)
-    return _QN_KAPPA4 * q2 * q2 * out / np.outer(M, M)
+    out.flags.writeable = False
+    return out
 
 
 def _check_scales(scales: Iterable[float], n_samples: int) -> tuple[np.ndarray, int]:
