@@ -373,3 +373,28 @@ def test_svo_reuses_a_given_wccv_bit_for_bit():
     assert np.array_equal(again.cov, reuse.cov)
     with pytest.raises(InputError, match="wccv_of_x"):
         svo(X[:-8], "short", levels=10, n_boot=50, wccv_of_x=first.wccv)
+
+
+def test_svo_schemes_equal_separate_fits_bit_for_bit():
+    # the coverage study fits both MBB schemes in one pass over the array: each result must be
+    # the separate svo() fit with the same seed, bit for bit (also with a repeated scheme)
+    from gmwm.virtual import _run_mbb, _run_mbb_schemes, svo_schemes
+
+    X = case("case1").simulate(2**14, np.random.default_rng(6))
+    kw = {"levels": 10, "n_boot": 40, "block": 37}
+    plan = [(3, "paper"), (4, "time"), (3, "paper")]
+    fits = svo_schemes(X, "short", seeds=[s for s, _ in plan], mbb=[m for _, m in plan], **kw)
+    for fit, (seed, m) in zip(fits, plan, strict=True):
+        one = svo(X, "short", seed=seed, mbb=m, **kw)
+        assert np.array_equal(fit.coef, one.coef) and np.array_equal(fit.cov, one.cov)
+        assert fit.extra == {"mbb": m}
+    assert not np.array_equal(fits[0].cov, fits[1].cov)
+    J = 8
+    wf = 1.0 / (X.shape[0] - 2.0 ** np.arange(1, J + 1) + 1)
+    both = _run_mbb_schemes(X, J, True, np.zeros(6), wf, 15, 50,
+                            [("time", np.random.default_rng(1)), ("paper", np.random.default_rng(2))])
+    for got, (m, seed) in zip(both, [("time", 1), ("paper", 2)], strict=True):
+        ref = _run_mbb(X, J, True, np.zeros(6), wf, 15, 50, np.random.default_rng(seed), m)
+        assert np.array_equal(got, ref)
+    with pytest.raises(InputError, match="one seed per MBB scheme"):
+        svo_schemes(X, "short", seeds=[1], mbb=["paper", "time"], **kw)

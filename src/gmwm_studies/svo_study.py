@@ -36,6 +36,7 @@ from gmwm.virtual import (
     rdvg,
     svo,
     svo_coef,
+    svo_schemes,
     svo_weights,
     wccv,
 )
@@ -239,11 +240,12 @@ def coverage_chunk(case_name: str, replicates: Sequence[int], n_samples: int, le
     for a, r in enumerate(replicates):
         t0 = time.perf_counter()
         X = cs.simulate(n_samples, array_rng(seed, case_name, "coverage", r))
-        W = None  # the array's WCCV, computed by the first scheme's fit and reused by the others
-        for k, scheme in enumerate(schemes):
-            res = svo(X, om, levels=levels, n_boot=n_boot, block_const=block_const, alpha=alpha,
-                      seed=boot_rng(seed, case_name, r), mbb=scheme, wccv_of_x=W)
-            W = res.wccv
+        # one WCCV and one pass over the array for all schemes; each scheme draws from its own
+        # fresh boot_rng stream, so every SE equals that of a separate svo() call bit for bit
+        fits = svo_schemes(X, om, levels=levels, n_boot=n_boot, block_const=block_const,
+                           alpha=alpha, seeds=[boot_rng(seed, case_name, r) for _ in schemes],
+                           mbb=schemes)
+        for k, res in enumerate(fits):
             se[k, a] = res.se
         coef[a], block = res.coef, res.block
         secs[a] = time.perf_counter() - t0
