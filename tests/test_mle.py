@@ -12,6 +12,7 @@ from statsmodels.tsa.statespace.structural import UnobservedComponents
 from gmwm.errors import InputError, ModelError
 from gmwm.mle import (
     PARAM_KEYS,
+    _kf_cross,
     _Likelihood,
     _Profile,
     _regressors,
@@ -249,3 +250,18 @@ def test_bad_backend_or_start_rule():
         fit_mle(x, BETA, backend="hector")
     with pytest.raises(InputError, match="own_starts"):
         fit_mle(x, BETA, own_starts="truth")
+
+
+def test_three_column_filter_is_bit_identical_to_the_general_one():
+    # _kf_cross takes a scalar-state path for the MLE's three columns (data, cos, sin); a fourth
+    # column forces the general array path, whose first three columns must agree to the bit
+    rng = np.random.default_rng(7)
+    n = 3000
+    t = np.arange(n) * 0.35
+    Y3 = np.column_stack([np.cumsum(rng.normal(size=n)) * 0.05 + rng.normal(size=n),
+                          np.cos(t), np.sin(t)])
+    Y4 = np.ascontiguousarray(np.column_stack([Y3, rng.normal(size=n)]))
+    for g2, s2ar, phi in [(1e-4, 0.03, 0.975), (1e-8, 2.0, -0.6), (3.0, 1e-5, 0.999), (0.0, 0.5, 0.0)]:
+        S3, lf3 = _kf_cross(np.ascontiguousarray(Y3), 1.0, g2, s2ar, phi)
+        S4, lf4 = _kf_cross(Y4, 1.0, g2, s2ar, phi)
+        assert np.array_equal(S3, S4[:3, :3]) and lf3 == lf4

@@ -242,6 +242,8 @@ def _kf_cross(Y: np.ndarray, s2: float, g2: float, s2ar: float, phi: float
     innovations ``v_t`` with variance ``F_t``. Returns ``(sum_t v_t v_t^T / F_t, sum_t log F_t)``.
     """
     n, k = Y.shape
+    if k == 3:
+        return _kf_cross3(Y, s2, g2, s2ar, phi)
     pc = s2ar / (1.0 - phi * phi)  # stationary AR1 variance
     # covariance of (mu_2, c_2) predicted from the first observation
     p11, p12, p22 = pc + s2 + g2, -phi * pc, pc
@@ -282,6 +284,65 @@ def _kf_cross(Y: np.ndarray, s2: float, g2: float, s2ar: float, phi: float
     for i in range(k):
         for j in range(i):
             S[i, j] = S[j, i]
+    return S, sum_log_f
+
+
+@njit(cache=True)
+def _kf_cross3(Y: np.ndarray, s2: float, g2: float, s2ar: float, phi: float
+               ) -> tuple[np.ndarray, float]:  # pragma: no cover (compiled)
+    """:func:`_kf_cross` for the three columns the MLE filters (data, cos, sin), with the filter
+    state in scalars: the same operations in the same order (bit-identical), but LLVM keeps the
+    state in registers instead of re-loading arrays it cannot prove unaliased (about 2.5x faster
+    per evaluation at T = 8e4, the MLE's whole cost)."""
+    n = Y.shape[0]
+    pc = s2ar / (1.0 - phi * phi)
+    p11, p12, p22 = pc + s2 + g2, -phi * pc, pc
+    amu0, amu1, amu2 = Y[0, 0], Y[0, 1], Y[0, 2]
+    ac0 = ac1 = ac2 = 0.0
+    s00 = s01 = s02 = s11 = s12 = s22 = 0.0
+    sum_log_f = 0.0
+    steady = False
+    f = k1 = k2 = log_f = 0.0
+    prev = np.inf
+    for t in range(1, n):
+        if not steady:
+            m1, m2 = p11 + p12, p12 + p22
+            f = m1 + m2 + s2
+            k1, k2 = m1 / f, m2 / f
+            log_f = np.log(f)
+            n11 = p11 - m1 * k1 + g2
+            n12 = phi * (p12 - m1 * k2)
+            n22 = phi * phi * (p22 - m2 * k2) + s2ar
+            step = abs(n11 - p11) + abs(n12 - p12) + abs(n22 - p22)
+            rate = step / prev if prev > 0.0 else 0.0
+            steady = step == 0.0 or (rate < 1.0 and step <= _STEADY_TOL * (1.0 - rate)
+                                     * (abs(n11) + abs(n22)))
+            prev = step
+            p11, p12, p22 = n11, n12, n22
+        sum_log_f += log_f
+        v0 = Y[t, 0] - amu0 - ac0
+        v1 = Y[t, 1] - amu1 - ac1
+        v2 = Y[t, 2] - amu2 - ac2
+        w0 = v0 / f
+        s00 += w0 * v0
+        s01 += w0 * v1
+        s02 += w0 * v2
+        amu0 += k1 * v0
+        ac0 = phi * (ac0 + k2 * v0)
+        w1 = v1 / f
+        s11 += w1 * v1
+        s12 += w1 * v2
+        amu1 += k1 * v1
+        ac1 = phi * (ac1 + k2 * v1)
+        w2 = v2 / f
+        s22 += w2 * v2
+        amu2 += k1 * v2
+        ac2 = phi * (ac2 + k2 * v2)
+    S = np.empty((3, 3))
+    S[0, 0], S[1, 1], S[2, 2] = s00, s11, s22
+    S[0, 1] = S[1, 0] = s01
+    S[0, 2] = S[2, 0] = s02
+    S[1, 2] = S[2, 1] = s12
     return S, sum_log_f
 
 
