@@ -218,14 +218,16 @@ def _haar_step(cur: np.ndarray, nxt: np.ndarray, t: int, lag: int, y: np.ndarray
 def _mbb_pass(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
               p_starts: np.ndarray, p_block: int, p_last: int, p_refill: np.ndarray,
               p_out: np.ndarray, t_starts: np.ndarray, t_block: int, t_last: int,
-              t_sums: np.ndarray, t_counts: np.ndarray) -> None:
+              t_sums: np.ndarray, t_counts: np.ndarray, cur: np.ndarray, nxt: np.ndarray,
+              cum: np.ndarray) -> None:
     """Both MBB schemes in one pass over the Haar pyramid (a scheme with an empty output array
     is skipped): :func:`_mbb_kernel` (``p_*``) and :func:`_mbb_time_kernel` (``t_*``) share the
     pyramid, which is most of the work (memory bound: two ``(T, p)`` arrays per level).
 
     The paper scheme keeps its per-level prefix sum ``cum[m]`` as a running sum and captures the
     ``2 H`` refill rows as the pass reaches them (refill starts visited in sorted order); the time
-    scheme stores ``cum`` (``(T+1, q)``) as its blocks start anywhere. Every floating-point
+    scheme stores ``cum`` (``(T+1, q)``, passed in with the pyramid's two level arrays, see
+    :func:`_pass_buffers`) as its blocks start anywhere. Every floating-point
     operation and its order are those of the separate kernels of commit af632e6
     (``cum[m+1] = cum[m] + f_m``; a draw adds ``cum[hi] - cum[lo]`` per block in block order), so
     the output is bit-identical to running the schemes one by one."""
@@ -240,9 +242,9 @@ def _mbb_pass(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
     trimmed = np.zeros((MJ + 1 if do_p else 1, ncol))
     rlo = np.empty((Hp, qj))
     Ht, nbt = t_starts.shape
-    cum = np.empty((T + 1 if do_t else 1, qj))
-    cur = _centred(x)
-    nxt = np.empty((T, p))
+    for t in range(T):
+        for i in range(p):
+            cur[t, i] = x[t, i] - x[0, i]
     w = np.empty(p)
     f = np.empty(qj)
     cp = np.empty(qj)
@@ -335,6 +337,14 @@ def _mbb_pass(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
                 p_out[h, q] += trimmed[u + length, q] - trimmed[u, q]
 
 
+def _pass_buffers(T: int, p: int, q: int, time_scheme: bool) -> tuple[np.ndarray, ...]:
+    """Work arrays of :func:`_mbb_pass` (two pyramid levels, the time scheme's prefix sums),
+    allocated by NumPy, which asks Linux for transparent huge pages on large arrays (Numba's
+    allocator does not): the time scheme reads its prefix sums at ~1e6 random rows per level,
+    and 2 MB pages spare most of the TLB misses. Contents are irrelevant (overwritten)."""
+    return (np.empty((T, p)), np.empty((T, p)), np.empty((T + 1 if time_scheme else 1, q)))
+
+
 def _mbb_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
                 starts: np.ndarray, block: int, last: int, refill: np.ndarray,
                 out: np.ndarray) -> None:
@@ -350,7 +360,7 @@ def _mbb_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray
     q = p * (p + 1) // 2 if full else p
     _mbb_pass(x, J, full, y, wf, starts, block, last, refill, out,
               np.zeros((0, 1), dtype=np.int64), 1, 1, np.zeros((0, J, q)),
-              np.zeros((0, J), dtype=np.int64))
+              np.zeros((0, J), dtype=np.int64), *_pass_buffers(*x.shape, q, False))
 
 
 def _mbb_time_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, starts: np.ndarray,
@@ -361,7 +371,7 @@ def _mbb_time_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, starts: n
     ``w_i w_k``), ``counts[h, j-1]`` the number of coefficients used."""
     _mbb_pass(x, J, full, y, np.zeros(J), np.zeros((0, 1), dtype=np.int64), 1, 1,
               np.zeros((0, J), dtype=np.int64), np.zeros((0, sums.shape[2])), starts, block,
-              last, sums, counts)
+              last, sums, counts, *_pass_buffers(*x.shape, sums.shape[2], True))
 
 
 # --------------------------------------------------------------------------------------------------
@@ -670,7 +680,8 @@ def _run_mbb_schemes(arr: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.
             raise InputError(f"unknown MBB scheme {scheme!r}: use 'paper' or 'time'")
     if len({scheme for scheme, _ in runs}) != len(runs):
         raise InputError("each MBB scheme may appear once per pass")
-    _mbb_pass(arr, J, full, y, wf, *p_args, *t_args)
+    _mbb_pass(arr, J, full, y, wf, *p_args, *t_args,
+              *_pass_buffers(T, p, q, t_args[3].shape[0] > 0))
     outs = []
     for scheme, _ in runs:
         if scheme == "paper":
