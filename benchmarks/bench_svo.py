@@ -4,21 +4,38 @@ Usage: python benchmarks/bench_svo.py [--T 1044000] [--repeat 3] [--n-boot 500] 
 Prints best-of-N wall and CPU seconds (after a warm-up call) of the steps of one replicate at the
 paper's size (p = 6, J = 19): simulating a Case 1 / Case 2 array, the fused WCCV, the wvar of the six
 columns (reference), the SVO coefficients, RDVG, the MBB covariance (n_boot draws), a WN+RW GMWM fit
-of a virtual WV; then the projected CPU time of the full svo study (config/config.yaml sizes):
+of a virtual WV, the MBB of both schemes in one pass (``mbb_svo_draws_schemes``, what a coverage
+replicate runs); then the projected CPU time of the full svo study (config/config.yaml sizes):
 per case 50 x (1 + 10) arrays (simulate + WCCV), 50 x 10 x 4 GMWM fits, and the coverage study
-(1000 x (simulate + WCCV + one MBB per scheme)) for each coverage case.
+(1000 x (simulate + WCCV + the MBB of its schemes)) for each coverage case.
+
+BLAS runs single-threaded unless OPENBLAS_NUM_THREADS etc. are set, as in the pipeline's jobs
+(Snakemake sets them to the rule's ``threads: 1``); with 2 OpenBLAS threads the (T, 6) @ (6, 6)
+products of the simulation cost ~10x more CPU (spinning threads).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from collections.abc import Callable
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
 import numpy as np
 
 import gmwm
-from gmwm.virtual import block_length, mbb_svo_draws, rdvg, svo_coef, svo_weights, wccv
+from gmwm.virtual import (
+    block_length,
+    mbb_svo_draws,
+    mbb_svo_draws_schemes,
+    rdvg,
+    svo_coef,
+    svo_weights,
+    wccv,
+)
 from gmwm_studies.svo_study import case
 
 
@@ -62,6 +79,11 @@ def main() -> None:
         "rdvg": lambda: rdvg(W),
         f"MBB ({a.n_boot} draws, l = {block})":
             lambda: mbb_svo_draws(X, W.cov, om, a.n_boot, block, np.random.default_rng(2)),
+        f"MBB time scheme ({a.n_boot} draws)":
+            lambda: mbb_svo_draws(X, W.cov, om, a.n_boot, block, np.random.default_rng(2), "time"),
+        "MBB paper + time, one pass": lambda: mbb_svo_draws_schemes(
+            X, W.cov, om, a.n_boot, block,
+            [("paper", np.random.default_rng(2)), ("time", np.random.default_rng(2))]),
         "GMWM WN+RW fit of a virtual WV": lambda: gmwm.fit(W.combine(np.full(6, 1 / 6)), "WN+RW",
                                                             n_starts=1),
     }
@@ -76,8 +98,9 @@ def main() -> None:
     arr = sim + t["wccv (fused, p = 6)"]
     train = a.train * ((1 + a.test) * arr + 3 * t["svo coefficients"] + t["rdvg"]
                        + 4 * a.test * t["GMWM WN+RW fit of a virtual WV"])
-    cov = a.coverage * (t["simulate case1"] + t["wccv (fused, p = 6)"]
-                        + a.schemes * t[f"MBB ({a.n_boot} draws, l = {block})"])
+    mbb = (t["MBB paper + time, one pass"] if a.schemes == 2
+           else a.schemes * t[f"MBB ({a.n_boot} draws, l = {block})"])
+    cov = a.coverage * (t["simulate case1"] + t["wccv (fused, p = 6)"] + mbb)
     total = 2 * train + a.coverage_cases * cov
     print(f"\nprojected CPU: training/test per case {train / 60:.1f} min "
           f"({train / a.train:.1f} s per training replicate), coverage per case {cov / 60:.1f} min "
