@@ -398,3 +398,27 @@ def test_svo_schemes_equal_separate_fits_bit_for_bit():
         assert np.array_equal(got, ref)
     with pytest.raises(InputError, match="one seed per MBB scheme"):
         svo_schemes(X, "short", seeds=[1], mbb=["paper", "time"], **kw)
+
+
+def test_simulate_recursions_match_numpy_and_lfilter_bit_for_bit():
+    # Case.simulate adds its random walk and AR1 components with Numba loops; they must give the
+    # arrays of X += cumsum(...) and X += lfilter(...) (the original formulation) exactly
+    import math
+
+    from scipy.linalg import cholesky
+    from scipy.signal import lfilter
+
+    for name in ("case1", "case2"):
+        cs = case(name)
+        T, p = 3000, cs.p
+        got = cs.simulate(T, np.random.default_rng(11))
+        rng = np.random.default_rng(11)
+        X = rng.standard_normal((T, p)) * np.sqrt(np.diag(cs.R))[None]
+        if cs.rw is not None:
+            X += np.cumsum(rng.standard_normal((T, p)) @ cholesky(cs.rw), axis=0)
+        for phi, P in cs.ar1:
+            L = cholesky(P)
+            eta = rng.standard_normal((T, p)) @ L
+            b0 = (rng.standard_normal(p) @ L) / math.sqrt(1.0 - phi * phi)
+            X += lfilter([1.0], [1.0, -phi], eta, axis=0, zi=(phi * b0)[None, :])[0]
+        assert np.array_equal(got, X), name

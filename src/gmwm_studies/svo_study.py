@@ -22,8 +22,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import njit
 from scipy.linalg import cholesky
-from scipy.signal import lfilter
 from scipy.stats import norm
 
 from gmwm.errors import InputError
@@ -111,13 +111,45 @@ class Case:
         if not np.allclose(self.R, np.diag(np.diag(self.R))):
             X = rng.standard_normal((T, p)) @ cholesky(self.R)
         if self.rw is not None:
-            X += np.cumsum(rng.standard_normal((T, p)) @ cholesky(self.rw), axis=0)
+            _add_cumsum(X, rng.standard_normal((T, p)) @ cholesky(self.rw))
         for phi, P in self.ar1:
             L = cholesky(P)
             eta = rng.standard_normal((T, p)) @ L
             b0 = (rng.standard_normal(p) @ L) / math.sqrt(1.0 - phi * phi)
-            X += lfilter([1.0], [1.0, -phi], eta, axis=0, zi=(phi * b0)[None, :])[0]
+            _add_ar1(X, eta, phi, phi * b0)
         return X
+
+
+# The two recursions below replace ``X += np.cumsum(inc, axis=0)`` and ``X += scipy.signal.lfilter(
+# [1], [1, -phi], eta, axis=0, zi=z0)[0]`` (same operations in the same order, so bit-identical
+# arrays; tests/test_svo.py checks it) without the strided axis-0 passes and temporaries.
+
+
+@njit(cache=True)
+def _add_cumsum(X: np.ndarray, inc: np.ndarray) -> None:
+    """``X += cumsum(inc, axis=0)`` (a random walk started at its first increment)."""
+    T, p = inc.shape
+    if T == 0:
+        return
+    acc = inc[0].copy()
+    for i in range(p):
+        X[0, i] += acc[i]
+    for t in range(1, T):
+        for i in range(p):
+            acc[i] = acc[i] + inc[t, i]
+            X[t, i] += acc[i]
+
+
+@njit(cache=True)
+def _add_ar1(X: np.ndarray, eta: np.ndarray, phi: float, z0: np.ndarray) -> None:
+    """``X += y`` with ``y_t = eta_t + phi y_{t-1}`` and ``phi y_{-1} = z0`` (lfilter's state)."""
+    T, p = eta.shape
+    z = z0.copy()
+    for t in range(T):
+        for i in range(p):
+            yv = z[i] + eta[t, i]
+            z[i] = yv * phi
+            X[t, i] += yv
 
 
 CASES = {
