@@ -6,7 +6,7 @@ import pytest
 
 from gmwm.errors import ModelError
 from gmwm.model import Model, parse_model
-from gmwm.processes import PROCESSES, ar1_unit_wv
+from gmwm.processes import PROCESSES, ar1_unit_wv, ar1_unit_wv_many
 from gmwm.wv import wvar_many
 
 TAU = 2.0 ** np.arange(1, 21)
@@ -169,3 +169,15 @@ def test_simulation_is_reproducible_from_a_seed():
                      "AR1[1].sigma2": 0.03, "SIN[1].alpha": 0.85, "SIN[1].beta": 0.35})
     np.testing.assert_array_equal(m.simulate(theta, 1000, 7), m.simulate(theta, 1000, 7))
     assert not np.array_equal(m.simulate(theta, 1000, 7), m.simulate(theta, 1000, 8))
+
+
+def test_ar1_wv_many_rows_equal_the_single_evaluation():
+    # one kernel per entry point: the vectorised WV (grid scans, posteriors) must be the same
+    # function as the one the optimiser differentiates, on both branches and at the series switch
+    tau = TAU
+    phi = np.concatenate([[-0.999, -0.5, 0.0, 1e-300, 0.3, 0.975, 0.999995, 1 - 1e-8],
+                          np.exp(-1e-2 / (tau / 2))])  # m a exactly at the switch
+    many = ar1_unit_wv_many(phi, tau)
+    single = np.array([ar1_unit_wv(p, tau)[0] for p in phi])
+    np.testing.assert_allclose(many, single, rtol=1e-13, atol=0)
+    assert np.all(np.isfinite(many)) and np.all(many > 0)

@@ -12,7 +12,7 @@ optimisers work unconstrained; ``dp_deta`` is the (diagonal) derivative of that 
 from __future__ import annotations
 
 import math
-from functools import cached_property, lru_cache
+from functools import cache, cached_property
 from typing import Any
 
 import numpy as np
@@ -229,128 +229,44 @@ class Drift(Process):
 # --- AR1 ---------------------------------------------------------------------------------------
 # Evaluated in terms of a = -ln(phi) (phi in (0,1)) with the cancellation-free form of SPEC 2.2;
 # the textbook formula loses up to all digits when phi -> 1 (Simulation 2 uses phi = 0.999995).
-_SERIES_SWITCH = 1e-2
+# The loops are Numba kernels (gmwm._ar1kernels), loaded on first use.
 
 
-def _series_coefs(m: np.ndarray) -> list[np.ndarray]:
-    return [
-        m / 6 + 1 / (12 * m),
-        -(m**2) / 8 + m / 6 + 1 / (12 * m),
-        (7 * m**4 - 15 * m**3 + 5 * m**2 + 3) / (120 * m),
-        (-30 * m**5 + 84 * m**4 - 45 * m**3 - 20 * m**2 - 4) / (1440 * m),
-        (m - 1) * (62 * m**5 - 148 * m**4 - m**3 + 104 * m**2 + 27 * m + 27) / (10080 * m),
-    ]
+@cache
+def _kernels() -> Any:
+    from . import _ar1kernels
+
+    return _ar1kernels
 
 
-@lru_cache(maxsize=64)
-def _series_matrix(m: tuple[float, ...]) -> np.ndarray:
-    out = np.array(_series_coefs(np.asarray(m)))
-    out.setflags(write=False)
-    return out
+def _scales(tau: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(tau, dtype=np.float64).reshape(-1)
 
 
 def ar1_wv_a(a: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """WV of an AR1 with unit innovation variance and phi = exp(-a) > 0, and its derivative in a
-    (read-only arrays: memoised, since an optimiser step asks for the WV and then the Jacobian
-    at the same point)."""
-    tau = np.asarray(tau, dtype=float)
-    return _ar1_wv_a(float(a), tau.tobytes())
-
-
-@lru_cache(maxsize=64)
-def _scale_consts(tau_bytes: bytes) -> tuple[Any, ...]:
-    """Per scale set: tau, m = tau / 2, tau^2, the series coefficients (5, J), those of the
-    series' derivative (4, J) and whether the scales increase (then the series applies to a
-    leading block of scales, and slices replace masks)."""
-    tau = np.frombuffer(tau_bytes, dtype=float)
-    m = tau / 2
-    c = _series_matrix(tuple(m))
-    dc = c[1:] * np.arange(1.0, 5.0)[:, None]
-    return tau, m, tau * tau, c, dc, bool(np.all(np.diff(m) >= 0))
-
-
-@lru_cache(maxsize=256)
-def _ar1_wv_a(a: float, tau_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
-    tau, m, t2, c, dc, increasing = _scale_consts(tau_bytes)
-    nu = np.empty_like(tau)
-    dnu = np.empty_like(tau)
-    ma = m * a
-    if increasing:  # m a < switch exactly on the first k scales
-        k = int(np.searchsorted(ma, _SERIES_SWITCH, side="left"))
-        big: Any = slice(k, None)
-        small: Any = slice(0, k)
-        n_big, n_small = tau.size - k, k
-    else:
-        big = ma >= _SERIES_SWITCH
-        small = ~big
-        n_big = int(np.count_nonzero(big))
-        n_small = tau.size - n_big
-    if n_big:
-        mb = m[big]
-        phi = math.exp(-a)
-        e = -np.expm1(-ma[big])
-        u1 = -math.expm1(-a)
-        u2 = -math.expm1(-2 * a)
-        g = mb * u2 - phi * e * (2 + e)
-        gp = 2 * mb * (phi * phi) + phi * e * (2 + e) - 2 * phi * mb * (1 - e) * (1 + e)
-        pp = u1 * u1 * u2
-        ppp = 2 * u1 * phi * u2 + 2 * (u1 * u1) * (phi * phi)
-        tb = t2[big]
-        nu[big] = 2 * g / (tb * pp)
-        dnu[big] = 2 / tb * (gp * pp - g * ppp) / (pp * pp)
-    if n_small:
-        pw = a ** np.arange(5.0)
-        nu[small] = pw @ c[:, small]
-        dnu[small] = pw[:4] @ dc[:, small]
-    nu.setflags(write=False)
-    dnu.setflags(write=False)
+    """WV of an AR1 with unit innovation variance and phi = exp(-a) > 0, and its derivative in
+    a."""
+    tau = _scales(tau)
+    nu, dnu = np.empty(tau.size), np.empty(tau.size)
+    _kernels().ar1_a(float(a), tau, nu, dnu)
     return nu, dnu
 
 
-def _ar1_wv_direct(phi: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Closed form for phi <= 0 (no cancellation there); unit innovation variance."""
-    m = tau / 2
-    n = (1 - phi**2) * tau - 2 * phi * (3 - 4 * phi**m + phi**tau)
-    d = tau**2 * (1 - phi) ** 3 * (1 + phi)
-    pm1 = phi ** (m - 1) if phi != 0 else (m == 1).astype(float)
-    pt1 = phi ** (tau - 1) if phi != 0 else np.zeros_like(tau)
-    dn = -2 * phi * tau - 6 + 8 * phi**m - 2 * phi**tau + 8 * m * phi * pm1 - 2 * tau * phi * pt1
-    dd = -2 * tau**2 * (1 - phi) ** 2 * (1 + 2 * phi)
-    return n / d, (dn * d - n * dd) / d**2
-
-
 def ar1_unit_wv(phi: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(nu, d nu / d phi) of an AR1 with unit innovation variance."""
-    tau = np.asarray(tau, dtype=float)
-    if phi > 0:
-        nu, dnu_da = ar1_wv_a(-math.log(phi), tau)
-        return nu, -dnu_da / phi
-    return _ar1_wv_direct(phi, tau)
+    """(nu, d nu / d phi) of an AR1 with unit innovation variance, phi in (-1, 1)."""
+    tau = _scales(tau)
+    nu, dnu = np.empty(tau.size), np.empty(tau.size)
+    _kernels().ar1_phi(float(phi), tau, nu, dnu)
+    return nu, dnu
 
 
 def ar1_unit_wv_many(phi: np.ndarray, tau: np.ndarray) -> np.ndarray:
-    """Unit-innovation AR1 WV for many phi at once: phi (N,) -> (N, J). Same numerics as
-    :func:`ar1_unit_wv` (cancellation-free form in a = -ln phi for phi > 0, series when
-    m a < 1e-2, the plain closed form for phi <= 0)."""
-    phi = np.asarray(phi, dtype=float).reshape(-1, 1)
-    tau = np.asarray(tau, dtype=float)[None, :]
-    m = tau / 2
-    with np.errstate(all="ignore"):
-        a = -np.log(np.where(phi > 0, phi, 0.5))
-        ma = m * a
-        e = -np.expm1(-ma)
-        u1, u2 = -np.expm1(-a), -np.expm1(-2 * a)
-        out = 2 * (m * u2 - np.exp(-a) * e * (2 + e)) / (tau**2 * u1**2 * u2)
-        small = ma < _SERIES_SWITCH
-        if small.any():
-            coefs = _scale_consts(tau[0].tobytes())[3]  # (5, J), built once per scale set
-            series = (a ** np.arange(5)) @ coefs  # (N, J)
-            out = np.where(small, series, out)
-        neg = phi[:, 0] <= 0
-        if neg.any():
-            q = phi[neg]
-            n = (1 - q**2) * tau - 2 * q * (3 - 4 * q**m + q**tau)
-            out[neg] = n / (tau**2 * (1 - q) ** 3 * (1 + q))
+    """Unit-innovation AR1 WV for many phi at once: phi (N,) -> (N, J), with the numerics of
+    :func:`ar1_unit_wv`."""
+    phi = np.ascontiguousarray(phi, dtype=np.float64).reshape(-1)
+    tau = _scales(tau)
+    out = np.empty((phi.size, tau.size))
+    _kernels().ar1_many(phi, tau, out)
     return out
 
 
