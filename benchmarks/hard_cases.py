@@ -200,9 +200,16 @@ def main() -> int:
     rows = []
     added = False
     n_pairs = n_below = 0
-    for cid, wv, spec in cases():
+    all_cases = cases()
+    # the first fit of a process loads SciPy's optimisers and the Numba kernels (cached on
+    # disk); timed apart, so that the per-case times are those of a fit in a running session
+    t0 = time.perf_counter()
+    gmwm.fit(all_cases[0][1], all_cases[0][2])
+    print(f"first fit in this process (imports, Numba cache load): "
+          f"{(time.perf_counter() - t0) * 1e3:.0f} ms", flush=True)
+    for cid, wv, spec in all_cases:
         t0 = time.perf_counter()
-        res = gmwm.fit(wv, spec, se_cov="gaussian")
+        res = gmwm.fit(wv, spec)  # the default fit, standard errors included
         dt = time.perf_counter() - t0
         if args.update or cid not in stored:
             stored[cid] = min(best_known(wv, spec, args.n_random), res.objective)
