@@ -232,6 +232,29 @@ class _Likelihood:
 # specialised Kalman filter (Numba)
 
 
+@njit(cache=True, inline="always")
+def _riccati_step(p11: float, p12: float, p22: float, prev: float, s2: float, g2: float,
+                  s2ar: float, phi: float) -> tuple[float, float, float, float, float, float,
+                                                    float, float, bool]:  # pragma: no cover
+    """One step of the filter's covariance recursion (shared by every column): innovation
+    variance f, gains k1, k2, log f, the next predicted covariance (p11, p12, p22), the step size
+    and whether the recursion has reached its steady state."""
+    m1, m2 = p11 + p12, p12 + p22
+    f = m1 + m2 + s2
+    k1, k2 = m1 / f, m2 / f
+    log_f = np.log(f)
+    n11 = p11 - m1 * k1 + g2
+    n12 = phi * (p12 - m1 * k2)
+    n22 = phi * phi * (p22 - m2 * k2) + s2ar
+    # the Riccati recursion converges geometrically, at a rate close to 1 when the RW is small:
+    # the distance from the limit is the step over (1 - rate), not the step
+    step = abs(n11 - p11) + abs(n12 - p12) + abs(n22 - p22)
+    rate = step / prev if prev > 0.0 else 0.0
+    steady = step == 0.0 or (rate < 1.0 and step <= _STEADY_TOL * (1.0 - rate)
+                             * (abs(n11) + abs(n22)))
+    return f, k1, k2, log_f, n11, n12, n22, step, steady
+
+
 @njit(cache=True)
 def _kf_cross(Y: np.ndarray, s2: float, g2: float, s2ar: float, phi: float
               ) -> tuple[np.ndarray, float]:  # pragma: no cover (compiled)
@@ -257,21 +280,8 @@ def _kf_cross(Y: np.ndarray, s2: float, g2: float, s2ar: float, phi: float
     prev = np.inf
     for t in range(1, n):
         if not steady:
-            m1, m2 = p11 + p12, p12 + p22
-            f = m1 + m2 + s2
-            k1, k2 = m1 / f, m2 / f
-            log_f = np.log(f)
-            n11 = p11 - m1 * k1 + g2
-            n12 = phi * (p12 - m1 * k2)
-            n22 = phi * phi * (p22 - m2 * k2) + s2ar
-            # the Riccati recursion converges geometrically, at a rate close to 1 when the RW
-            # is small: the distance from the limit is the step over (1 - rate), not the step
-            step = abs(n11 - p11) + abs(n12 - p12) + abs(n22 - p22)
-            rate = step / prev if prev > 0.0 else 0.0
-            steady = step == 0.0 or (rate < 1.0 and step <= _STEADY_TOL * (1.0 - rate)
-                                     * (abs(n11) + abs(n22)))
-            prev = step
-            p11, p12, p22 = n11, n12, n22
+            f, k1, k2, log_f, p11, p12, p22, prev, steady = _riccati_step(
+                p11, p12, p22, prev, s2, g2, s2ar, phi)
         sum_log_f += log_f
         for i in range(k):
             v[i] = Y[t, i] - amu[i] - ac[i]
@@ -306,19 +316,8 @@ def _kf_cross3(Y: np.ndarray, s2: float, g2: float, s2ar: float, phi: float
     prev = np.inf
     for t in range(1, n):
         if not steady:
-            m1, m2 = p11 + p12, p12 + p22
-            f = m1 + m2 + s2
-            k1, k2 = m1 / f, m2 / f
-            log_f = np.log(f)
-            n11 = p11 - m1 * k1 + g2
-            n12 = phi * (p12 - m1 * k2)
-            n22 = phi * phi * (p22 - m2 * k2) + s2ar
-            step = abs(n11 - p11) + abs(n12 - p12) + abs(n22 - p22)
-            rate = step / prev if prev > 0.0 else 0.0
-            steady = step == 0.0 or (rate < 1.0 and step <= _STEADY_TOL * (1.0 - rate)
-                                     * (abs(n11) + abs(n22)))
-            prev = step
-            p11, p12, p22 = n11, n12, n22
+            f, k1, k2, log_f, p11, p12, p22, prev, steady = _riccati_step(
+                p11, p12, p22, prev, s2, g2, s2ar, phi)
         sum_log_f += log_f
         v0 = Y[t, 0] - amu0 - ac0
         v1 = Y[t, 1] - amu1 - ac1
