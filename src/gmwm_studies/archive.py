@@ -41,6 +41,9 @@ def read_benchmarks(paths: Iterable[str | os.PathLike]) -> pd.DataFrame:
 
     Missing files are skipped (their job ran in an earlier session whose benchmark was removed).
     Returns one row per job: rule, study, job, seconds (wall), max_rss_mb, cpu_time [s].
+    ``cpu_time`` is Snakemake's polled CPU time (psutil every 1 s for the first 30 s, then every
+    30 s): what a job used after the last poll is missing, so it is a lower bound (a 5-replicate
+    SVO training job logged 14.5 s against ~24 s measured); ``seconds`` is exact.
     """
     rows = []
     for path in map(Path, paths):
