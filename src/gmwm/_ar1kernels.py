@@ -40,22 +40,22 @@ def _series(m: float, a: float) -> tuple[float, float]:
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _consts(a: float) -> tuple[float, float, float, float, float]:
-    """phi = e^-a, 1 - phi, 1 - phi^2 (without cancellation), the WV's denominator factor
+def _consts(a: float) -> tuple[float, float, float, float]:
+    """phi = e^-a, 1 - phi^2 (without cancellation), the WV's denominator factor
     pp = (1 - phi)^2 (1 - phi^2) and its derivative in a."""
     phi = math.exp(-a)
     u1 = -math.expm1(-a)
     u2 = -math.expm1(-2 * a)
     pp = u1 * u1 * u2
     ppp = 2 * u1 * phi * u2 + 2 * (u1 * u1) * (phi * phi)
-    return phi, u1, u2, pp, ppp
+    return phi, u2, pp, ppp
 
 
 @njit(cache=True, error_model="numpy")
 def ar1_a(a: float, tau: np.ndarray, nu: np.ndarray, dnu_da: np.ndarray) -> None:
     """WV of an AR1 with phi = exp(-a) > 0 and unit innovation variance into ``nu``, its
     derivative in ``a`` into ``dnu_da``."""
-    phi, u1, u2, pp, ppp = _consts(a)
+    phi, u2, pp, ppp = _consts(a)
     for j in range(tau.shape[0]):
         t = tau[j]
         m = t / 2
@@ -112,7 +112,7 @@ def ar1_many(phi: np.ndarray, tau: np.ndarray, out: np.ndarray) -> None:
             ar1_direct(p, tau, out[i], dnu)
             continue
         a = -math.log(p)
-        _, _, u2, pp, _ = _consts(a)
+        _, u2, pp, _ = _consts(a)
         for j in range(J):
             t = tau[j]
             m = t / 2
