@@ -51,6 +51,12 @@ def _consts(a: float) -> tuple[float, float, float, float]:
     return phi, u2, pp, ppp
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _g(m: float, e: float, phi: float, u2: float) -> float:
+    """Numerator of the closed form: nu = 2 g / (tau^2 pp), with e = 1 - phi^m."""
+    return m * u2 - phi * e * (2 + e)
+
+
 @njit(cache=True, error_model="numpy")
 def ar1_a(a: float, tau: np.ndarray, nu: np.ndarray, dnu_da: np.ndarray) -> None:
     """WV of an AR1 with phi = exp(-a) > 0 and unit innovation variance into ``nu``, its
@@ -64,7 +70,7 @@ def ar1_a(a: float, tau: np.ndarray, nu: np.ndarray, dnu_da: np.ndarray) -> None
             nu[j], dnu_da[j] = _series(m, a)
             continue
         e = -math.expm1(-ma)
-        g = m * u2 - phi * e * (2 + e)
+        g = _g(m, e, phi, u2)
         gp = 2 * m * (phi * phi) + phi * e * (2 + e) - 2 * phi * m * (1 - e) * (1 + e)
         t2 = t * t
         nu[j] = 2 * g / (t2 * pp)
@@ -121,4 +127,4 @@ def ar1_many(phi: np.ndarray, tau: np.ndarray, out: np.ndarray) -> None:
                 out[i, j] = _series(m, a)[0]
             else:
                 e = -math.expm1(-ma)
-                out[i, j] = 2 * (m * u2 - p * e * (2 + e)) / (t * t * pp)
+                out[i, j] = 2 * _g(m, e, p, u2) / (t * t * pp)

@@ -242,21 +242,22 @@ def _scales(tau: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(tau, dtype=np.float64).reshape(-1)
 
 
+def _with_derivative(kernel: Any, x: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    tau = _scales(tau)
+    nu, dnu = np.empty(tau.size), np.empty(tau.size)
+    kernel(float(x), tau, nu, dnu)
+    return nu, dnu
+
+
 def ar1_wv_a(a: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """WV of an AR1 with unit innovation variance and phi = exp(-a) > 0, and its derivative in
     a."""
-    tau = _scales(tau)
-    nu, dnu = np.empty(tau.size), np.empty(tau.size)
-    _kernels().ar1_a(float(a), tau, nu, dnu)
-    return nu, dnu
+    return _with_derivative(_kernels().ar1_a, a, tau)
 
 
 def ar1_unit_wv(phi: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(nu, d nu / d phi) of an AR1 with unit innovation variance, phi in (-1, 1)."""
-    tau = _scales(tau)
-    nu, dnu = np.empty(tau.size), np.empty(tau.size)
-    _kernels().ar1_phi(float(phi), tau, nu, dnu)
-    return nu, dnu
+    return _with_derivative(_kernels().ar1_phi, phi, tau)
 
 
 def ar1_unit_wv_many(phi: np.ndarray, tau: np.ndarray) -> np.ndarray:
