@@ -181,3 +181,67 @@ def test_ar1_wv_many_rows_equal_the_single_evaluation():
     single = np.array([ar1_unit_wv(p, tau)[0] for p in phi])
     np.testing.assert_allclose(many, single, rtol=1e-13, atol=0)
     assert np.all(np.isfinite(many)) and np.all(many > 0)
+
+
+FAST_MODELS = [
+    ("WN+RW", {"WN[1].sigma2": 1.7e-3, "RW[1].gamma2": 1.5e-8}),  # STIM-300 gyro-like ratio
+    ("QN+WN+RW+DR", {"QN[1].Q2": 2e-3, "WN[1].sigma2": 1.5e-4, "RW[1].gamma2": 1.6e-7,
+                     "DR[1].omega": 1e-6}),
+    ("AR1+RW+WN+SIN", {"WN[1].sigma2": 8e-4, "AR1[1].phi": 0.99, "AR1[1].sigma2": 9e-6,
+                       "SIN[1].alpha": 0.025, "SIN[1].beta": 0.056, "RW[1].gamma2": 3e-9}),
+    ("2*AR1+2*SIN", {"AR1[1].phi": -0.4, "AR1[1].sigma2": 5e-4, "AR1[2].phi": 0.999,
+                     "AR1[2].sigma2": 3e-8, "SIN[1].alpha": 0.025, "SIN[1].beta": 0.056,
+                     "SIN[2].alpha": 0.0015, "SIN[2].beta": 1e-3}),
+    ("WN+GM+RW", {"WN[1].sigma2": 1e-4, "GM[1].beta": 0.5, "GM[1].sigma2": 1e-6,
+                  "RW[1].gamma2": 1e-11}),
+]
+
+
+@pytest.mark.parametrize(("spec", "truth"), FAST_MODELS)
+def test_simulate_fast_has_the_wv_distribution_of_simulate(spec, truth):
+    """simulate_fast's claim: the same distribution as simulate up to a constant, so the same WV
+    distribution. Mean: (mean - theory) / MC SE ~ N(0, 1) per level, bound 4.5 as above. Spread:
+    the replicate SDs of the two simulators per level; with R = 120 each, log(SD ratio) has SD
+    ~ sqrt(1/R) ~ 0.09 (Gaussian-like WV at short scales, heavier at long ones), so 0.45 is ~5 SD
+    at short scales; a wrong MA(1) coefficient moves the walk's WV by a factor >= 1.5."""
+    model = Model(spec, freq=100.0)
+    theta = model.theta(truth)
+    R, T, J = 120, 2**13, 9
+    rng = np.random.default_rng(2024)
+    fast = wvar_many(np.stack([model.simulate_fast(theta, T, rng, block=3000)
+                               for _ in range(R)]), levels=J)
+    ref = wvar_many(np.stack([model.simulate(theta, T, rng) for _ in range(R)]), levels=J)
+    theory = model.wv(theta, 2.0 ** np.arange(1, J + 1))
+    z = (fast.mean(0) - theory) / (fast.std(0, ddof=1) / np.sqrt(R))
+    assert np.max(np.abs(z)) < 4.5, z
+    log_ratio = np.log(fast.std(0, ddof=1) / ref.std(0, ddof=1))
+    assert np.max(np.abs(log_ratio)) < 0.45, log_ratio
+
+
+@pytest.mark.parametrize(("sigma2", "gamma2"), [(1.0, 0.0), (0.0, 2.0), (1.7e-3, 1.5e-13),
+                                                (1.0, 1.0)])
+def test_simulate_fast_walk_has_the_increment_covariance_of_wn_plus_rw(sigma2, gamma2):
+    """Increments of WN + RW: variance 2 sigma2 + gamma2, lag-1 covariance -sigma2, none beyond.
+    Sample autocovariances of n = 4e5 increments have SD <= c0 sqrt(2 / n) ~ 2.2e-3 c0."""
+    model = Model("WN+RW") if sigma2 and gamma2 else Model("WN" if sigma2 else "RW")
+    theta = [v for v in (sigma2, gamma2) if v]
+    d = np.diff(model.simulate_fast(theta, 400_001, np.random.default_rng(11)))
+    c0 = 2 * sigma2 + gamma2
+    acov = [np.mean(d[k:] * d[:d.size - k]) for k in range(3)]
+    np.testing.assert_allclose(acov, [c0, -sigma2, 0.0], atol=5 * c0 * np.sqrt(2 / d.size))
+
+
+def test_simulate_fast_sinusoid_drift_and_reproducibility():
+    m = Model("SIN+DR")
+    theta = np.array([0.025, 8e-6, 1e-3])
+    n = 200_000
+    x = m.simulate_fast(theta, n, 3, block=7001)
+    phase = np.random.default_rng(3).uniform(0.0, 2 * np.pi)  # the stream's first draw
+    t = np.arange(1, n + 1, dtype=float)
+    np.testing.assert_allclose(x, 0.025 * np.sin(8e-6 * t + phase) + 1e-3 * t, rtol=0,
+                               atol=1e-12)
+    np.testing.assert_array_equal(x, m.simulate_fast(theta, n, 3, block=7001))
+    with pytest.raises(ModelError, match="positive"):
+        m.simulate_fast(theta, 0, 3)
+    with pytest.raises(ModelError, match="alpha"):
+        m.simulate_fast(np.array([-1.0, 1e-3, 1.0]), 10, 3)

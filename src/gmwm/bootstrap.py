@@ -86,15 +86,15 @@ def _fit_seed(ss: np.random.SeedSequence) -> int:
 
 def simulate_draw(model: Model, theta: np.ndarray, n_samples: int,
                   rng: np.random.Generator) -> np.ndarray:
-    """One signal of ``n_samples`` from ``model`` at ``theta``, components in canonical order.
+    """One signal of ``n_samples`` from ``model`` at ``theta`` (:meth:`Model.simulate_fast`: the
+    model's distribution up to an additive constant, which every WV statistic ignores).
 
-    Same stream use as :meth:`Model.simulate`, except that a linear component estimated at the
-    boundary 0 (closed-form NNLS) is skipped instead of rejected: it contributes nothing.
+    A linear component estimated at the boundary 0 (closed-form NNLS) contributes nothing instead
+    of being rejected; any other parameter out of its domain is an InputError.
     """
     theta = np.asarray(theta, dtype=float)
     if theta.shape != (model.n_params,):
         raise InputError(f"model {model.spec} has {model.n_params} parameters, got {theta.size}")
-    x = np.zeros(int(n_samples))
     for c in model.components:
         p = theta[c.slice]
         if c.process.linear and p[0] == 0:
@@ -102,8 +102,7 @@ def simulate_draw(model: Model, theta: np.ndarray, n_samples: int,
         msg = c.process.check(p)
         if msg:
             raise InputError(f"cannot simulate from the estimate: {c.name}: {msg}")
-        x += c.process.simulate(p, x.size, rng, model.freq)
-    return x
+    return model.simulate_fast(theta, int(n_samples), rng, boundary_ok=True)
 
 
 def _draw_list(draws: Iterable[int] | None, B: int | None) -> np.ndarray:

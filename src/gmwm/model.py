@@ -10,6 +10,7 @@ applies that order to any parameter vector so estimates are comparable across fi
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -255,6 +256,97 @@ class Model:
                 x = part.astype(float, copy=False)
             else:
                 x += part
+        return x
+
+    def simulate_fast(self, theta: np.ndarray, n: int,
+                      rng: np.random.Generator | int | None = None,
+                      block: int = 1 << 15, boundary_ok: bool = False) -> np.ndarray:
+        """A realisation equal in distribution to :meth:`simulate`'s up to an additive constant,
+        at about a third of its cost (float64, length ``n``). For Monte Carlo studies of shift-
+        invariant statistics: the WV, the Allan variance and every fit ignore the constant.
+
+        Differences from :meth:`simulate` (other random numbers for the same ``rng``):
+
+        * all WN and RW components are one stream: x_t = a z_t + b sum_{k<t} z_k has increments
+          a z_t + (b - a) z_{t-1}, an MA(1) with the variance (2 sigma2 + gamma2) and lag-1
+          covariance (-sigma2) of the increments of WN + RW, so one normal per sample instead of
+          two. The constant is the walk's start, which :meth:`simulate` draws at random.
+        * the signal is built in blocks of ``block`` samples that stay in cache, one Numba pass
+          per component (``gmwm._simkernels``).
+
+        Stream, for reproducibility: first one normal per AR1/GM (its stationary start), one
+        uniform per QN (its first level) and one per SIN (its phase), in component order; then
+        per block ``block`` normals for the WN/RW stream (if any) and for each AR1/GM, and
+        ``block`` uniforms for each QN, in that order. ``boundary_ok``: as in :meth:`check` (a
+        component with scale parameter 0 contributes nothing).
+        """
+        from . import _simkernels as k  # Numba: loaded only by simulation
+
+        theta = np.asarray(theta, dtype=float)
+        self.check(theta, boundary_ok=boundary_ok)
+        n = int(n)
+        if n < 1:
+            raise ModelError(f"number of samples must be positive, got {n}")
+        rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        sigma2 = gamma2 = omega = 0.0
+        ar1: list[list[float]] = []  # [phi, innovation sd, state]
+        qn: list[list[float]] = []  # [q, previous uniform]
+        sines: list[tuple[float, float, float]] = []  # (alpha, beta, phase)
+        for c in self.components:
+            p, name = theta[c.slice], c.process.name
+            if name == "WN":
+                sigma2 += p[0]
+            elif name == "RW":
+                gamma2 += p[0]
+            elif name == "DR":
+                omega += p[0]
+            elif name in ("AR1", "GM"):
+                if name == "AR1":
+                    phi, s2 = float(p[0]), float(p[1])
+                else:
+                    a, s2 = c.process._ar1(p, self.freq)
+                    phi = math.exp(-a)
+                s = math.sqrt(s2)
+                ar1.append([phi, s, s * rng.standard_normal() / math.sqrt(1.0 - phi * phi)])
+            elif name == "QN":
+                qn.append([math.sqrt(12.0 * p[0]), rng.random()])
+            elif name == "SIN":
+                sines.append((float(p[0]), float(p[1]), rng.uniform(0.0, 2 * np.pi)))
+            else:  # a process added to PROCESSES without a kernel here
+                raise ModelError(f"simulate_fast has no kernel for process {name!r}")
+        walk = sigma2 > 0 or gamma2 > 0
+        if walk:
+            c0 = 2 * sigma2 + gamma2
+            g = math.sqrt(gamma2 * (4 * sigma2 + gamma2))
+            theta_ma = -2 * sigma2 / (c0 + g)  # invertible root of theta / (1 + theta^2) = -sigma2/c0
+            a_w = math.sqrt(c0 / (1 + theta_ma * theta_ma))
+            b_w = a_w * (gamma2 + g) / (c0 + g)  # a (1 + theta), free of cancellation
+            level = 0.0
+        n_normal = int(walk) + len(ar1)
+        z = np.empty((n_normal, min(block, n)))
+        u = np.empty((len(qn), min(block, n)))
+        x = np.empty(n)
+        for start in range(0, n, block):
+            xb = x[start:start + block]
+            m = xb.size
+            xb[:] = 0.0
+            for i in range(n_normal):
+                rng.standard_normal(out=z[i, :m])
+            for i in range(len(qn)):
+                rng.random(out=u[i, :m])
+            i = 0
+            if walk:
+                level = k.add_walk_noise(xb, z[0, :m], a_w, b_w, level)
+                i = 1
+            for st in ar1:
+                st[2] = k.add_ar1(xb, z[i, :m], st[0], st[1], st[2])
+                i += 1
+            for st, ub in zip(qn, u, strict=True):
+                st[1] = k.add_quantization(xb, ub[:m], st[0], st[1])
+            if omega:
+                k.add_drift(xb, omega, start + 1)
+            for alpha, beta, phase in sines:
+                k.add_sinusoid(xb, alpha, beta, phase, start + 1)
         return x
 
     # -- unconstrained parametrisation ----------------------------------------------------------

@@ -41,6 +41,7 @@ __all__ = [
     "gather",
     "replicate_fit",
     "replicate_flags",
+    "simulate_replicate",
     "simulate_wv_chunk",
     "standardized_errors",
     "summarize",
@@ -107,6 +108,22 @@ def check_truth(model_spec: str, truth: Mapping[str, float]) -> np.ndarray:
     return theta
 
 
+SIMULATORS = ("fast", "reference")
+
+
+def simulate_replicate(model: Any, theta: np.ndarray, n_samples: int, rng: np.random.Generator,
+                       simulator: str = "fast") -> np.ndarray:
+    """One replicate signal: ``"fast"`` = :meth:`gmwm.model.Model.simulate_fast` (the same
+    distribution up to an additive constant, which the WV ignores; 2-3x cheaper), ``"reference"``
+    = :meth:`gmwm.model.Model.simulate` (the component-by-component stream of runs before
+    2026-11-23)."""
+    if simulator == "fast":
+        return model.simulate_fast(theta, int(n_samples), rng)
+    if simulator == "reference":
+        return model.simulate(theta, int(n_samples), rng)
+    raise InputError(f"unknown simulator {simulator!r}; choose one of {list(SIMULATORS)}")
+
+
 def simulate_wv_chunk(
     model_spec: str,
     truth: Mapping[str, float],
@@ -116,11 +133,13 @@ def simulate_wv_chunk(
     base_seed: int,
     levels: int | None = None,
     progress: Progress | None = None,
+    simulator: str = "fast",
 ) -> WVChunk:
     """Simulate each replicate's signal and keep only its wavelet variance.
 
     One signal is in memory at a time (8 bytes x ``n_samples``). ``levels`` = number of WV levels J
-    (None: the library default floor(log2 T) - 1). Returns a :class:`WVChunk` with per-replicate
+    (None: the library default floor(log2 T) - 1). ``simulator``: see :func:`simulate_replicate`.
+    Returns a :class:`WVChunk` with per-replicate
     timings of the simulation and of the WV [s].
     """
     from gmwm.model import Model
@@ -138,7 +157,8 @@ def simulate_wv_chunk(
     wv = None
     for i, rep in enumerate(reps):
         t0 = time.perf_counter()
-        x = model.simulate(theta, int(n_samples), replicate_rng(study, n_samples, rep, base_seed))
+        x = simulate_replicate(model, theta, n_samples, replicate_rng(study, n_samples, rep, base_seed),
+                               simulator)
         t1 = time.perf_counter()
         wv = wvar(x, levels=levels)
         t2 = time.perf_counter()
@@ -181,7 +201,8 @@ def fit_kwargs(settings: Mapping[str, Any] | None) -> dict[str, Any]:
 
 def replicate_fit(model_spec: str, truth: Mapping[str, float], n_samples: int, replicate: int, *,
                   study: str, base_seed: int, settings: Mapping[str, Any] | None = None,
-                  levels: int | None = None, freq: float = 1.0) -> GMWMResult:
+                  levels: int | None = None, freq: float = 1.0,
+                  simulator: str = "fast") -> GMWMResult:
     """GMWM fit of replicate ``replicate`` of a study, equal to :func:`fit_chunk`'s fit of it.
 
     The signal uses the replicate's stream (:func:`seeds.replicate_rng`), the WV is
@@ -194,7 +215,8 @@ def replicate_fit(model_spec: str, truth: Mapping[str, float], n_samples: int, r
 
     model = Model(model_spec, freq=freq)
     theta = model.theta(dict(truth))
-    x = model.simulate(theta, int(n_samples), replicate_rng(study, n_samples, replicate, base_seed))
+    x = simulate_replicate(model, theta, n_samples,
+                           replicate_rng(study, n_samples, replicate, base_seed), simulator)
     wv = wvar(x, levels=levels, freq=freq)
     del x
     wv = WaveletVariance.from_table(wv.scales, wv.variance, n_samples=int(n_samples), freq=freq)

@@ -128,7 +128,8 @@ def _wald(est: np.ndarray, se: np.ndarray, alpha: float) -> np.ndarray:
 def coverage_chunk(model_spec: str, truth: dict[str, float], n_samples: int,
                    replicates: Sequence[int], *, study: str, base_seed: int, B: int,
                    settings: dict[str, Any] | None = None, levels: int | None = None,
-                   alpha: float = 0.05, progress: Callable[[str], None] | None = None):
+                   alpha: float = 0.05, progress: Callable[[str], None] | None = None,
+                   simulator: str = "fast"):
     """Coverage study, one chunk of replicates: fit each replicate (:func:`replicate_fit`), run a
     parametric bootstrap of B refits from its estimate (draw streams extend the replicate's stream
     2, so results do not depend on chunking) and keep the percentile, basic and Wald (sandwich SE)
@@ -155,7 +156,8 @@ def coverage_chunk(model_spec: str, truth: dict[str, float], n_samples: int,
         t0 = time.perf_counter()
         try:
             res = replicate_fit(model_spec, truth, n_samples, int(rep), study=study,
-                                base_seed=base_seed, settings=settings, levels=levels)
+                                base_seed=base_seed, settings=settings, levels=levels,
+                                simulator=simulator)
         except GMWMError as err:
             if progress:
                 progress(f"replicate {rep}: fit failed: {err}")

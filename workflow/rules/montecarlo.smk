@@ -58,6 +58,7 @@ rule simulate_wv:
         replicates=lambda w: chunk_reps(w.study, w.chunk),
         seed=lambda w: study(w)["seed"],
         levels=lambda w: study(w)["levels"],
+        simulator=lambda w: study(w)["simulator"],
     log:
         "logs/{study}/simulate_wv/T{T}_c{chunk}.log",
     benchmark:

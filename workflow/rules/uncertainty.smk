@@ -57,7 +57,7 @@ def unc_fit_spec(fit):
     return {"source": "study", "study": fit, "model": s["model"], "truth": s["truth"],
             "n_samples": max(s["n_samples"]), "replicate": 0, "seed": s["seed"],
             "levels": s["levels"], "settings": unc_estimator(fit),
-            "freq": float(s.get("freq", 1.0))}
+            "freq": float(s.get("freq", 1.0)), "simulator": s["simulator"]}
 
 
 def unc_posterior(fit):
@@ -392,6 +392,7 @@ rule coverage_chunk:
         seed=lambda w: study(w)["seed"],
         levels=lambda w: study(w)["levels"],
         settings=lambda w: unc_estimator(w.study),
+        simulator=lambda w: study(w)["simulator"],
         B=lambda w: cov_B(w.study),
         alpha=lambda w: cov_alpha(w.study),
     log:

@@ -13,6 +13,6 @@ log.info("study %s, model %s, T=%d, replicates %d..%d, B=%d, settings %s", snake
          p.model, p.n_samples, p.replicates[0], p.replicates[-1], p.B, p.settings)
 ds = coverage_chunk(p.model, p.truth, p.n_samples, p.replicates, study=snakemake.wildcards.study,
                     base_seed=p.seed, B=p.B, settings=p.settings, levels=p.levels, alpha=p.alpha,
-                    progress=log.info)
+                    progress=log.info, simulator=p.simulator)
 write_dataset(ds, snakemake.output[0])
 log.info("wrote %s", snakemake.output[0])

@@ -19,6 +19,6 @@ if spec["source"] == "navchip":
 else:
     res = replicate_fit(spec["model"], spec["truth"], spec["n_samples"], spec["replicate"],
                         study=spec["study"], base_seed=spec["seed"], settings=spec["settings"],
-                        levels=spec["levels"], freq=spec["freq"])
+                        levels=spec["levels"], freq=spec["freq"], simulator=spec["simulator"])
 log.info("%s: %s\n%s", snakemake.wildcards.fit, spec, res.summary())
 write_result(snakemake.output[0], res)
