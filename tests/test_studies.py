@@ -64,6 +64,26 @@ def test_simulated_wv_does_not_depend_on_chunking():
     assert whole.variances.shape == (6, 11)  # default J = floor(log2 4096) - 1
 
 
+def test_simulator_choice_fast_reference_or_error():
+    """``simulator`` picks Model.simulate_fast (default) or Model.simulate on the same stream."""
+    from gmwm.model import Model
+
+    kw = {"model_spec": SIM3, "truth": SIM3_TRUTH, "n_samples": 4096, "study": "sim3",
+          "base_seed": 7, "replicates": [2]}
+    model = Model(SIM3)
+    theta = model.theta(SIM3_TRUTH)
+    from gmwm.wv import wvar
+
+    for name, draw in (("fast", model.simulate_fast), ("reference", model.simulate)):
+        got = gs.simulate_wv_chunk(simulator=name, **kw).variances[0]
+        want = wvar(draw(theta, 4096, replicate_rng("sim3", 4096, 2, 7))).variance
+        np.testing.assert_array_equal(got, want)
+    assert not np.array_equal(gs.simulate_wv_chunk(**kw).variances,
+                              gs.simulate_wv_chunk(simulator="reference", **kw).variances)
+    with pytest.raises(InputError, match="unknown simulator 'exact'"):
+        gs.simulate_wv_chunk(simulator="exact", **kw)
+
+
 def test_fits_do_not_depend_on_chunking():
     kw = {"model_spec": "WN+RW", "truth": {"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-3},
           "n_samples": 2048, "study": "t", "base_seed": 3}
