@@ -16,13 +16,6 @@ from numba import njit
 
 
 @njit(cache=True)
-def add_white(x: np.ndarray, z: np.ndarray, s: float) -> None:
-    """x += s z (white noise of standard deviation s)."""
-    for t in range(x.size):
-        x[t] += s * z[t]
-
-
-@njit(cache=True)
 def add_walk_noise(x: np.ndarray, z: np.ndarray, a: float, b: float, level: float) -> float:
     """x_t += a z_t + b sum_{k<t} z_k (the running sum carried in ``level``); returns the new level.
 

@@ -114,7 +114,7 @@ SIMULATORS = ("fast", "reference")
 def simulate_replicate(model: Any, theta: np.ndarray, n_samples: int, rng: np.random.Generator,
                        simulator: str = "fast") -> np.ndarray:
     """One replicate signal: ``"fast"`` = :meth:`gmwm.model.Model.simulate_fast` (the same
-    distribution up to an additive constant, which the WV ignores; 2-3x cheaper), ``"reference"``
+    distribution up to an additive constant, which the WV ignores; 1.5-2.5x cheaper), ``"reference"``
     = :meth:`gmwm.model.Model.simulate` (the component-by-component stream of runs before
     2026-11-23)."""
     if simulator == "fast":
@@ -157,8 +157,8 @@ def simulate_wv_chunk(
     wv = None
     for i, rep in enumerate(reps):
         t0 = time.perf_counter()
-        x = simulate_replicate(model, theta, n_samples, replicate_rng(study, n_samples, rep, base_seed),
-                               simulator)
+        rng = replicate_rng(study, n_samples, rep, base_seed)
+        x = simulate_replicate(model, theta, n_samples, rng, simulator)
         t1 = time.perf_counter()
         wv = wvar(x, levels=levels)
         t2 = time.perf_counter()

@@ -102,7 +102,7 @@ def fit_wv(wv: Any, model: Any, settings: Mapping[str, Any], seed: int = 0
     Returns (params, se, converged, objective, message); AVSM has no SE or objective (NaN).
     The study reports estimates, not SEs, so GMWM/ARMAV fits take the diagonal (Gaussian) SEs
     (``se_cov="gaussian"``): the model-based covariance of the WV was 60-90 % of their fit time
-    (3-34 ms instead of 24-44 ms per fit, 2026-11-23), and the estimates do not depend on it.
+    (2-17 ms instead of 24-44 ms per fit, 2026-11-23), and the estimates do not depend on it.
     """
     from gmwm import fit
     from gmwm.avsm import fit_avsm
