@@ -67,6 +67,9 @@ def test_outputs_exist_and_are_sensible(run):
             assert (run / "reports" / study / name).stat().st_size > 0, (study, name)
     index = (run / "reports" / "index.md").read_text()
     assert "sim2" in index and "sim3" in index and "fig_boxplot.png" in index
+    # a study fitted with several estimators labels its key rows (sim3: CI and efficient weights)
+    sim3_section = index.split("## sim3:")[1].split("\n## ")[0]
+    assert "| estimator |" in sim3_section and "| gmwm_eff |" in sim3_section
     assert len(list((run / "reports" / "archive").iterdir())) == 1
     assert list((run / "logs" / "sim3" / "fit").glob("*.log"))
 

@@ -9,6 +9,7 @@ from gmwm.io import write_text_atomic
 from gmwm_studies.archive import archived_summary, read_benchmarks, render_index, run_summary
 
 KEY_COLUMNS = ["method",  # STIM-300: GMWM / ARMAV / AVSM rows of one table
+               "estimator",  # Simulations 2 and 3: CI and efficient weights (when no "method")
                "n_samples", "variant", "parameter", "truth", "rel_bias", "rel_sd", "std_bias",
                "share_not_converged",
                # Simulation 1 (GMWM vs MLE variants): per T, MLE replicates, failures and wrong
@@ -20,7 +21,8 @@ KEY_COLUMNS = ["method",  # STIM-300: GMWM / ARMAV / AVSM rows of one table
                # navigation emulation: maximum of the position error ratio, its epoch and CI
                "window", "time_s", "max_ratio", "ci_lo", "ci_hi"]
 
-LABELS = {"method", "n_samples", "variant", "parameter", "fit", "status", "interval", "window"}
+LABELS = {"method", "estimator", "n_samples", "variant", "parameter", "fit", "status", "interval",
+          "window"}
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)
@@ -41,7 +43,9 @@ for name, s in snakemake.params.studies.items():
     key = None
     if csv is not None:
         table = pd.read_csv(csv)
-        key = table[[c for c in KEY_COLUMNS if c in table.columns]]
+        labelled = "method" in table.columns  # "method" already names the estimator
+        key = table[[c for c in KEY_COLUMNS
+                     if c in table.columns and not (labelled and c == "estimator")]]
         if not any(c not in LABELS and pd.api.types.is_numeric_dtype(key[c]) for c in key):
             key = None  # labels only (e.g. the SVO table): nothing worth a glance
     entries.append({
