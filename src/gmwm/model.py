@@ -262,9 +262,10 @@ class Model:
                       rng: np.random.Generator | int | None = None,
                       block: int = 1 << 15, boundary_ok: bool = False) -> np.ndarray:
         """A realisation equal in distribution to :meth:`simulate`'s up to an additive constant,
-        at 1.5-2.5x less cost (float64, length ``n``; measured 2026-11-23 per sample: WN+RW
-        16-17 ns instead of 35-40, 2*AR1+2*SIN 68-83 instead of 103-158). For Monte Carlo studies of shift-
-        invariant statistics: the WV, the Allan variance and every fit ignore the constant.
+        at 1.5-2.5x less cost (float64, length ``n``; ``benchmarks/bench_simulate.py``: e.g. WN+RW
+        9.7 ns per sample instead of 21, 2*AR1+2*SIN 23 instead of 48 on the dev VM). For Monte Carlo
+        studies of shift-invariant statistics: the WV, the Allan variance and every fit ignore the
+        constant.
 
         Differences from :meth:`simulate` (other random numbers for the same ``rng``):
 
