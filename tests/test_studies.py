@@ -238,6 +238,30 @@ def test_archive_never_overwrites(tmp_path):
     assert not [p for p in (tmp_path / "arch").iterdir() if p.name.startswith(".")]
 
 
+def test_git_commit_is_dirty_only_for_changes_outside_the_runs_outputs(tmp_path):
+    import subprocess
+
+    def git(*args):
+        subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True)
+
+    assert archive.git_commit(tmp_path) == "unknown"  # not a repository
+    git("init", "-q")
+    (tmp_path / "reports").mkdir()
+    report, code = tmp_path / "reports" / "t.md", tmp_path / "code.py"
+    report.write_text("old")
+    code.write_text("x = 1")
+    git("add", ".")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "c")
+    sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=tmp_path, check=True,
+                         capture_output=True, text=True).stdout.strip()
+    assert archive.git_commit(tmp_path, outputs=[report]) == sha
+    report.write_text("rewritten by the run")
+    assert archive.git_commit(tmp_path, outputs=[report]) == sha
+    assert archive.git_commit(tmp_path) == sha + "-dirty"  # not declared as an output
+    code.write_text("x = 2")
+    assert archive.git_commit(tmp_path, outputs=[report]) == sha + "-dirty"
+
+
 def test_archived_summary_takes_each_study_from_its_newest_archive(tmp_path):
     root = tmp_path / "archive"
     runs = {"20260101T000000Z-aaa": [("fit", "s1", 10.0), ("fit", "s2", 20.0)],

@@ -173,16 +173,35 @@ def package_versions(names: Sequence[str] = ("gmwm", "numpy", "scipy", "numba", 
     return out
 
 
-def git_commit(repo: str | os.PathLike = ".") -> str:
-    """``git describe``-style commit of ``repo`` (with ``-dirty``), or "unknown" outside git."""
+def _git(repo: str | os.PathLike, *args: str) -> str:
+    return subprocess.run(["git", *args], cwd=repo, capture_output=True, text=True, check=True,
+                          timeout=20).stdout
+
+
+def git_commit(repo: str | os.PathLike = ".",
+               outputs: Iterable[str | os.PathLike] = ()) -> str:
+    """Commit of ``repo``: its full hash, with ``-dirty`` when a tracked file other than
+    ``outputs`` differs from it; "unknown" outside git.
+
+    ``outputs`` are the run's own files (the reports it rewrites): their changes are the run's
+    doing, not a change of code or config, so they do not make the commit dirty.
+    """
     try:
-        out = subprocess.run(
-            ["git", "describe", "--always", "--dirty", "--abbrev=40"],
-            cwd=repo, capture_output=True, text=True, check=True, timeout=20,
-        )
-        return out.stdout.strip() or "unknown"
+        root = Path(_git(repo, "rev-parse", "--show-toplevel").strip())
+        sha = _git(repo, "rev-parse", "HEAD").strip()
+        status = _git(repo, "status", "--porcelain=v1", "-z", "--untracked-files=no")
     except (OSError, subprocess.SubprocessError):
         return "unknown"
+    entries = iter(status.split("\0"))
+    changed = []
+    for entry in entries:
+        if not entry:
+            continue
+        changed.append((root / entry[3:]).resolve())
+        if entry[0] in "RC":  # a rename or copy is followed by its source path
+            changed.append((root / next(entries, "")).resolve())
+    produced = {Path(p).resolve() for p in outputs}
+    return sha + ("-dirty" if any(p not in produced for p in changed) else "")
 
 
 def make_archive(
@@ -196,10 +215,12 @@ def make_archive(
     """Copy a run's reports into a new ``<archive_root>/<UTC timestamp>-<config hash>/``.
 
     Never overwrites: if the directory exists a numeric suffix is added. The archive holds the
-    files (paths kept relative to ``base``), ``config.json``, ``versions.json``, ``git.txt`` and
-    ``timings.csv`` (one row per job). It is assembled under a hidden temporary name and renamed
-    into place, so a partial archive never looks complete.
+    files (paths kept relative to ``base``), ``config.json``, ``versions.json``, ``git.txt`` (the
+    commit of ``repo``, ``-dirty`` only when a tracked file other than ``files`` was changed: see
+    :func:`git_commit`) and ``timings.csv`` (one row per job). It is assembled under a hidden
+    temporary name and renamed into place, so a partial archive never looks complete.
     """
+    files = list(files)
     root = Path(archive_root)
     root.mkdir(parents=True, exist_ok=True)
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
@@ -218,7 +239,7 @@ def make_archive(
             shutil.copy2(src, dst)
         write_json_atomic(tmp / "config.json", dict(config))
         write_json_atomic(tmp / "versions.json", package_versions())
-        write_text_atomic(tmp / "git.txt", git_commit(repo) + "\n")
+        write_text_atomic(tmp / "git.txt", git_commit(repo, outputs=files) + "\n")
         write_text_atomic(tmp / "timings.csv", bench.to_csv(index=False))
         target = root / name
         k = 1
