@@ -37,7 +37,7 @@ from scipy.linalg import LinAlgError, cho_factor, cho_solve
 from scipy.stats import norm
 
 from gmwm.errors import InputError, ModelError
-from gmwm.wv import WaveletVariance, _check_alpha_freq, _layout, _n_levels, chi2_ci
+from gmwm.wv import WaveletVariance, _as_signal, _check_alpha_freq, _layout, _n_levels, chi2_ci
 
 __all__ = ["PAPER_OMEGA_LONG", "PAPER_OMEGA_SHORT", "SVOResult", "WaveletCrossCovariance",
            "block_length", "mbb_svo_draws", "mbb_svo_draws_schemes", "mbb_wccv", "rdvg",
@@ -380,14 +380,7 @@ def _mbb_time_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, starts: n
 
 def _as_array(X: Any, name: str = "X") -> np.ndarray:
     """``X`` as a C-contiguous float64 ``(T, p)`` array with ``p >= 2`` finite columns."""
-    if np.iscomplexobj(X):
-        raise InputError(f"{name} is complex; real-valued signals are required")
-    try:
-        arr = np.ascontiguousarray(X, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} is not numeric: {exc}") from None
-    if arr.ndim != 2:
-        raise InputError(f"{name} must be 2-D (T samples, p signals), got shape {arr.shape}")
+    arr = _as_signal(X, name, ndim=2, layout="2-D (T samples, p signals)")
     if arr.shape[1] < 2:
         raise InputError(f"{name} has {arr.shape[1]} signal column(s); at least 2 are needed")
     if arr.shape[1] > arr.shape[0]:

@@ -103,8 +103,10 @@ class _Workspace:
 # validation helpers
 
 
-def _as_signal(x: Any, name: str = "signal", ndim: int = 1) -> np.ndarray:
-    """``x`` as a C-contiguous float64 array of ``ndim`` dimensions (copied only if needed)."""
+def _as_signal(x: Any, name: str = "signal", ndim: int = 1, layout: str | None = None
+               ) -> np.ndarray:
+    """``x`` as a C-contiguous float64 array of ``ndim`` dimensions (copied only if needed).
+    ``layout`` names the expected shape in the error message (default "1-D (T,)" / "2-D (R, T)")."""
     if np.iscomplexobj(x):
         raise InputError(f"{name} is complex; a real-valued signal is required")
     try:
@@ -112,7 +114,7 @@ def _as_signal(x: Any, name: str = "signal", ndim: int = 1) -> np.ndarray:
     except (TypeError, ValueError) as exc:
         raise InputError(f"{name} is not numeric: {exc}") from None
     if arr.ndim != ndim:
-        shape = "1-D (T,)" if ndim == 1 else "2-D (R, T)"
+        shape = layout or ("1-D (T,)" if ndim == 1 else "2-D (R, T)")
         raise InputError(f"{name} must be {shape}, got shape {arr.shape}")
     return arr
 
