@@ -11,10 +11,11 @@ from __future__ import annotations
 import argparse
 import os
 import pathlib
-import time
+from functools import partial
 
 import numpy as np
 import yaml
+from bench_wv import best_time  # the benchmarks' shared timer (a sibling script)
 
 import gmwm
 
@@ -27,18 +28,6 @@ def _study(name: str) -> tuple[str, gmwm.Model, np.ndarray]:
     study = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["studies"][name]
     model = gmwm.Model(study["model"])
     return study["model"], model, model.theta(dict(study["truth"]))
-
-
-def _best(fn, repeat: int) -> tuple[float, float]:
-    """Best wall and CPU seconds of ``repeat`` calls (after a warm-up call)."""
-    fn()
-    walls, cpus = [], []
-    for _ in range(repeat):
-        w0, c0 = time.perf_counter(), time.process_time()
-        fn()
-        walls.append(time.perf_counter() - w0)
-        cpus.append(time.process_time() - c0)
-    return min(walls), min(cpus)
 
 
 def main() -> None:
@@ -54,10 +43,9 @@ def main() -> None:
           f"{'wvar':>13s}")
     for name in args.studies:
         spec, model, theta = _study(name)
-        ref = _best(lambda: model.simulate(theta, n, np.random.default_rng(1)), args.repeat)
-        fast = _best(lambda: model.simulate_fast(theta, n, np.random.default_rng(1)), args.repeat)
-        x = model.simulate_fast(theta, n, np.random.default_rng(2))
-        wv = _best(lambda: gmwm.wvar(x), args.repeat)
+        ref = best_time(partial(model.simulate, theta, n, 1), args.repeat)
+        fast = best_time(partial(model.simulate_fast, theta, n, 1), args.repeat)
+        wv = best_time(partial(gmwm.wvar, model.simulate_fast(theta, n, 2)), args.repeat)
         ns = 1e9 / n
         print(f"{name:15s} {spec:18.18s} "
               f"{ref[0] * ns:6.1f} / {ref[1] * ns:6.1f} {fast[0] * ns:6.1f} / {fast[1] * ns:6.1f} "
