@@ -6,7 +6,7 @@ and what a gap does to the wavelet variance.
   are nanoseconds by that tool's definition).
 * :func:`time_base` finds the unit of unlabelled stamps from their magnitude (epoch stamps:
   about 1.7e9 s = 1.7e12 ms = 1.7e15 us = 1.7e18 ns) and the rate each candidate unit implies
-  (an IMU samples between :data:`RATE_RANGE` Hz); two candidates is an error naming the column
+  (an IMU samples within :data:`RATE_RANGE` Hz); two candidates is an error naming the column
   and both rates. It then measures the rate (mean step over the regular steps), the jitter, the
   gaps (steps longer than 1.5 median steps), the samples they dropped and the clean segments.
 * :func:`decide_gaps` and :func:`signal_for_wv` apply the gap policy (``docs/recordings.md``):
@@ -39,8 +39,11 @@ __all__ = ["GAP_POLICIES", "LONGEST_SHARE", "RATE_RANGE", "TIME_UNITS", "GapDeci
 
 #: Seconds per unit of a time stamp.
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
-#: Sampling rates [Hz] an inertial recording can have; a unit implying another rate is rejected.
-RATE_RANGE = (0.5, 1e5)
+#: Sampling rates [Hz] that identify the unit of unlabelled stamps (an IMU samples at 1 Hz to
+#: 10 kHz): a unit implying another rate is not a candidate.
+RATE_RANGE = (1.0, 1e4)
+#: A labelled unit implying a rate outside this range [Hz] is an error (ns read as s: 2e-7 Hz).
+LABELLED_RANGE = (1e-3, 1e6)
 #: A step longer than this many median steps is a gap.
 GAP_FACTOR = 1.5
 #: ``"auto"`` keeps the longest clean segment when it holds at least this share of the samples.
@@ -194,8 +197,8 @@ def time_base(t: Any, *, name: str = "time", unit: str | None = None, where: str
     if bad.size:
         i = int(bad[0])
         what = "repeats a stamp" if d[i] == 0 else "goes back in time"
-        raise InputError(f"{where} {what} at row {i + 2} ({bad.size} non-increasing step(s)); "
-                         "time stamps must increase")
+        raise InputError(f"{where} is not strictly increasing: it {what} at row {i + 2} "
+                         f"({bad.size} such step(s))")
     step = float(np.median(d))
     how = "given"
     if unit is None:
@@ -207,11 +210,11 @@ def time_base(t: Any, *, name: str = "time", unit: str | None = None, where: str
         raise InputError(f"unknown time unit {unit!r}; use one of {', '.join(TIME_UNITS)}")
     else:
         rate = _rate(step, unit)
-        if not _plausible(rate):
+        if not LABELLED_RANGE[0] <= rate <= LABELLED_RANGE[1]:
             alt = [f"{_rate(step, u):.6g} Hz if {u}" for u in TIME_UNITS
                    if u != unit and _plausible(_rate(step, u))]
             raise InputError(f"{where} in {unit} ({how}) gives a sampling rate of {rate:.6g} Hz, "
-                             f"outside {RATE_RANGE[0]:g}-{RATE_RANGE[1]:g} Hz"
+                             f"outside {LABELLED_RANGE[0]:g}-{LABELLED_RANGE[1]:g} Hz"
                              + (f" ({', '.join(alt)}): check its unit" if alt else ""))
     k = TIME_UNITS[unit]
     regular = (d > 0.5 * step) & (d <= GAP_FACTOR * step)
@@ -233,6 +236,10 @@ def time_base(t: Any, *, name: str = "time", unit: str | None = None, where: str
     if jitter > 0.05:
         notes.append(f"irregular sampling in {where}: step jitter {100 * jitter:.2g} % of the "
                      f"{mean_step * k:.6g} s step")
+    if gaps.size:
+        notes.append(f"irregular sampling in {where}: {gaps.size} gap(s) longer than "
+                     f"{GAP_FACTOR:g} steps (longest {float(d.max()) * k:.4g} s, {dropped} "
+                     "samples dropped)")
     if n_short:
         notes.append(f"{where}: {n_short} step(s) shorter than half the median step")
     src = source or f"{where} ({unit}, {how})"
