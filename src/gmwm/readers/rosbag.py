@@ -303,6 +303,19 @@ def _join(stamps: list[np.ndarray], vecs: list[dict[str, np.ndarray]], rec: list
             lambda: np.concatenate([r.get() if isinstance(r, _LazyTimes) else r for r in rec]))
 
 
+def _mcap_index(bio: Any, chunk: Any, cid: int) -> np.ndarray | None:
+    """The MessageIndex record of channel ``cid`` in ``chunk``: (log time, offset) pairs."""
+    bio.seek(chunk.message_index_offsets[cid])
+    head = bio.read(15)
+    if len(head) < 15 or head[0] != 0x07:
+        return None
+    rec_len = int.from_bytes(head[1:9], "little")
+    n_bytes = int.from_bytes(head[11:15], "little")
+    if int.from_bytes(head[9:11], "little") != cid or n_bytes % 16 or n_bytes + 6 > rec_len:
+        return None
+    return np.frombuffer(bio.read(n_bytes), dtype=[("t", "<u8"), ("off", "<u8")])
+
+
 class _Ros2:
     """A ROS 2 bag (folder, .db3 or .mcap) opened with rosbags."""
 
@@ -343,9 +356,11 @@ class _Ros2:
                                          "WHERE topic_id = ?", (conn.id,)).fetchone()
             return (row[0], row[1]) if row and row[0] is not None else (None, None)
         chunks = [c for c in getattr(storage, "chunks", []) if c.channel_count.get(conn.id)]
-        if chunks:
-            return (min(c.message_start_time for c in chunks),
-                    max(c.message_end_time for c in chunks))
+        idx = [_mcap_index(storage.bio, c, conn.id) for c in chunks
+               if conn.id in c.message_index_offsets]
+        times = [i["t"] for i in idx if i is not None and i.size]
+        if times:
+            return int(min(t.min() for t in times)), int(max(t.max() for t in times))
         return None, None
 
     def read(self, conn: Any, where: str) -> tuple[np.ndarray, dict[str, np.ndarray], Any]:
@@ -398,16 +413,9 @@ class _Ros2:
         bio = storage.bio
         out = []
         for c in chunks:
-            bio.seek(c.message_index_offsets[conn.id])
-            head = bio.read(15)
-            if len(head) < 15 or head[0] != 0x07:
+            idx = _mcap_index(bio, c, conn.id)
+            if idx is None:
                 return None
-            rec_len = int.from_bytes(head[1:9], "little")
-            cid = int.from_bytes(head[9:11], "little")
-            n_bytes = int.from_bytes(head[11:15], "little")
-            if cid != conn.id or n_bytes % 16 or n_bytes + 6 > rec_len:
-                return None
-            idx = np.frombuffer(bio.read(n_bytes), dtype=[("t", "<u8"), ("off", "<u8")])
             bio.seek(c.chunk_start_offset + 9 + 24)
             crc = int.from_bytes(bio.read(4), "little")
             bio.seek(c.chunk_start_offset + 9 + 40 + len(c.compression))
