@@ -38,7 +38,7 @@ def signal_files(tmp_path_factory) -> dict:
     model = Model("WN+AR1")
     x = model.simulate(model.theta(WN_AR1), 2**13, np.random.default_rng(7))
     np.save(d / "x.npy", x)
-    (d / "x.csv").write_text("t,gyro\n" + "".join(f"{i},{float(v)!r}\n" for i, v in enumerate(x)))
+    (d / "x.csv").write_text("t_s,gyro\n" + "".join(f"{i},{float(v)!r}\n" for i, v in enumerate(x)))
     with h5py.File(d / "x.h5", "w") as fh:
         fh.create_dataset("imu/gyro", data=x)
         fh.create_dataset("imu/accel", data=2 * x)

@@ -181,7 +181,10 @@ def _columns(text: str) -> str | list[str | int]:
 
 
 def _add_input(p: argparse.ArgumentParser, what: str = "signal") -> None:
-    p.add_argument("input", metavar="FILE", help=f"{what}: .npy, .csv/.tsv/.txt or HDF5 (.h5/.hdf5)")
+    p.add_argument("input", metavar="FILE",
+                   help=f"{what}: ROS 1/2 bag (.bag, .db3, .mcap or a bag folder), PX4 ULog, "
+                        "CSV/TSV/text (EuRoC, rostopic echo -p, ';' and decimal commas, .gz), "
+                        ".npy, .npz or HDF5 (.h5/.hdf5)")
     p.add_argument("--column", type=_column, default=None,
                    help="CSV column (header name or 0-based index); needed when the file has several "
                         "data columns (a time column aside)")
@@ -190,6 +193,16 @@ def _add_input(p: argparse.ArgumentParser, what: str = "signal") -> None:
                         "processed on its own; 'all' = every numeric column except a time column")
     p.add_argument("--dataset", default=None,
                    help="HDF5 dataset path (default: the only 1-D dataset in the file)")
+    p.add_argument("--topic", default=None,
+                   help="bag topic (sensor_msgs/Imu or Vector3Stamped) or ULog topic "
+                        "(sensor_combined, sensor_gyro:N, sensor_accel:N); default: the only one")
+    p.add_argument("--time-unit", choices=("s", "ms", "us", "ns"), default=None,
+                   help="unit of an unlabelled time column (default: from its name, else from "
+                        "the magnitude of the stamps; an ambiguous case is an error)")
+    p.add_argument("--gaps", choices=("auto", "longest", "combine", "error"), default="auto",
+                   help="what a gap in the time stamps does to the WV: 'longest' clean segment, "
+                        "'combine' the clean segments' coefficients (fit, report), 'error'; "
+                        "'auto' = longest when it holds >= 90%% of the samples, else combine")
 
 
 def _add_units(p: argparse.ArgumentParser, what: str) -> None:
@@ -468,31 +481,42 @@ def _model_theta(spec: str, params: Sequence[tuple[str, float]], freq: float):
     return model, model.theta(values)
 
 
-def _resolve_freq(given: float | None, found: float | None, source: str | None, where: str) -> float:
-    """--freq, else the file's frequency, else 1 Hz; both given and different (> 1 %) is an error."""
-    if found is None:
-        return 1.0 if given is None else float(given)
-    if given is None:
-        return float(found)
-    if abs(given / found - 1.0) > 0.01:
-        raise InputError(f"--freq {given:g} contradicts the sampling frequency {found:g} Hz given by "
-                         f"the {source} of {where}; drop --freq or fix the file")
-    return float(given)
-
-
-def _read_input(args: argparse.Namespace) -> dict[str, np.ndarray]:
-    """The requested signals (name -> array); sets ``args.freq_hz`` (see :func:`_resolve_freq`)."""
-    from gmwm.io import read_channels
+def _read_input(args: argparse.Namespace, allow_wv: bool = False) -> dict[str, Any]:
+    """The requested signals (name -> array; with ``allow_wv`` a pooled WaveletVariance where the
+    gap policy combines clean segments); sets ``args.freq_hz`` and ``args.recording``. A unit or
+    a report without time stamps or --freq is an error, never 1 Hz."""
+    from gmwm.readers.recording import read_recording
+    from gmwm.readers.timebase import signal_for_wv
 
     if args.columns is not None and args.column is not None:
         raise UsageError("give --column (one signal) or --columns (several), not both")
     cols = args.columns if args.columns is not None else (None if args.column is None else [args.column])
     args.progress(f"reading {args.input}")
-    ch = read_channels(args.input, cols, dataset=args.dataset)
-    args.freq_hz = _resolve_freq(args.freq, ch.freq, ch.freq_source, args.input)
-    for note in ch.notes:
+    rec = read_recording(args.input, topic=getattr(args, "topic", None), columns=cols,
+                         dataset=args.dataset, freq=args.freq,
+                         time_unit=getattr(args, "time_unit", None))
+    args.recording = rec
+    units = _units_by_column(args, list(rec.channels))
+    if rec.time is None:
+        with_unit = [c for c, u in units.items() if u]
+        if args.command == "report" or with_unit:
+            why = "a calibration report" if args.command == "report" else \
+                f"coefficients in {units[with_unit[0]]}"
+            rec.require_time(why)
+        args.freq_hz = 1.0  # per-sample scales of a signal without a unit
+    else:
+        args.freq_hz = rec.time.freq
+    for note in rec.notes:
         args.err.write(f"gmwm: warning: {note}\n")
-    return ch.signals
+    policy = getattr(args, "gaps", "auto")
+    if policy == "combine" and not allow_wv:
+        raise UsageError("--gaps combine applies to fit and report (use longest here)")
+    decision = rec.gaps(policy if allow_wv or policy != "auto" else "longest")
+    if decision.message:
+        args.err.write(f"gmwm: warning: {decision.message}\n")
+    args.gap_decision = decision
+    return {c: signal_for_wv(x, decision, args.levels, args.freq_hz)
+            for c, x in rec.channels.items()}
 
 
 def _by_column(items: Sequence[str], columns: Sequence[str], what: str, default: str | None
@@ -514,8 +538,23 @@ def _by_column(items: Sequence[str], columns: Sequence[str], what: str, default:
 
 
 def _units_by_column(args: argparse.Namespace, columns: Sequence[str]) -> dict[str, str]:
-    units = _by_column(getattr(args, "units", []) or [], columns, "--units", None)
-    return {c: (u or "") for c, u in units.items()}
+    """Per column: the --units given (validated; an unknown unit is an error listing the known
+    ones), else the unit the file defines (bags, ULog, EuRoC headers), else ''."""
+    from gmwm.datasheet import parse_unit
+
+    given = _by_column(getattr(args, "units", []) or [], columns, "--units", None)
+    rec = getattr(args, "recording", None)
+    out = {}
+    for c in columns:
+        file_unit = rec.units.get(c) if rec is not None else None
+        u = given.get(c)
+        if u:
+            pu = parse_unit(u)
+            if file_unit and pu != parse_unit(file_unit):
+                raise InputError(f"--units {u} for {c} contradicts {args.input}, which says "
+                                 f"{file_unit}")
+        out[c] = u or file_unit or ""
+    return out
 
 
 def _models_by_column(spec: str, columns: Sequence[str]) -> dict[str, str]:
@@ -958,7 +997,8 @@ def _fit_data(args: argparse.Namespace) -> tuple[dict[str, Any], bool]:
         return data, True
     if args.n_samples is not None:
         raise UsageError("--n-samples applies to a WV table (a CSV with 'scale' and 'variance' columns)")
-    return _read_input(args), False
+    data = _read_input(args, allow_wv=True)
+    return data, any(not isinstance(d, np.ndarray) for d in data.values())
 
 
 def _run_fit(args: argparse.Namespace, data: Any, model: Any) -> tuple[Any, float | None]:
@@ -1221,8 +1261,16 @@ def cmd_report(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     args.progress(f"writing the report to {args.output}")
     per_axis = {c: {"result": f["result"], "units": f["units"], "warnings": f["warnings"],
                     "datasheet": _datasheet(f["result"], f["units"])} for c, f in fits.items()}
+    rec, gaps = getattr(args, "recording", None), getattr(args, "gap_decision", None)
+    timing = None
+    if rec is not None and rec.time is not None:
+        timing = [f"Recording ({rec.format}{', topic ' + rec.topic if rec.topic else ''}): "
+                  + rec.time.summary()]
+        if gaps is not None and gaps.message:
+            timing.append(gaps.message)
     files = write_report(args.output, per_axis, source=args.input,
-                         title=args.title or f"Calibration report: {Path(args.input).name}")
+                         title=args.title or f"Calibration report: {Path(args.input).name}",
+                         timing=timing)
     if args.json:
         _print_json({"command": "report", "input": args.input, "files": [str(p) for p in files],
                      "fits": {c: _fit_json(args, c, f) for c, f in fits.items()}}, out)

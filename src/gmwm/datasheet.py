@@ -22,6 +22,7 @@ on the log scale so they stay positive. The module imports only NumPy (fast CLI 
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from statistics import NormalDist
@@ -31,8 +32,8 @@ import numpy as np
 
 from gmwm.errors import InputError
 
-__all__ = ["UNIT_SYSTEMS", "UnitSystem", "allan_readings", "datasheet", "kalibr_yaml",
-           "noise_densities", "unit_system"]
+__all__ = ["SIGNAL_UNITS", "UNIT_SYSTEMS", "UnitSystem", "allan_readings", "datasheet", "kalibr_yaml",
+           "known_units", "noise_densities", "parse_unit", "unit_system"]
 
 G0 = 9.80665  # standard gravity, m/s^2
 BI_AD_FACTOR = math.sqrt(2.0 * math.log(2.0) / math.pi)  # AD floor of flicker noise = 0.6643 B
@@ -62,34 +63,101 @@ class UnitSystem:
 
 
 _H, _SQH = 3600.0, 60.0
-UNIT_SYSTEMS: Mapping[str, UnitSystem] = {
-    "deg/s": UnitSystem("deg/s", "gyroscope", "ARW", "RRW", ("deg/sqrt(h)", _SQH),
-                        ("deg/h/sqrt(h)", _H * _SQH), ("deg", 1.0), ("deg/h/h", _H * _H),
-                        ("deg/h", _H), math.pi / 180.0),
-    "rad/s": UnitSystem("rad/s", "gyroscope", "ARW", "RRW", ("rad/s/sqrt(Hz)", 1.0),
-                        ("rad/s^2/sqrt(Hz)", 1.0), ("rad", 1.0), ("rad/s^2", 1.0), ("rad/s", 1.0),
-                        1.0),
-    "m/s^2": UnitSystem("m/s^2", "accelerometer", "VRW", "AccRW", ("m/s/sqrt(h)", _SQH),
-                        ("m/s/h/sqrt(h)", _H * _SQH), ("m/s", 1.0), ("m/s/h/h", _H * _H),
-                        ("mg", 1e3 / G0), 1.0),
-    "g": UnitSystem("g", "accelerometer", "VRW", "AccRW", ("m/s/sqrt(h)", G0 * _SQH),
-                    ("m/s/h/sqrt(h)", G0 * _H * _SQH), ("m/s", G0), ("m/s/h/h", G0 * _H * _H),
-                    ("mg", 1e3), G0),
+DEG = math.pi / 180.0
+
+#: Signal units of inertial sensors: name -> (sensor, value of one unit in SI (rad/s or m/s^2)).
+#: Gyroscope units print datasheet coefficients in degrees (deg/sqrt(h), deg/h/sqrt(h)) except
+#: rad/s, which keeps SI labels (rad/s/sqrt(Hz), as Kalibr-style tools read them); accelerometer
+#: units print them in m/s (m/s/sqrt(h), m/s/h/sqrt(h)) with levels in mg.
+SIGNAL_UNITS: Mapping[str, tuple[str, float]] = {
+    "rad/s": ("gyroscope", 1.0),
+    "deg/s": ("gyroscope", DEG),
+    "deg/h": ("gyroscope", DEG / _H),
+    "mdps": ("gyroscope", 1e-3 * DEG),
+    "m/s^2": ("accelerometer", 1.0),
+    "g": ("accelerometer", G0),
+    "mg": ("accelerometer", 1e-3 * G0),
+    "ug": ("accelerometer", 1e-6 * G0),
 }
-_ALIASES = {"deg/sec": "deg/s", "dps": "deg/s", "°/s": "deg/s", "rad/sec": "rad/s",
-            "m/s2": "m/s^2", "m/s**2": "m/s^2", "m/s²": "m/s^2", "mps2": "m/s^2"}
+_ALIASES = {"deg/sec": "deg/s", "dps": "deg/s", "°/s": "deg/s", "deg s^-1": "deg/s",
+            "rad/sec": "rad/s", "rad s^-1": "rad/s", "rad*s^-1": "rad/s", "rps": "rad/s",
+            "deg/hr": "deg/h", "°/h": "deg/h", "dph": "deg/h", "mdeg/s": "mdps",
+            "m/s2": "m/s^2", "m/s**2": "m/s^2", "m/s²": "m/s^2", "mps2": "m/s^2",
+            "m s^-2": "m/s^2", "m*s^-2": "m/s^2", "m_s2": "m/s^2", "µg": "ug", "μg": "ug",
+            "micro-g": "ug", "microg": "ug", "milli-g": "mg", "millig": "mg"}
+#: ``"0.00875*deg/s"`` or ``"0.00875 deg/s"``: raw counts (LSB) scaled to a known unit.
+_SCALED = re.compile(r"^\s*(?P<k>[0-9.]+(?:[eE][-+]?[0-9]+)?)\s*[* ]\s*(?P<u>\S.*?)\s*$")
+
+
+def _canonical(text: str) -> str | None:
+    """The :data:`SIGNAL_UNITS` key of ``text`` (case-insensitive, with spelling aliases), or None."""
+    key = text.strip()
+    if key in SIGNAL_UNITS:
+        return key
+    low = key.lower()
+    return _ALIASES.get(key) or _ALIASES.get(low) or (low if low in SIGNAL_UNITS else None)
+
+
+def known_units() -> str:
+    """The known signal units, for messages."""
+    return ", ".join(SIGNAL_UNITS) + " (or 'K*UNIT' for raw counts of K UNIT each, e.g. 0.00875*deg/s)"
+
+
+def parse_unit(text: str | None) -> tuple[str, float, str] | None:
+    """Validate a user's signal unit: ``(unit, scale, sensor)`` where the signal value times
+    ``scale`` is in ``unit`` (a :data:`SIGNAL_UNITS` key; ``scale`` is 1 except for raw counts
+    given as ``"K*UNIT"``); None for None/empty. An unknown unit is an :class:`InputError` listing
+    the known ones."""
+    if text is None or not str(text).strip():
+        return None
+    text = str(text)
+    key = _canonical(text)
+    scale = 1.0
+    if key is None and (m := _SCALED.match(text)) is not None:
+        try:
+            scale = float(m.group("k"))
+        except ValueError:
+            scale = float("nan")
+        key = _canonical(m.group("u"))
+        if key is not None and not (math.isfinite(scale) and scale > 0):
+            raise InputError(f"unit {text!r}: the count scale must be a positive number")
+    if key is None:
+        raise InputError(f"unknown unit {text!r}; known units: {known_units()}")
+    return key, scale, SIGNAL_UNITS[key][0]
+
+
+def _system(key: str, scale: float, label: str) -> UnitSystem:
+    sensor, si = SIGNAL_UNITS[key]
+    si *= scale
+    if key == "rad/s":
+        return UnitSystem(label, sensor, "ARW", "RRW", ("rad/s/sqrt(Hz)", si),
+                          ("rad/s^2/sqrt(Hz)", si), ("rad", si), ("rad/s^2", si), ("rad/s", si), si)
+    if sensor == "gyroscope":
+        d = si / DEG  # one signal unit in deg/s
+        return UnitSystem(label, sensor, "ARW", "RRW", ("deg/sqrt(h)", d * _SQH),
+                          ("deg/h/sqrt(h)", d * _H * _SQH), ("deg", d), ("deg/h/h", d * _H * _H),
+                          ("deg/h", d * _H), si)
+    return UnitSystem(label, sensor, "VRW", "AccRW", ("m/s/sqrt(h)", si * _SQH),
+                      ("m/s/h/sqrt(h)", si * _H * _SQH), ("m/s", si), ("m/s/h/h", si * _H * _H),
+                      ("mg", si * 1e3 / G0), si)
+
+
+UNIT_SYSTEMS: Mapping[str, UnitSystem] = {k: _system(k, 1.0, k) for k in SIGNAL_UNITS}
 
 
 def unit_system(units: str | None) -> UnitSystem:
-    """The :class:`UnitSystem` of ``units`` ('deg/s', 'rad/s', 'm/s^2', 'g'); any other text (or
-    None: 'u') gives generic SI-second labels built from it, e.g. 'V/sqrt(Hz)'."""
-    key = (units or "").strip()
-    key = _ALIASES.get(key.lower(), key)
-    if key in UNIT_SYSTEMS:
-        return UNIT_SYSTEMS[key]
-    if key.lower() == "g":
-        return UNIT_SYSTEMS["g"]
-    u = key or "u"
+    """The :class:`UnitSystem` of ``units`` (a :data:`SIGNAL_UNITS` unit, an alias such as 'dps',
+    'm/s2', 'µg', or raw counts 'K*UNIT'); any other text (or None: 'u') gives generic SI-second
+    labels built from it, e.g. 'V/sqrt(Hz)'. Validate user input with :func:`parse_unit`."""
+    text = (units or "").strip()
+    try:
+        parsed = parse_unit(text)
+    except InputError:
+        parsed = None
+    if parsed is not None:
+        key, scale, _ = parsed
+        return UNIT_SYSTEMS[key] if scale == 1.0 else _system(key, scale, text)
+    u = text or "u"
     wrap = f"({u})" if any(c in u for c in "/*^ ") else u
     return UnitSystem(u, None, "WN", "RW", (f"{wrap}/sqrt(Hz)", 1.0), (f"{wrap}/sqrt(s)", 1.0),
                       (f"{wrap}*s", 1.0), (f"{wrap}/s", 1.0), (u, 1.0), None)

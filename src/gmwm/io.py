@@ -350,24 +350,7 @@ class Channels:
     freq: float | None = None
     freq_source: str | None = None
     notes: tuple[str, ...] = ()
-
-
-def _freq_from_time(t: np.ndarray, unit: float, where: str) -> tuple[float, list[str]]:
-    """Sampling frequency [Hz] from time stamps (median step); notes on irregular sampling."""
-    t = np.asarray(t, dtype=np.float64) * unit
-    if t.size < 2 or not np.all(np.isfinite(t)):
-        raise InputError(f"{where} must hold at least 2 finite time stamps")
-    dt = np.diff(t)
-    if np.any(dt <= 0):
-        bad = int(np.argmax(dt <= 0)) + 1
-        raise InputError(f"{where} is not strictly increasing (row {bad + 1})")
-    step = float(np.median(dt))
-    notes = []
-    spread = float(np.max(np.abs(dt - step))) / step
-    if spread > 0.01:
-        notes.append(f"irregular sampling in {where}: steps from {dt.min():.6g} s to {dt.max():.6g} s "
-                     f"(median {step:.6g} s used)")
-    return float(f"{1.0 / step:.9g}"), notes
+    time: Any = None  # gmwm.readers.timebase.TimeBase of the time column, when there is one
 
 
 def read_channels(
@@ -391,29 +374,31 @@ def read_channels(
     if suffix == ".npy":
         a = _load_npy(p)
         signals, time = _columns_of_array(a, columns, p)
-        freq, source, notes = _time_freq(time, p)
+        freq, source, notes, tb = _time_freq(time, p)
     elif suffix in _CSV_SEPARATORS:
         signals, time = _csv_channels(p, columns)
-        freq, source, notes = _time_freq(time, p)
+        freq, source, notes, tb = _time_freq(time, p)
     elif suffix in _HDF5_SUFFIXES:
-        signals, freq, source, notes = _hdf5_channels(p, columns, dataset)
+        signals, freq, source, notes, tb = _hdf5_channels(p, columns, dataset)
     else:
         raise InputError(
             f"unknown file extension '{p.suffix}' for {p}: use one of {', '.join(SIGNAL_SUFFIXES)}"
         )
     out = {name: _validated(x, p, check_finite, name if len(signals) > 1 else None)
            for name, x in signals.items()}
-    return Channels(out, freq, source, tuple(notes))
+    return Channels(out, freq, source, tuple(notes), tb)
 
 
-def _time_freq(time: tuple[str, np.ndarray, float] | None, p: Path
-               ) -> tuple[float | None, str | None, list[str]]:
+def _time_freq(time: tuple[str, np.ndarray, str | None] | None, p: Path
+               ) -> tuple[float | None, str | None, list[str], Any]:
+    """Rate, its source, notes and time base of a time column (unit by name, else magnitude)."""
+    from gmwm.readers.timebase import time_base
+
     if time is None:
-        return None, None, []
+        return None, None, [], None
     name, t, unit = time
-    where = f"time column '{name}' of {p}"
-    freq, notes = _freq_from_time(t, unit, where)
-    return freq, f"time column '{name}'", notes
+    tb = time_base(t, name=name, unit=unit, where=f"time column '{name}' of {p}")
+    return tb.freq, f"time column '{name}'", list(tb.notes), tb
 
 
 def _pick(names: Sequence[str], numeric: Sequence[bool], columns: Any, p: Path,
@@ -440,16 +425,18 @@ def _pick(names: Sequence[str], numeric: Sequence[bool], columns: Any, p: Path,
     return idx
 
 
-def _time_index(names: Sequence[str]) -> tuple[int, float] | None:
+def _time_index(names: Sequence[str]) -> tuple[int, str | None] | None:
+    from gmwm.readers.timebase import time_column
+
     for i, n in enumerate(names):
-        unit = time_column_unit(n)
-        if unit is not None:
+        is_time, unit = time_column(n)
+        if is_time:
             return i, unit
     return None
 
 
 def _columns_of_array(a: np.ndarray, columns: Any, p: Path
-                      ) -> tuple[dict[str, np.ndarray], tuple[str, np.ndarray, float] | None]:
+                      ) -> tuple[dict[str, np.ndarray], tuple[str, np.ndarray, str | None] | None]:
     """Columns of a 2-D or structured array (names: field names, else indices as strings)."""
     if a.dtype.names:
         names = list(a.dtype.names)
@@ -467,7 +454,7 @@ def _columns_of_array(a: np.ndarray, columns: Any, p: Path
 
 
 def _csv_channels(p: Path, columns: Any
-                  ) -> tuple[dict[str, np.ndarray], tuple[str, np.ndarray, float] | None]:
+                  ) -> tuple[dict[str, np.ndarray], tuple[str, np.ndarray, str | None] | None]:
     df, header = _read_table(p)
     names = list(df.columns) if header is not None else [str(i) for i in range(df.shape[1])]
     t = _time_index(names) if header is not None else None
@@ -526,7 +513,7 @@ def _hdf5_freq_attr(obj: Any) -> tuple[float, str] | None:
 
 
 def _hdf5_channels(p: Path, columns: Any, dataset: str | None
-                   ) -> tuple[dict[str, np.ndarray], float | None, str | None, list[str]]:
+                   ) -> tuple[dict[str, np.ndarray], float | None, str | None, list[str], Any]:
     import h5py
 
     try:
@@ -545,8 +532,7 @@ def _hdf5_channels(p: Path, columns: Any, dataset: str | None
         else:
             one_d = _hdf5_1d(fh)
             names = list(one_d)
-            t = next(((i, u) for i, n in enumerate(names)
-                      if (u := time_column_unit(n.rsplit("/", 1)[-1])) is not None), None)
+            t = _time_index([n.rsplit("/", 1)[-1] for n in names])
             numeric = [fh[n].dtype.kind in "biuf" for n in names]
             wanted = columns
             if not (isinstance(columns, str) and columns.strip().lower() == "all"):
@@ -556,17 +542,19 @@ def _hdf5_channels(p: Path, columns: Any, dataset: str | None
             signals = {names[i]: fh[names[i]][()].reshape(-1) for i in idx}
             objs = [fh[names[i]] for i in idx]
             if t is not None:
+                from gmwm.readers.timebase import time_base
+
                 tname = names[t[0]]
-                freq, notes = _freq_from_time(fh[tname][()].reshape(-1), t[1],
-                                              f"time dataset /{tname} of {p}")
-                return signals, freq, f"time dataset /{tname}", notes
+                tb = time_base(fh[tname][()].reshape(-1), name=tname.rsplit("/", 1)[-1],
+                               unit=t[1], where=f"time dataset /{tname} of {p}")
+                return signals, tb.freq, f"time dataset /{tname}", list(tb.notes), tb
         for obj in objs:  # the dataset, then its groups up to the root
             while obj is not None:
                 found = _hdf5_freq_attr(obj)
                 if found is not None:
-                    return signals, found[0], found[1], []
+                    return signals, found[0], found[1], [], None
                 obj = obj.parent if obj.name != "/" else None
-    return signals, None, None, []
+    return signals, None, None, [], None
 
 
 def _hdf5_1d(fh: Any) -> dict[str, tuple[int, ...]]:

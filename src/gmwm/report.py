@@ -81,12 +81,13 @@ def _html_table(headers: list[str], rows: list[tuple]) -> str:
 
 
 def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]], *, source: str,
-                 title: str) -> list[Path]:
+                 title: str, timing: list[str] | None = None) -> list[Path]:
     """Write ``report.md``, ``report.html``, ``imu.yaml`` and one ``<axis>_wv.png`` per axis to
     ``outdir``; return the paths.
 
     ``axes[name]`` holds ``result`` (a GMWM fit), ``units`` (signal unit; deg/s or rad/s mark a
     gyroscope, m/s^2 or g an accelerometer), ``warnings`` (list of str) and ``datasheet``.
+    ``timing``: lines on the recording's time base (rate source, jitter, gaps, gap policy).
     """
     from gmwm.io import save_figure, write_text_atomic
     from gmwm.plots import plot_wv
@@ -106,6 +107,10 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     body: list[str] = [f"<h1>{html.escape(title)}</h1>",
                        (f"<p>Input <code>{html.escape(source)}</code>, sampling frequency {freq:g} "
                         f"Hz, {len(axes)} axes; GMWM fits by gmwm {html.escape(__version__)}.</p>")]
+    if timing:
+        md += ["## Time base", "", *[f"- {t}" for t in timing], ""]
+        body += ["<h2>Time base</h2>",
+                 "<ul>" + "".join(f"<li>{html.escape(t)}</li>" for t in timing) + "</ul>"]
     summary = []
     for name, a in axes.items():
         res = a["result"]

@@ -1,0 +1,381 @@
+"""One entry point for every recording: :func:`read_recording` -> :class:`Recording`.
+
+========================  ===================================  ==============================
+format (found by content)  rate from                             units and axis roles from
+========================  ===================================  ==============================
+ROS 1 bag, ROS 2 bag       ``header.stamp`` (ns)                 the message type (REP 103)
+(sqlite3, MCAP)
+PX4 ULog                   ``timestamp[_sample]`` (us)           the ULog topic
+EuRoC / TUM-VI CSV         ``#timestamp [ns]``                   the bracketed header units
+``rostopic echo -p`` CSV   ``field.header.stamp`` (ns)           the message type (REP 103)
+CSV/TSV/text (``;``,       a time column (unit by name, else     a unit after a column name
+decimal comma, ``.gz``)    by magnitude)                         (``gx [deg/s]``), or ``units``
+``.npy``, ``.npz``,        a time column / field / dataset, an   ``units``
+HDF5                       HDF5 ``freq`` attribute, ``freq``
+========================  ===================================  ==============================
+
+Without stamps the rate is ``freq``; without either, :attr:`Recording.time` is None and
+:meth:`Recording.require_time` raises (a physical unit or a datasheet needs seconds: never
+1 Hz). A ``freq`` that contradicts the stamps by more than 1 % is an error.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gmwm.datasheet import parse_unit
+from gmwm.errors import InputError
+from gmwm.readers.timebase import (
+    GapDecision,
+    TimeBase,
+    decide_gaps,
+    time_base,
+    time_column,
+    time_from_freq,
+)
+
+__all__ = ["FORMATS", "Recording", "read_recording"]
+
+FORMATS = ("ros1", "ros2-sqlite3", "ros2-mcap", "ulog", "euroc", "rostopic", "csv", "npy", "npz",
+           "hdf5")
+_TEXT_SUFFIXES = (".csv", ".tsv", ".txt", ".dat", ".gz")
+_FREQ_NAMES = ("freq", "frequency", "fs", "rate", "sampling_rate", "sample_rate",
+               "sampling_frequency", "update_rate")
+
+
+@dataclass(frozen=True)
+class Recording:
+    """Signals of one recording, in the units of the file.
+
+    ``channels`` name -> 1-D float64 array (all one length); ``units`` name -> signal unit (a
+    :data:`gmwm.datasheet.SIGNAL_UNITS` key, a raw-count ``'K*UNIT'``, or None: unknown);
+    ``roles`` name -> 'gyroscope' / 'accelerometer' / None; ``time`` the measured or given time
+    base (None: neither stamps nor ``freq``); ``format`` one of :data:`FORMATS`; ``topic`` the
+    bag or ULog topic; ``notes`` what the user should know (shown as warnings)."""
+
+    channels: dict[str, np.ndarray]
+    units: dict[str, str | None]
+    roles: dict[str, str | None]
+    time: TimeBase | None
+    path: str
+    format: str
+    topic: str | None = None
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def freq(self) -> float | None:
+        return None if self.time is None else self.time.freq
+
+    @property
+    def n(self) -> int:
+        return next(iter(self.channels.values())).size if self.channels else 0
+
+    def require_time(self, why: str = "scales in seconds") -> TimeBase:
+        """The time base; an :class:`InputError` asking for ``--freq`` when there is none."""
+        if self.time is None:
+            raise InputError(f"{self.path} has no time stamps and no sampling rate, needed for "
+                             f"{why}: give --freq (Hz)")
+        return self.time
+
+    def gaps(self, policy: str = "auto") -> GapDecision:
+        """The gap policy applied to this recording (see :mod:`gmwm.readers.timebase`)."""
+        tb = self.time
+        if tb is None:
+            return GapDecision("none", ((0, self.n),), self.n, self.n)
+        return decide_gaps(tb, policy)
+
+    def summary(self) -> str:
+        where = f"{self.path}" + (f" topic {self.topic}" if self.topic else "")
+        axes = ", ".join(f"{k} [{self.units.get(k) or '?'}]" for k in self.channels)
+        rate = self.time.summary() if self.time else "no time information"
+        return f"{where} ({self.format}): {axes}; {rate}"
+
+
+def _kind(p: Path) -> str:
+    from gmwm.readers.rosbag import bag_kind
+    from gmwm.readers.ulog import ULOG_MAGIC
+
+    if p.is_dir():
+        if bag_kind(p) == "ros2-dir":
+            return "bag"
+        raise InputError(f"{p} is a folder, not a ROS 2 bag (no metadata.yaml)")
+    with open(p, "rb") as fh:
+        head = fh.read(16)
+    if not head:
+        raise InputError(f"{p} is empty")
+    if bag_kind(p) is not None:
+        return "bag"
+    if head.startswith(ULOG_MAGIC):
+        return "ulog"
+    if head.startswith(b"\x93NUMPY"):
+        return "npy"
+    if head.startswith(b"PK\x03\x04"):
+        return "npz"
+    if head.startswith(b"\x89HDF\r\n\x1a\n"):
+        return "hdf5"
+    suffix = p.suffix.lower()
+    if suffix in (".npy", ".h5", ".hdf5"):  # the table reader says what is wrong with it
+        return "npy" if suffix == ".npy" else "hdf5"
+    if head.startswith(b"\x1f\x8b") or suffix in _TEXT_SUFFIXES:
+        return "text"
+    if suffix in (".bag", ".mcap", ".db3", ".ulg", ".npz"):
+        raise InputError(f"{p} is not a valid {suffix} file (its first bytes do not match)")
+    raise InputError(f"unknown file extension '{p.suffix}' for {p}: gmwm reads ROS 1/2 bags "
+                     "(.bag, .db3, .mcap, bag folders), PX4 ULog (.ulg), text tables (.csv, "
+                     ".tsv, .txt, .dat, also gzip-compressed .gz), .npy, .npz and HDF5 (.h5)")
+
+
+def _check_unit_map(units: str | Mapping[str, str] | None, names: Sequence[str], p: Path
+                    ) -> dict[str, str | None]:
+    if units is None:
+        return dict.fromkeys(names)
+    if isinstance(units, str):
+        return dict.fromkeys(names, units)
+    unknown = [c for c in units if c not in names]
+    if unknown:
+        raise InputError(f"unit given for {', '.join(unknown)}, not among the channels of {p} "
+                         f"({', '.join(names)})")
+    return {c: units.get(c) for c in names}
+
+
+def _select(names: list[str], columns: Any, p: Path, default_all: bool) -> list[str]:
+    if columns is None:
+        if default_all or len(names) == 1:
+            return list(names)
+        raise InputError(f"{p} has {len(names)} data columns ({', '.join(names)}): choose one "
+                         "with --column or several with --columns (or 'all')")
+    if isinstance(columns, str) and columns.strip().lower() == "all":
+        return list(names)
+    if isinstance(columns, str | int):
+        columns = [columns]
+    out = []
+    for c in columns:
+        if str(c) in names:
+            key = str(c)
+        elif isinstance(c, int) or str(c).isdigit():
+            i = int(c)
+            if not 0 <= i < len(names):
+                raise InputError(f"column index {i} out of range for {p}: its data columns are "
+                                 + ", ".join(f"{k}={n}" for k, n in enumerate(names)))
+            key = names[i]
+        else:
+            raise InputError(f"column '{c}' not found in {p}; its data columns: "
+                             f"{', '.join(names)}")
+        if key in out:
+            raise InputError(f"column {key} requested twice")
+        out.append(key)
+    return out
+
+
+def _finish(p: Path, fmt: str, channels: dict[str, np.ndarray], file_units: dict[str, str | None],
+            tb: TimeBase | None, freq: float | None, units: Any, notes: list[str],
+            topic: str | None = None) -> Recording:
+    """Check the channels, merge the user's units with the file's, settle the time base."""
+    from gmwm.io import _validated
+
+    names = list(channels)
+    given = _check_unit_map(units, names, p)
+    out_units: dict[str, str | None] = {}
+    roles: dict[str, str | None] = {}
+    for c in names:
+        fu, gu = file_units.get(c), given.get(c)
+        pf = parse_unit(fu) if fu else None
+        pg = parse_unit(gu) if gu else None
+        if pf is not None and pg is not None and pf != pg:
+            raise InputError(f"--units {gu} for {c} contradicts the file, which says {fu}")
+        chosen = pf or pg
+        out_units[c] = None if chosen is None else (fu if pf else gu) if chosen[1] != 1.0 \
+            else chosen[0]
+        roles[c] = None if chosen is None else chosen[2]
+    checked = {c: _validated(np.asarray(x), p, True, c if len(names) > 1 else None)
+               for c, x in channels.items()}
+    n = {x.size for x in checked.values()}
+    if len(n) > 1:
+        raise InputError(f"the channels of {p} have different lengths ({sorted(n)})")
+    size = n.pop() if n else 0
+    if freq is not None:
+        if not (np.isfinite(freq) and freq > 0):
+            raise InputError(f"--freq must be a positive number of Hz, got {freq}")
+        if tb is not None and abs(freq / tb.freq - 1.0) > 0.01:
+            raise InputError(f"--freq {freq:g} contradicts the sampling frequency {tb.freq:.6g} "
+                             f"Hz measured from {tb.source}; drop --freq or fix the file")
+        if tb is None:
+            tb = time_from_freq(freq, size)
+    if tb is not None and tb.n != size:
+        raise InputError(f"{p}: {tb.n} time stamps for {size} samples")
+    return Recording(checked, out_units, roles, tb, str(p), fmt, topic,
+                     tuple(notes) + (tb.notes if tb is not None else ()))
+
+
+def _from_table(p: Path, columns: Any, time_unit: str | None, freq: float | None, units: Any
+                ) -> Recording:
+    from gmwm.readers.text import numeric, read_text_table
+
+    t = read_text_table(p)
+    notes = list(t.notes)
+    tnames = list(t.time)
+    if t.kind == "rostopic":
+        # header stamps (sample time) before %time (when rostopic received the message)
+        tnames.sort(key=lambda n: 0 if n == "field.header.stamp" else 1)
+        data = [n for n in ("gx", "gy", "gz", "ax", "ay", "az") if n in t.columns]
+    else:
+        data = [n for n in t.columns if n not in t.time and t.columns[n].dtype.kind in "iuf"]
+        if not data:
+            data = [n for n in t.columns if n not in t.time]
+    if columns is not None and not (isinstance(columns, str) and columns.lower() == "all"):
+        wanted = [columns] if isinstance(columns, str | int) else list(columns)
+        every = list(t.columns)  # a 0-based index counts every column of the file
+        for k, c in enumerate(wanted):
+            if (isinstance(c, int) or str(c).isdigit()) and str(c) not in every:
+                if not 0 <= int(c) < len(every):
+                    raise InputError(f"column index {c} out of range for {p}: it has "
+                                     f"{len(every)} columns (0..{len(every) - 1})")
+                wanted[k] = every[int(c)]
+        columns = wanted
+        clash = [str(c) for c in wanted if str(c) in t.time]
+        if clash:
+            raise InputError(f"{clash[0]} is the time column of {p}, not a signal")
+        if t.kind == "rostopic":
+            data = [n for n in t.columns if n not in t.time]
+    known = bool(data) and all(t.units.get(n) for n in data)
+    names = _select(data, columns, p, default_all=known)
+    chans = {n: numeric(t, n, str(p)) for n in names}
+    if t.header:  # a WV/AV table read as a very short signal is almost surely a mistake
+        from gmwm.io import _check_not_a_table
+
+        _check_not_a_table(list(t.columns), next(iter(chans.values())).size, p)
+    tb = None
+    if tnames:
+        name = tnames[0]
+        stamps = numeric(t, name, str(p))
+        if t.kind == "rostopic" and name == "field.header.stamp" and np.all(stamps == 0):
+            notes.append(f"{p}: field.header.stamp is zero; %time (receive time) is used")
+            name = "%time"
+            stamps = numeric(t, name, str(p))
+        unit = t.time[name]
+        if time_unit is not None:
+            if unit is not None and unit != time_unit:
+                raise InputError(f"--time-unit {time_unit} contradicts the time column "
+                                 f"'{name}' of {p}, labelled {unit}")
+            unit = time_unit
+        tb = time_base(stamps, name=name, unit=unit, where=f"time column '{name}' of {p}")
+    elif time_unit is not None:
+        raise InputError(f"--time-unit given but {p} has no time column")
+    fmt = t.kind if t.kind in ("euroc", "rostopic") else "csv"
+    return _finish(p, fmt, chans, {n: t.units.get(n) for n in names}, tb, freq, units, notes)
+
+
+def _from_npz(p: Path, columns: Any, time_unit: str | None, freq: float | None, units: Any
+              ) -> Recording:
+    try:
+        z = np.load(p, allow_pickle=False)
+    except (ValueError, OSError) as exc:
+        raise InputError(f"cannot read {p} as .npz: {exc}") from None
+    arrays: dict[str, np.ndarray] = {}
+    rate = None
+    with z:
+        for key in z.files:
+            try:
+                a = z[key]
+            except ValueError:
+                raise InputError(f"{p}: array '{key}' holds Python objects, not numbers") from None
+            if a.ndim == 0 and key.lower() in _FREQ_NAMES:
+                rate = float(a)
+            elif a.ndim == 1:
+                arrays[key] = a
+            elif a.ndim == 2:
+                for i in range(a.shape[1]):
+                    arrays[f"{key}[{i}]"] = a[:, i]
+            else:
+                raise InputError(f"{p}: array '{key}' has shape {a.shape}; gmwm reads 1-D "
+                                 "signals, (N, k) tables and a scalar 'freq'")
+    if not arrays:
+        raise InputError(f"{p} holds no 1-D or 2-D array")
+    tnames = [k for k in arrays if time_column(k)[0]]
+    data = [k for k in arrays if k not in tnames]
+    names = _select(data, columns, p, default_all=False)
+    tb = None
+    if tnames:
+        name = tnames[0]
+        tb = time_base(arrays[name], name=name, unit=time_unit or time_column(name)[1],
+                       where=f"array '{name}' of {p}")
+    elif rate is not None:
+        tb = time_from_freq(rate, arrays[names[0]].size, source=f"the 'freq' array of {p}")
+    return _finish(p, "npz", {n: arrays[n] for n in names}, {}, tb, freq, units, [])
+
+
+def _from_io(p: Path, kind: str, columns: Any, dataset: str | None, freq: float | None,
+             units: Any) -> Recording:
+    from gmwm.io import read_channels
+
+    ch = read_channels(p, columns, dataset=dataset)
+    tb = getattr(ch, "time", None)
+    if tb is None and ch.freq is not None:
+        tb = time_from_freq(ch.freq, next(iter(ch.signals.values())).size, ch.freq_source or "")
+    notes = [n for n in ch.notes if tb is None or n not in tb.notes]
+    return _finish(p, kind, dict(ch.signals), {}, tb, freq, units, notes)
+
+
+def read_recording(path: str | os.PathLike, *, topic: str | None = None, columns: Any = None,
+                   dataset: str | None = None, freq: float | None = None,
+                   time_unit: str | None = None,
+                   units: str | Mapping[str, str] | None = None) -> Recording:
+    """Read a recording of any supported format (see the module docstring).
+
+    ``topic``: bag or ULog topic; ``columns``: None (the file's IMU axes, or its only data
+    column), ``'all'``, or names / 0-based indices; ``dataset``: HDF5 dataset; ``freq``: the
+    rate in Hz when the file has no stamps (checked against them otherwise); ``time_unit``: unit
+    of an unlabelled time column ('s', 'ms', 'us', 'ns'); ``units``: one signal unit for all
+    channels or a mapping channel -> unit (an unknown unit, or one contradicting the file, is an
+    :class:`InputError`). Every problem is an :class:`InputError` with a one-line message."""
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"file not found: {p}")
+    kind = _kind(p)
+    if topic is not None and kind not in ("bag", "ulog"):
+        raise InputError(f"--topic applies to ROS bags and ULog files, not to {p}")
+    if time_unit is not None and time_unit not in ("s", "ms", "us", "ns"):
+        raise InputError(f"unknown time unit {time_unit!r}; use s, ms, us or ns")
+    if kind == "bag":
+        from gmwm.readers.rosbag import bag_kind, read_bag
+
+        d = read_bag(p, topic)
+        bk = bag_kind(p)
+        fmt = {"ros1": "ros1", "sqlite3": "ros2-sqlite3", "mcap": "ros2-mcap"}.get(bk or "")
+        if fmt is None:  # a ROS 2 folder: its storage files say which
+            fmt = "ros2-mcap" if any(q.suffix == ".mcap" for q in p.iterdir()) else "ros2-sqlite3"
+        names = _select(list(d.vectors), columns, p, default_all=True)
+        tb = time_base(d.stamp_ns, unit="ns", where=f"{d.stamp_source} of topic {d.topic}",
+                       source=f"{d.stamp_source} of topic {d.topic} (ns)")
+        return _finish(p, fmt, {n: d.vectors[n] for n in names}, d.units, tb, freq, units,
+                       d.notes, d.topic)
+    if kind == "ulog":
+        from gmwm.readers.ulog import read_ulog
+
+        u = read_ulog(p, topic)
+        names = _select(list(u.vectors), columns, p, default_all=True)
+        tb = time_base(u.stamp_us, unit="us", where=f"{u.stamp_field} of {u.topic}",
+                       source=f"{u.stamp_field} of {u.topic} (us)")
+        return _finish(p, "ulog", {n: u.vectors[n] for n in names}, u.units, tb, freq, units,
+                       u.notes, u.topic)
+    if kind == "text":
+        return _from_table(p, columns, time_unit, freq, units)
+    if kind == "npz":
+        return _from_npz(p, columns, time_unit, freq, units)
+    return _from_io(p, kind, columns, dataset, freq, units)
+
+
+def with_units(rec: Recording, units: Mapping[str, str | None]) -> Recording:
+    """A copy of ``rec`` with units (and roles) set for some channels (validated)."""
+    out_u, out_r = dict(rec.units), dict(rec.roles)
+    for c, u in units.items():
+        parsed = parse_unit(u)
+        out_u[c] = None if parsed is None else (parsed[0] if parsed[1] == 1.0 else u)
+        out_r[c] = None if parsed is None else parsed[2]
+    return replace(rec, units=out_u, roles=out_r)

@@ -1,0 +1,111 @@
+"""PX4 ULog files through ``pyulog``.
+
+Topics read: ``sensor_combined`` (``gyro_rad[0..2]`` rad/s, ``accelerometer_m_s2[0..2]`` m/s^2,
+stamped by ``timestamp`` in microseconds since boot; its accelerometer relative timestamp is
+checked to be constant), or the raw ``sensor_gyro`` (``x, y, z`` rad/s) / ``sensor_accel``
+(``x, y, z`` m/s^2) topics of one instance (``multi_id``), each with its own ``timestamp_sample``
+when logged (else ``timestamp``). Units, roles and time all come from the ULog message formats.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from gmwm.errors import InputError
+
+__all__ = ["ULOG_MAGIC", "UlogData", "read_ulog"]
+
+ULOG_MAGIC = b"ULog\x01\x12\x35"
+_TOPICS = ("sensor_combined", "sensor_gyro", "sensor_accel")
+
+
+@dataclass
+class UlogData:
+    """Decoded ULog topic: ``stamp_us`` (int64, us), ``vectors``, ``units``, ``roles``."""
+
+    topic: str
+    stamp_us: np.ndarray
+    vectors: dict[str, np.ndarray]
+    units: dict[str, str]
+    roles: dict[str, str]
+    stamp_field: str
+    notes: list[str] = field(default_factory=list)
+
+
+def _split_topic(topic: str) -> tuple[str, int | None]:
+    name, _, inst = topic.partition(":")
+    if inst:
+        try:
+            return name, int(inst)
+        except ValueError:
+            raise InputError(f"malformed ULog topic {topic!r}: write NAME or NAME:INSTANCE "
+                             "(e.g. sensor_gyro:1)") from None
+    return name, None
+
+
+def read_ulog(path: str | os.PathLike, topic: str | None = None) -> UlogData:
+    """Read the IMU topic of a PX4 ULog. ``topic``: ``sensor_combined`` (default when logged),
+    ``sensor_gyro`` or ``sensor_accel``, optionally ``:INSTANCE`` (``sensor_gyro:1``)."""
+    try:
+        from pyulog import ULog
+    except ModuleNotFoundError:
+        raise InputError("reading PX4 ULog files needs the package 'pyulog': "
+                         "pip install 'gmwm[recordings]'") from None
+    p = Path(path)
+    try:
+        ulog = ULog(str(p), list(_TOPICS))
+    except Exception as exc:  # noqa: BLE001 - pyulog raises bare exceptions on damaged files
+        msg = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise InputError(f"cannot read the ULog {p}: {msg}") from None
+    have = {(d.name, d.multi_id): d for d in ulog.data_list}
+    listing = ", ".join(f"{n}:{i} ({d.data['timestamp'].size} messages)"
+                        for (n, i), d in sorted(have.items())) or "none"
+    if topic is None:
+        if ("sensor_combined", 0) in have:
+            name, inst = "sensor_combined", 0
+        else:
+            raise InputError(f"{p} has no sensor_combined topic; choose one with --topic "
+                             f"(IMU topics logged: {listing})")
+    else:
+        name, inst = _split_topic(topic)
+        if name not in _TOPICS:
+            raise InputError(f"gmwm reads the ULog topics {', '.join(_TOPICS)}, not {name!r}")
+        insts = sorted(i for n, i in have if n == name)
+        if inst is None:
+            if len(insts) > 1:
+                raise InputError(f"{p} logs {len(insts)} instances of {name}: choose one with "
+                                 f"--topic {name}:N (logged: {listing})")
+            inst = insts[0] if insts else 0
+        if (name, inst) not in have:
+            raise InputError(f"topic {name}:{inst} not in {p} (IMU topics logged: {listing})")
+    d = have[(name, inst)].data
+    notes: list[str] = []
+    if name == "sensor_combined":
+        fields = {"gx": "gyro_rad[0]", "gy": "gyro_rad[1]", "gz": "gyro_rad[2]",
+                  "ax": "accelerometer_m_s2[0]", "ay": "accelerometer_m_s2[1]",
+                  "az": "accelerometer_m_s2[2]"}
+        rel = d.get("accelerometer_timestamp_relative")
+        if rel is not None and rel.size and np.any(rel != rel[0]):
+            notes.append(f"{name} of {p}: the accelerometer is sampled at varying offsets from "
+                         "the gyroscope (accelerometer_timestamp_relative); the gyroscope "
+                         "stamps are used for both")
+    else:
+        prefix = "g" if name == "sensor_gyro" else "a"
+        fields = {f"{prefix}{c}": c for c in "xyz"}
+    missing = [f for f in fields.values() if f not in d]
+    if missing:
+        raise InputError(f"{name} of {p} lacks the field(s) {', '.join(missing)}")
+    stamp_field = "timestamp_sample" if "timestamp_sample" in d else "timestamp"
+    vectors = {k: np.asarray(d[f], dtype=np.float64) for k, f in fields.items()}
+    units = {k: ("rad/s" if k[0] == "g" else "m/s^2") for k in vectors}
+    roles = {k: ("gyroscope" if k[0] == "g" else "accelerometer") for k in vectors}
+    if ulog.dropouts:
+        lost = sum(getattr(x, "duration", 0) for x in ulog.dropouts)
+        notes.append(f"{p}: the logger reports {len(ulog.dropouts)} dropout(s) ({lost} ms in all)")
+    label = name if name == "sensor_combined" else f"{name}:{inst}"
+    return UlogData(label, np.asarray(d[stamp_field], dtype=np.int64), vectors, units, roles,
+                    stamp_field, notes)
