@@ -9,7 +9,7 @@ import pytest
 from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.figure import Figure
 
-from gmwm.io import save_figure
+from gmwm.atomic import save_figure
 from gmwm.model import Model
 from gmwm.plots import (
     boxplot_grouped,

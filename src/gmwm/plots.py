@@ -3,7 +3,7 @@ boxplots of standardised errors; RMSE and run-time curves.
 
 Every function takes ``ax=None`` (a new figure is made when None) and returns the Axes (or the Figure
 for multi-panel plots). Figures are built with :class:`matplotlib.figure.Figure`, not ``pyplot``, so
-nothing here touches the global backend or figure registry; save with :func:`gmwm.io.save_figure`.
+nothing here touches the global backend or figure registry; save with :func:`gmwm.atomic.save_figure`.
 Colours: the Okabe-Ito colour-blind-safe palette.
 """
 

@@ -88,7 +88,7 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     ``axes[name]`` holds ``result`` (a GMWM fit), ``units`` (signal unit; deg/s or rad/s mark a
     gyroscope, m/s^2 or g an accelerometer), ``warnings`` (list of str) and ``datasheet``.
     """
-    from gmwm.io import save_figure, write_text_atomic
+    from gmwm.atomic import save_figure, write_text_atomic
     from gmwm.plots import plot_wv
 
     out = Path(outdir)

@@ -32,8 +32,8 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from gmwm.atomic import atomic_path
 from gmwm.errors import DataUnavailableError, InputError
-from gmwm.io import atomic_path
 
 Fetch = Callable[[str], bytes]
 

@@ -350,7 +350,7 @@ def write_tables(estimates: pd.DataFrame, gof: pd.DataFrame, threshold: float, m
                  estimates_csv: str | os.PathLike, estimates_md: str | os.PathLike,
                  gof_csv: str | os.PathLike, gof_md: str | os.PathLike) -> None:
     """Write the estimates and goodness-of-fit tables as CSV and Markdown (atomically)."""
-    from gmwm.io import write_text_atomic
+    from gmwm.atomic import write_text_atomic
     from gmwm_studies.montecarlo import format_markdown_table
 
     write_text_atomic(estimates_csv, estimates.to_csv(index=False))

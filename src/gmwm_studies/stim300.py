@@ -147,7 +147,7 @@ def fit_chunk_all(chunk: WVChunk, estimators: Mapping[str, Mapping[str, Any]], f
 
 def write_estimates(path: str | os.PathLike, datasets: Mapping[str, xr.Dataset]) -> None:
     """Write several estimators' Datasets to one NetCDF-4 file, one group per estimator (atomic)."""
-    from gmwm.io import atomic_path
+    from gmwm.atomic import atomic_path
 
     if not datasets:
         raise InputError("no estimates to write")
