@@ -16,7 +16,7 @@ from gmwm.atomic import (
     write_text_atomic,
 )
 from gmwm.errors import InputError
-from gmwm.readers import is_wv_table, read_signal, read_wv_table
+from gmwm.readers import is_wv_table, read_signal, read_weights, read_wv_table
 
 
 @pytest.fixture
@@ -398,3 +398,17 @@ def test_saved_figures_carry_no_creation_date(tmp_path):
     assert b"CreationDate" not in pdf.read_bytes() and pdf.read_bytes()[:4] == b"%PDF"
     assert b"<dc:date>" not in svg.read_bytes()
     assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_read_weights_numbers_commas_comments(tmp_path):
+    p = tmp_path / "w.txt"
+    p.write_text("# scale weights\n0.5, 0.25\n0.125 0.125  # last two\n")
+    np.testing.assert_array_equal(read_weights(p), [0.5, 0.25, 0.125, 0.125])
+    (tmp_path / "empty.txt").write_text("# nothing\n")
+    with pytest.raises(InputError, match="holds no numbers"):
+        read_weights(tmp_path / "empty.txt")
+    (tmp_path / "bad.txt").write_text("0.5 x\n")
+    with pytest.raises(InputError, match="bad.txt"):
+        read_weights(tmp_path / "bad.txt")
+    with pytest.raises(InputError, match="not found"):
+        read_weights(tmp_path / "missing.txt")

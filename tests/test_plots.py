@@ -18,6 +18,7 @@ from gmwm.plots import (
     plot_model_wv,
     plot_rmse_curves,
     plot_runtime,
+    plot_virtual_wv,
     plot_wv,
     plot_wv_replicates,
     subplots,
@@ -115,6 +116,19 @@ def test_plot_model_wv_total_equals_sum_of_components(sim1):
     comps = np.nansum([ln.get_ydata() for ln in _component_lines(ax)], axis=0)
     np.testing.assert_allclose(total, comps, rtol=1e-12)
 
+
+def test_plot_virtual_wv_draws_every_signal_and_the_virtual_band():
+    from gmwm.virtual import equal
+
+    X = np.random.default_rng(4).standard_normal((2048, 3))
+    res = equal(X, freq=10.0, names=["a", "b", "c"])
+    ax = plot_virtual_wv(res, units="deg/s")
+    labels = [ln.get_label() for ln in ax.get_lines()]
+    assert labels == ["a", "b", "c", "virtual (equal)"]
+    np.testing.assert_allclose(ax.get_lines()[3].get_ydata(), res.wv().variance)
+    np.testing.assert_allclose(ax.get_lines()[0].get_xdata(), res.wccv.scales / 10.0)
+    assert len([c for c in ax.collections if isinstance(c, PolyCollection)]) == 1
+    assert ax.get_xlabel() == "Scale τ [s]"
 
 def test_plot_wv_replicates(sim1):
     model, theta, _ = sim1

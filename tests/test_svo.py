@@ -12,7 +12,6 @@ from gmwm.virtual import (
     PAPER_OMEGA_SHORT,
     _mbb_kernel,
     _mbb_time_kernel,
-    _unpack,
     equal,
     mbb_svo_draws,
     mbb_wccv,
@@ -21,8 +20,8 @@ from gmwm.virtual import (
     svo_coef,
     svo_jacobian,
     svo_weights,
-    wccv,
 )
+from gmwm.wccv import _unpack, wccv
 from gmwm_studies.svo_study import case, true_coefs
 
 

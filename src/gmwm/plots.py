@@ -30,6 +30,7 @@ __all__ = [
     "plot_model_wv",
     "plot_rmse_curves",
     "plot_runtime",
+    "plot_virtual_wv",
     "plot_wv",
     "plot_wv_replicates",
     "style",
@@ -324,6 +325,27 @@ def plot_model_wv(
     with style():
         _draw_model(ax, scales / freq, scales, model, theta, components, label="Model WV (total)")
         _finish_loglog(ax, _scale_label(freq), variance_label("Wavelet variance", units))
+    return ax
+
+
+def plot_virtual_wv(result: Any, ax: Axes | None = None, units: str = "") -> Axes:
+    """WV of every input signal (thin lines) and of the virtual signal (thick, with its CI band) of
+    a :class:`gmwm.virtual.SVOResult` against the scale in seconds (``freq`` of the WCCV); returns
+    the Axes."""
+    W = result.wccv
+    ax = new_axes(ax)
+    x = W.scales / W.freq
+    with style():
+        for k, name in enumerate(W.names):
+            ax.loglog(x, np.einsum("jii->ji", W.cov)[:, k], lw=0.9, alpha=0.8,
+                      color=PALETTE[(k % (len(PALETTE) - 2)) + 2], label=name)
+        wv = result.wv()
+        ax.fill_between(x, wv.ci_low, wv.ci_high, color=PALETTE[0], alpha=0.2, lw=0)
+        ax.loglog(x, wv.variance, lw=2.2, color=PALETTE[0], marker="o", ms=3,
+                  label=f"virtual ({result.method})")
+        ax.set_xlabel("Scale τ [samples]" if W.freq == 1.0 else "Scale τ [s]")
+        ax.set_ylabel(variance_label("Wavelet variance", units))
+        ax.legend(fontsize="small", ncol=2)
     return ax
 
 

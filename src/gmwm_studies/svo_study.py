@@ -31,15 +31,14 @@ from gmwm.processes import ar1_unit_wv
 from gmwm.virtual import (
     PAPER_OMEGA_LONG,
     PAPER_OMEGA_SHORT,
-    WaveletCrossCovariance,
     equal,
     rdvg,
     svo,
     svo_coef,
     svo_schemes,
     svo_weights,
-    wccv,
 )
+from gmwm.wccv import WaveletCrossCovariance, wccv
 
 METHODS = ("svo_w1", "svo_w2", "rdvg", "equal")
 METHOD_LABELS = {"svo_w1": "SVO $\\omega_1$", "svo_w2": "SVO $\\omega_2$", "rdvg": "RDVG",

@@ -8,10 +8,11 @@ from gmwm.readers.tables import (
     is_wv_table,
     read_channels,
     read_signal,
+    read_weights,
     read_wv_table,
     table_channels,
     time_column_unit,
 )
 
 __all__ = ["MIN_TABLE_SIGNAL", "SIGNAL_SUFFIXES", "Channels", "is_wv_table", "read_channels",
-           "read_signal", "read_wv_table", "table_channels", "time_column_unit"]
+           "read_signal", "read_weights", "read_wv_table", "table_channels", "time_column_unit"]

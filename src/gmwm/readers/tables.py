@@ -31,6 +31,7 @@ __all__ = [
     "is_wv_table",
     "read_channels",
     "read_signal",
+    "read_weights",
     "read_wv_table",
     "table_channels",
     "time_column_unit",
@@ -740,3 +741,26 @@ def _table_freq(samples: np.ndarray | None, seconds: np.ndarray | None, freq: fl
         raise InputError(f"--freq {freq:g} contradicts the {recorded:g} Hz recorded in {p} "
                          "(scale / scale_s); drop --freq")
     return recorded
+
+
+# --------------------------------------------------------------------------------------------------
+# scale weights (SVO)
+# --------------------------------------------------------------------------------------------------
+
+
+def read_weights(path: Any) -> np.ndarray:
+    """Scale weights from a text file: numbers separated by commas, spaces or newlines, one per
+    level from j = 1; ``#`` starts a comment."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"weights file {p} not found")
+    tokens = []
+    for line in p.read_text(encoding="utf-8", errors="replace").splitlines():
+        tokens += line.split("#", 1)[0].replace(",", " ").split()
+    try:
+        values = np.array([float(t) for t in tokens])
+    except ValueError as exc:
+        raise InputError(f"weights file {p}: {exc}") from None
+    if values.size == 0:
+        raise InputError(f"weights file {p} holds no numbers")
+    return values
