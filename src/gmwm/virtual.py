@@ -28,15 +28,17 @@ weighted least squares of ``A_j[i, k]`` on the Haar WN and RW columns ``1/tau_j`
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cache
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
 from scipy.stats import norm
 
+from gmwm.atomic import to_jsonable
 from gmwm.errors import InputError, ModelError
 from gmwm.wccv import WaveletCrossCovariance, _as_array, _unpack, wccv
 from gmwm.wv import WaveletVariance, _n_levels
@@ -355,7 +357,10 @@ def _rdvg_q(cov: np.ndarray, scales: np.ndarray, edof: np.ndarray) -> tuple[np.n
 class SVOResult:
     """A virtual gyroscope ``S = c'X``. ``coef`` sums to 1; ``cov`` = estimated ``Cov(c_hat)``
     (``Sigma / T``; None without bootstrap), ``weights`` the renormalised scale weights (None for
-    RDVG/equal), ``wccv`` the data's WCCV. ``method``: ``"svo"``, ``"rdvg"`` or ``"equal"``."""
+    RDVG/equal), ``wccv`` the data's WCCV. ``method``: ``"svo"``, ``"rdvg"`` or ``"equal"``.
+
+    Result protocol of the library: ``params`` (= ``coef``), ``param_names`` (the signal names),
+    ``se``, ``conf_int``, ``summary``, ``to_json_dict``; immutable (arrays read-only)."""
 
     coef: np.ndarray
     cov: np.ndarray | None
@@ -365,11 +370,31 @@ class SVOResult:
     n_boot: int = 0
     block: int = 0
     alpha: float = 0.05
-    extra: dict[str, Any] | None = None
+    extra: Mapping[str, Any] | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("coef", "cov", "weights"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, _read_only(getattr(self, name)))
+        if self.extra is not None:
+            object.__setattr__(self, "extra", MappingProxyType(
+                {k: _read_only(v) if isinstance(v, np.ndarray) else v
+                 for k, v in self.extra.items()}))
 
     @property
     def names(self) -> tuple[str, ...]:
         return self.wccv.names
+
+    @property
+    def params(self) -> np.ndarray:
+        """The coefficients ``c`` (``(p,)``, read-only), as every result of the library calls
+        its estimates."""
+        return self.coef
+
+    @property
+    def param_names(self) -> list[str]:
+        """Names of the combined signals, in the order of ``params``."""
+        return list(self.names)
 
     @property
     def se(self) -> np.ndarray:
@@ -379,7 +404,9 @@ class SVOResult:
         return np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
 
     def conf_int(self, alpha: float | None = None) -> np.ndarray:
-        """Wald intervals ``c_i -/+ z_{1-alpha/2} se_i`` (SPEC 6.1 eq. 9), shape ``(p, 2)``."""
+        """Wald intervals ``c_i -/+ z_{1-alpha/2} se_i`` (SPEC 6.1 eq. 9), shape ``(p, 2)``; NaN
+        without bootstrap. ``alpha`` None: the level the result was made with (``self.alpha``,
+        0.05 unless chosen)."""
         alpha = self.alpha if alpha is None else float(alpha)
         if not 0.0 < alpha < 1.0:
             raise InputError(f"alpha must be in (0, 1), got {alpha}")
@@ -428,22 +455,31 @@ class SVOResult:
     def __str__(self) -> str:
         return self.summary()
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-able dict."""
-        return {
+    def to_json_dict(self) -> dict[str, Any]:
+        """Strict-JSON-able dict (non-finite numbers as None)."""
+        return to_jsonable({
             "method": self.method,
             "names": list(self.names),
-            "coef": self.coef.tolist(),
-            "se": [None if not np.isfinite(v) else float(v) for v in self.se],
-            "cov": None if self.cov is None else self.cov.tolist(),
-            "weights": None if self.weights is None else self.weights.tolist(),
+            "coef": self.coef,
+            "se": self.se,
+            "cov": self.cov,
+            "weights": self.weights,
             "n_boot": self.n_boot,
             "block": self.block,
             "alpha": self.alpha,
             "n_samples": self.wccv.n_samples,
             "levels": self.wccv.n_levels,
             "freq": self.wccv.freq,
-        }
+        })
+
+    # temporary: cli.py is being rewritten (it still calls to_dict)
+    to_dict = to_json_dict
+
+
+def _read_only(a: Any) -> np.ndarray:
+    out = np.array(a, dtype=np.float64, copy=True)
+    out.setflags(write=False)
+    return out
 
 
 def _wccv_of(X: Any, levels: int | None, alpha: float, freq: float,

@@ -136,8 +136,10 @@ class WaveletCrossCovariance:
         d = np.sqrt(np.einsum("jii->ji", self.cov))
         return self.cov / (d[:, :, None] * d[:, None, :])
 
-    def conf_int(self, alpha: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Lower and upper CI bounds, each ``(J, p, p)``, at level ``1 - alpha``."""
+    def conf_int(self, alpha: float | None = None) -> np.ndarray:
+        """CIs at level ``1 - alpha`` (None: ``self.alpha``), ``(J, p, p, 2)``: ``[..., 0]`` the
+        lower, ``[..., 1]`` the upper bounds (the last axis as in every ``conf_int`` of the
+        library)."""
         alpha = self.alpha if alpha is None else float(alpha)
         _check_alpha_freq(alpha, self.freq)
         eta = self.edof[:, None, None]
@@ -149,7 +151,7 @@ class WaveletCrossCovariance:
         idx = np.arange(self.n_signals)
         low[:, idx, idx] = dlow
         high[:, idx, idx] = dhigh
-        return low, high
+        return np.stack([low, high], axis=-1)
 
     def variance(self, i: int | str) -> WaveletVariance:
         """WV of signal ``i`` (index or name), identical to :func:`gmwm.wvar` of that column."""
