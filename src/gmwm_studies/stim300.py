@@ -28,8 +28,8 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from gmwm import units
 from gmwm.errors import InputError
+from gmwm_studies import sensors as units  # Table I and its units (formerly in gmwm.units)
 from gmwm_studies.montecarlo import check_truth, gather, summarize
 from gmwm_studies.store import WVChunk
 
