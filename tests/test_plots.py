@@ -1,6 +1,7 @@
-"""gmwm.plots: every figure draws on small inputs and shows what it claims.
+"""gmwm.plots and the studies' figures (gmwm_studies.figures): every figure draws on small inputs
+and shows what it claims.
 
-The module builds Figures without pyplot, so no backend needs selecting (saving uses Agg)."""
+The modules build Figures without pyplot, so no backend needs selecting (saving uses Agg)."""
 
 from __future__ import annotations
 
@@ -12,19 +13,21 @@ from matplotlib.figure import Figure
 from gmwm.atomic import save_figure
 from gmwm.model import Model
 from gmwm.plots import (
-    boxplot_grouped,
-    boxplot_standardized,
     plot_av,
     plot_model_wv,
-    plot_rmse_curves,
-    plot_runtime,
     plot_virtual_wv,
     plot_wv,
-    plot_wv_replicates,
     subplots,
     variance_label,
 )
 from gmwm.wv import avar, wvar
+from gmwm_studies.figures import (
+    boxplot_grouped,
+    boxplot_standardized,
+    plot_rmse_curves,
+    plot_runtime,
+    plot_wv_replicates,
+)
 
 SIM1 = {"WN[1].sigma2": 1.0, "RW[1].gamma2": 4e-4, "AR1[1].phi": 0.975, "AR1[1].sigma2": 0.03,
         "SIN[1].alpha": 0.85, "SIN[1].beta": 0.35}

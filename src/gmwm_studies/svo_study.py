@@ -372,7 +372,8 @@ def _colors() -> dict[str, str]:
 def figure_wv(res: Mapping[str, np.ndarray], freq: float, case_name: str) -> Any:
     """Paper Fig. 2/7: lower = mean WV of the virtual signals with CI band and one test array's
     gyros; upper = ratio of the mean WV to the equal-weights one."""
-    from gmwm.plots import REPLICATE_COLOR, subplots
+    from gmwm.plots import subplots
+    from gmwm_studies.figures import REPLICATE_COLOR
 
     rows = wv_table(res, freq)
     J = res["wv"].shape[-1]

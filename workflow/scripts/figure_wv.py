@@ -10,7 +10,7 @@ from wflog import get_logger
 
 from gmwm.atomic import save_figure
 from gmwm.model import Model
-from gmwm.plots import plot_wv_replicates
+from gmwm_studies.figures import plot_wv_replicates
 from gmwm_studies.store import read_wv_chunks
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
