@@ -7,7 +7,7 @@ Per T, ``--reps`` seeded Simulation 1 signals. For each: the GMWM fit as the stu
 ``gmwm.fit`` call on the raw signal, WV included, CI weights, ``--gmwm-starts`` starts), the same
 fit of the single model (``nested=False``, the paper's estimator; it counts how often its
 objective equals the default's), then the
-Kalman-filter MLE (``gmwm.mle.fit_mle``, backend "kalman") from its own moment start, from
+Kalman-filter MLE (``gmwm_studies.mle.fit_mle``, backend "kalman") from its own moment start, from
 statsmodels' start values, and from the GMWM estimate. ``--statsmodels K`` also times the
 statsmodels-filter backend from the GMWM estimate on the first K signals (slow). Prints wall and
 process-CPU seconds (mean and median), convergence counts, the largest log-likelihood gap between
@@ -24,8 +24,8 @@ import time
 import numpy as np
 
 from gmwm import fit
-from gmwm.mle import fit_mle
 from gmwm.model import Model
+from gmwm_studies.mle import fit_mle
 
 SPEC = "WN+RW+AR1+SIN"
 TRUTH = {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.975, "AR1[1].sigma2": 0.03, "SIN[1].alpha": 0.85,

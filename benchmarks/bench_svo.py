@@ -34,8 +34,8 @@ from gmwm.virtual import (
     rdvg,
     svo_coef,
     svo_weights,
-    wccv,
 )
+from gmwm.wccv import wccv
 from gmwm_studies.svo_study import case
 
 

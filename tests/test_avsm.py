@@ -10,6 +10,7 @@ from gmwm.avsm import fit_avsm
 from gmwm.errors import InputError, ModelError
 from gmwm.model import Model
 from gmwm.wv import WaveletVariance, wvar
+from gmwm_studies import sensors as s
 
 
 @dataclass(frozen=True)
@@ -30,7 +31,7 @@ def _theoretical_wv(model: str, truth: dict, T: int, freq: float = 250.0) -> Wav
 
 
 def _rel_table_errors(res, truth, sensor):
-    return {k: u.to_table_units(k, v, sensor) / u.to_table_units(k, truth[k], sensor) - 1
+    return {k: s.to_table_units(k, v, sensor) / s.to_table_units(k, truth[k], sensor) - 1
             for k, v in res.as_dict().items()}
 
 
@@ -55,7 +56,7 @@ def test_pure_terms_read_at_spec_points(model, truth, rel):
 
 
 def test_stim300_gyro_long_recovers_n_and_k():
-    truth = u.stim300_truth("gyro")
+    truth = s.stim300_truth("gyro")
     res = fit_avsm(_theoretical_wv("WN+RW", truth, 6_300_000), Model("WN+RW", freq=250.0))
     err = _rel_table_errors(res, truth, "gyro")
     assert abs(err["WN[1].sigma2"]) < 0.01  # N, measured +0.5 %
@@ -67,7 +68,7 @@ def test_stim300_gyro_long_recovers_n_and_k():
 
 def test_stim300_gyro_short_uses_tangent_and_overestimates_k():
     # documented bias (module docstring): at T = 2.5e6 no level has slope >= 0.4
-    truth = u.stim300_truth("gyro")
+    truth = s.stim300_truth("gyro")
     res = fit_avsm(_theoretical_wv("WN+RW", truth, 2_500_000), "WN+RW")
     err = _rel_table_errors(res, truth, "gyro")
     assert res.regions["RW[1]"].method == "tangent"
@@ -77,7 +78,7 @@ def test_stim300_gyro_short_uses_tangent_and_overestimates_k():
 
 
 def test_stim300_accel_q_read_from_wn_scales():
-    truth = u.stim300_truth("accel")
+    truth = s.stim300_truth("accel")
     res = fit_avsm(_theoretical_wv("QN+WN+RW+DR", truth, 2_500_000), "QN+WN+RW+DR")
     err = _rel_table_errors(res, truth, "accel")
     assert res.param_names == list(truth)
@@ -89,7 +90,7 @@ def test_stim300_accel_q_read_from_wn_scales():
 
 
 def test_edof_filter_drops_last_levels():
-    truth = u.stim300_truth("gyro")
+    truth = s.stim300_truth("gyro")
     wv = _theoretical_wv("WN+RW", truth, 2_500_000)
     res = fit_avsm(wv, "WN+RW")
     eta = np.maximum(wv.n / wv.scales, 1)
@@ -107,7 +108,7 @@ def test_bi_with_stand_in_model():
 
     scales = 2.0 ** np.arange(1, 21)
     b, s2 = 3e-3, 1e-4
-    var = s2 / scales + u.bias_instability_wv_ideal(b, scales)
+    var = s2 / scales + s.bias_instability_wv_ideal(b, scales)
     wv = _WV(np.arange(1, 21), scales, var, (2**22 - scales + 1).astype(int), 2**22, 100.0)
     res = fit_avsm(wv, _M())
     assert res.as_dict()["BI[1].B2"] == pytest.approx(b * b, rel=0.05)
@@ -115,7 +116,7 @@ def test_bi_with_stand_in_model():
 
 
 def test_ad_line_and_model_wv():
-    truth = u.stim300_truth("gyro")
+    truth = s.stim300_truth("gyro")
     wv = _theoretical_wv("WN+RW", truth, 6_300_000)
     res = fit_avsm(wv, "WN+RW")
     reg = res.regions["WN[1]"]

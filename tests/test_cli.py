@@ -71,7 +71,7 @@ def test_simulate_is_reproducible_in_every_format(capsys, tmp_path, ext):
     out = tmp_path / f"s{ext}"
     code, text, err = run(capsys, "simulate", "WN+AR1", *PARAMS, "-n", 1000, "--seed", 5, "-o", out)
     assert code == 0 and err == "" and "1000 samples" in text
-    from gmwm.io import read_signal
+    from gmwm.readers import read_signal
 
     model = Model("WN+AR1")
     expected = model.simulate(model.theta(WN_AR1), 1000, np.random.default_rng(5))

@@ -1,4 +1,4 @@
-"""gmwm.io: signal readers (npy/csv/hdf5), WV tables, atomic writes, figure saving."""
+"""gmwm.readers (npy/csv/hdf5 signals, WV tables) and gmwm.atomic (atomic writes, figure saving)."""
 
 from __future__ import annotations
 
@@ -8,17 +8,15 @@ import h5py
 import numpy as np
 import pytest
 
-from gmwm.errors import InputError
-from gmwm.io import (
+from gmwm.atomic import (
     atomic_path,
-    is_wv_table,
-    read_signal,
-    read_wv_table,
     save_figure,
     write_json_atomic,
     write_signal,
     write_text_atomic,
 )
+from gmwm.errors import InputError
+from gmwm.readers import is_wv_table, read_signal, read_weights, read_wv_table
 
 
 @pytest.fixture
@@ -232,7 +230,7 @@ def _imu_csv(p, n=128, fs=50.0, time_name="time", scale=1.0):
 
 
 def test_read_channels_csv_time_column_gives_freq(tmp_path):
-    from gmwm.io import read_channels
+    from gmwm.readers import read_channels
 
     p = tmp_path / "imu.csv"
     data = _imu_csv(p)
@@ -247,7 +245,7 @@ def test_read_channels_csv_time_column_gives_freq(tmp_path):
 
 @pytest.mark.parametrize(("name", "scale"), [("timestamp_ns", 1e9), ("t[ms]", 1e3), ("%time", 1e9)])
 def test_time_column_units(tmp_path, name, scale):
-    from gmwm.io import read_channels, time_column_unit
+    from gmwm.readers import read_channels, time_column_unit
 
     assert time_column_unit(name) == pytest.approx(1 / scale)
     p = tmp_path / "imu.csv"
@@ -256,7 +254,7 @@ def test_time_column_units(tmp_path, name, scale):
 
 
 def test_time_column_problems(tmp_path):
-    from gmwm.io import read_channels
+    from gmwm.readers import read_channels
 
     p = tmp_path / "bad.csv"
     p.write_text("time,gx\n0,1\n0.1,2\n0.1,3\n0.3,4\n")
@@ -270,7 +268,7 @@ def test_time_column_problems(tmp_path):
 
 
 def test_read_channels_hdf5_datasets_and_attribute(tmp_path, x):
-    from gmwm.io import read_channels
+    from gmwm.readers import read_channels
 
     p = tmp_path / "imu.h5"
     with h5py.File(p, "w") as fh:
@@ -287,7 +285,7 @@ def test_read_channels_hdf5_datasets_and_attribute(tmp_path, x):
 
 
 def test_read_channels_npy_matrix(tmp_path, x):
-    from gmwm.io import read_channels
+    from gmwm.readers import read_channels
 
     np.save(tmp_path / "m.npy", np.column_stack([x, 2 * x, 3 * x]))
     ch = read_channels(tmp_path / "m.npy", "all")
@@ -354,7 +352,7 @@ def test_av_table_reads_as_wv(tmp_path):
 
 
 def test_multichannel_table_needs_a_channel(tmp_path):
-    from gmwm.io import table_channels
+    from gmwm.readers import table_channels
 
     p = tmp_path / "wv.csv"
     p.write_text("level,scale,scale_s,n,variance[gx],ci_low[gx],ci_high[gx],variance[gy],ci_low[gy],"
@@ -379,7 +377,7 @@ def test_short_table_like_csv_is_not_read_as_a_signal(tmp_path):
 
 
 def test_read_channels_hdf5_time_dataset(tmp_path, x):
-    from gmwm.io import read_channels
+    from gmwm.readers import read_channels
 
     p = tmp_path / "imu.h5"
     with h5py.File(p, "w") as fh:
@@ -400,3 +398,17 @@ def test_saved_figures_carry_no_creation_date(tmp_path):
     assert b"CreationDate" not in pdf.read_bytes() and pdf.read_bytes()[:4] == b"%PDF"
     assert b"<dc:date>" not in svg.read_bytes()
     assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_read_weights_numbers_commas_comments(tmp_path):
+    p = tmp_path / "w.txt"
+    p.write_text("# scale weights\n0.5, 0.25\n0.125 0.125  # last two\n")
+    np.testing.assert_array_equal(read_weights(p), [0.5, 0.25, 0.125, 0.125])
+    (tmp_path / "empty.txt").write_text("# nothing\n")
+    with pytest.raises(InputError, match="holds no numbers"):
+        read_weights(tmp_path / "empty.txt")
+    (tmp_path / "bad.txt").write_text("0.5 x\n")
+    with pytest.raises(InputError, match="bad.txt"):
+        read_weights(tmp_path / "bad.txt")
+    with pytest.raises(InputError, match="not found"):
+        read_weights(tmp_path / "missing.txt")

@@ -1,4 +1,4 @@
-"""Tests for the Kalman-filter MLE baseline (gmwm.mle, SPEC 5.7)."""
+"""Tests for the Kalman-filter MLE baseline (gmwm_studies.mle, SPEC 5.7)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from scipy.linalg import cholesky, solve_triangular
 from statsmodels.tsa.statespace.structural import UnobservedComponents
 
 from gmwm.errors import InputError, ModelError
-from gmwm.mle import (
+from gmwm_studies.mle import (
     PARAM_KEYS,
     _kf_cross,
     _Likelihood,
@@ -68,11 +68,12 @@ def test_recovers_simulation1_parameters():
         res = fit_mle(x, BETA, start, n_starts=1)
         assert res.converged, res.message
         assert res.start == "gmwm" and res.n_starts == 1
-        assert set(res.params) == set(PARAM_KEYS) | {"SIN[1].alpha"}
+        est = res.as_dict()
+        assert set(est) == set(PARAM_KEYS) | {"SIN[1].alpha"}
         for k in PARAM_KEYS:
-            assert abs(res.params[k] - TRUTH[k]) < 5 * se[k], (k, res.params[k])
+            assert abs(est[k] - TRUTH[k]) < 5 * se[k], (k, est[k])
         # amplitude SE = sqrt(2 S_x(beta) / n) ~ 0.011 here; 0.06 is > 5 SE
-        assert abs(res.params["SIN[1].alpha"] - ALPHA) < 0.06
+        assert abs(est["SIN[1].alpha"] - ALPHA) < 0.06
 
 
 def test_likelihood_is_exact_and_ar_variance_is_innovation_variance():
@@ -114,9 +115,9 @@ def test_pure_ar1_recovers_innovation_variance():
     # 5 Whittle SEs (~0.03 for the AR1 variance) at an interior point near the truth
     se = whittle_se({"WN[1].sigma2": 0.05, "RW[1].gamma2": 1e-5, "AR1[1].phi": phi,
                      "AR1[1].sigma2": s2ar}, n)
-    assert abs(res.params["AR1[1].sigma2"] - s2ar) < 5 * se["AR1[1].sigma2"]
-    assert abs(res.params["AR1[1].phi"] - phi) < 5 * se["AR1[1].phi"]
-    assert res.params["RW[1].gamma2"] < 1e-3
+    assert abs(res.as_dict()["AR1[1].sigma2"] - s2ar) < 5 * se["AR1[1].sigma2"]
+    assert abs(res.as_dict()["AR1[1].phi"] - phi) < 5 * se["AR1[1].phi"]
+    assert res.as_dict()["RW[1].gamma2"] < 1e-3
 
 
 def test_matches_statsmodels_own_fit():
@@ -134,15 +135,15 @@ def test_matches_statsmodels_own_fit():
     res = fit_mle(x, BETA, TRUTH, n_starts=2)
     assert res.converged, res.message
     assert res.loglike >= sm.llf - 1e-3
-    assert res.params["AR1[1].phi"] == pytest.approx(sm.params[3], abs=1e-3)
-    assert res.params["WN[1].sigma2"] == pytest.approx(sm.params[0], rel=1e-2)
-    assert res.params["SIN[1].alpha"] == pytest.approx(np.hypot(*sm.params[4:]), rel=1e-2)
+    assert res.as_dict()["AR1[1].phi"] == pytest.approx(sm.params[3], abs=1e-3)
+    assert res.as_dict()["WN[1].sigma2"] == pytest.approx(sm.params[0], rel=1e-2)
+    assert res.as_dict()["SIN[1].alpha"] == pytest.approx(np.hypot(*sm.params[4:]), rel=1e-2)
 
 
 def test_pure_function_of_inputs():
     x = simulate(2000, np.random.default_rng(5))
     a, b = fit_mle(x, BETA, TRUTH), fit_mle(x.copy(), BETA, TRUTH)
-    assert a.params == b.params and a.loglike == b.loglike and a.start == b.start
+    assert np.array_equal(a.params, b.params) and a.loglike == b.loglike and a.start == b.start
 
 
 def test_white_noise_only_is_not_converged():
@@ -229,7 +230,7 @@ def test_backends_reach_the_same_optimum():
     assert kf.loglike == pytest.approx(sm.loglike, abs=1e-3)
     for k in PARAM_KEYS:
         # optimiser tolerance ~1e-3 SE; 0.05 SE is far above it (Whittle SEs at n = 5000)
-        assert abs(kf.params[k] - sm.params[k]) < 0.05 * whittle_se(TRUTH, n)[k], k
+        assert abs(kf.as_dict()[k] - sm.as_dict()[k]) < 0.05 * whittle_se(TRUTH, n)[k], k
 
 
 def test_default_start_can_stop_at_a_wrong_optimum():
@@ -240,7 +241,7 @@ def test_default_start_can_stop_at_a_wrong_optimum():
     cold = fit_mle(x, BETA, n_starts=1, own_starts="default")
     moment = fit_mle(x, BETA, n_starts=1)
     assert cold.start == "default" and moment.start == "variogram"
-    assert abs(cold.params["AR1[1].phi"]) < 0.2 and moment.params["AR1[1].phi"] > 0.9
+    assert abs(cold.as_dict()["AR1[1].phi"]) < 0.2 and moment.as_dict()["AR1[1].phi"] > 0.9
     assert cold.loglike < moment.loglike - 5.0
 
 
@@ -265,3 +266,25 @@ def test_three_column_filter_is_bit_identical_to_the_general_one():
         S3, lf3 = _kf_cross(np.ascontiguousarray(Y3), 1.0, g2, s2ar, phi)
         S4, lf4 = _kf_cross(Y4, 1.0, g2, s2ar, phi)
         assert np.array_equal(S3, S4[:3, :3]) and lf3 == lf4
+
+
+def test_result_protocol():
+    """params / param_names / se / conf_int / summary / to_json_dict; immutable, read-only."""
+    import dataclasses
+    import json
+
+    res = fit_mle(simulate(2000, np.random.default_rng(5)), BETA, TRUTH, n_starts=1)
+    assert res.param_names == [*PARAM_KEYS, "SIN[1].alpha"]
+    assert res.params.shape == (5,) and res.se.shape == (5,) and np.all(np.isnan(res.se))
+    assert res.conf_int().shape == (5, 2) and np.all(np.isnan(res.conf_int(alpha=0.1)))
+    with pytest.raises(InputError, match="alpha"):
+        res.conf_int(1.5)
+    assert res.as_dict() == dict(zip(res.param_names, res.params.tolist(), strict=True))
+    assert "AR1[1].phi" in res.summary() and res.message in str(res)
+    d = res.to_json_dict()
+    assert json.loads(json.dumps(d, allow_nan=False)) == d
+    assert d["se"] == dict.fromkeys(res.param_names) and d["params"] == res.as_dict()
+    with pytest.raises(ValueError, match="read-only"):
+        res.params[0] = 0.0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        res.loglike = 0.0

@@ -1,6 +1,7 @@
-"""gmwm.plots: every figure draws on small inputs and shows what it claims.
+"""gmwm.plots and the studies' figures (gmwm_studies.figures): every figure draws on small inputs
+and shows what it claims.
 
-The module builds Figures without pyplot, so no backend needs selecting (saving uses Agg)."""
+The modules build Figures without pyplot, so no backend needs selecting (saving uses Agg)."""
 
 from __future__ import annotations
 
@@ -9,21 +10,24 @@ import pytest
 from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.figure import Figure
 
-from gmwm.io import save_figure
+from gmwm.atomic import save_figure
 from gmwm.model import Model
 from gmwm.plots import (
-    boxplot_grouped,
-    boxplot_standardized,
     plot_av,
     plot_model_wv,
-    plot_rmse_curves,
-    plot_runtime,
+    plot_virtual_wv,
     plot_wv,
-    plot_wv_replicates,
     subplots,
     variance_label,
 )
 from gmwm.wv import avar, wvar
+from gmwm_studies.figures import (
+    boxplot_grouped,
+    boxplot_standardized,
+    plot_rmse_curves,
+    plot_runtime,
+    plot_wv_replicates,
+)
 
 SIM1 = {"WN[1].sigma2": 1.0, "RW[1].gamma2": 4e-4, "AR1[1].phi": 0.975, "AR1[1].sigma2": 0.03,
         "SIN[1].alpha": 0.85, "SIN[1].beta": 0.35}
@@ -115,6 +119,19 @@ def test_plot_model_wv_total_equals_sum_of_components(sim1):
     comps = np.nansum([ln.get_ydata() for ln in _component_lines(ax)], axis=0)
     np.testing.assert_allclose(total, comps, rtol=1e-12)
 
+
+def test_plot_virtual_wv_draws_every_signal_and_the_virtual_band():
+    from gmwm.virtual import equal
+
+    X = np.random.default_rng(4).standard_normal((2048, 3))
+    res = equal(X, freq=10.0, names=["a", "b", "c"])
+    ax = plot_virtual_wv(res, units="deg/s")
+    labels = [ln.get_label() for ln in ax.get_lines()]
+    assert labels == ["a", "b", "c", "virtual (equal)"]
+    np.testing.assert_allclose(ax.get_lines()[3].get_ydata(), res.wv().variance)
+    np.testing.assert_allclose(ax.get_lines()[0].get_xdata(), res.wccv.scales / 10.0)
+    assert len([c for c in ax.collections if isinstance(c, PolyCollection)]) == 1
+    assert ax.get_xlabel() == "Scale τ [s]"
 
 def test_plot_wv_replicates(sim1):
     model, theta, _ = sim1

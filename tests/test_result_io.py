@@ -1,4 +1,4 @@
-"""Lossless GMWMResult files (gmwm.io.result_to_dict / result_from_dict / write_result /
+"""Lossless GMWMResult files (gmwm.codec.result_to_dict / result_from_dict / write_result /
 read_result): what the pipeline passes between rules instead of a pickle."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import pytest
 
 import gmwm
 from gmwm import bootstrap as bs
+from gmwm.codec import read_result, result_from_dict, result_to_dict, write_result
 from gmwm.errors import InputError
-from gmwm.io import read_result, result_from_dict, result_to_dict, write_result
 from gmwm.model import Model
 from gmwm.wv import wvar
 

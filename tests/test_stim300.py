@@ -10,10 +10,10 @@ import yaml
 
 from gmwm.errors import InputError
 from gmwm.model import Model
-from gmwm.units import stim300_truth
 from gmwm.wv import WaveletVariance
 from gmwm_studies import stim300 as ac
 from gmwm_studies.montecarlo import simulate_wv_chunk
+from gmwm_studies.sensors import stim300_truth
 
 REPO = Path(__file__).resolve().parents[1]
 FREQ = 250.0

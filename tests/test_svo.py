@@ -12,7 +12,6 @@ from gmwm.virtual import (
     PAPER_OMEGA_SHORT,
     _mbb_kernel,
     _mbb_time_kernel,
-    _unpack,
     equal,
     mbb_svo_draws,
     mbb_wccv,
@@ -21,8 +20,8 @@ from gmwm.virtual import (
     svo_coef,
     svo_jacobian,
     svo_weights,
-    wccv,
 )
+from gmwm.wccv import _unpack, wccv
 from gmwm_studies.svo_study import case, true_coefs
 
 
@@ -92,7 +91,8 @@ def test_wccv_unbiased_and_ci_coverage_against_theory():
         X = rng.standard_normal((T, 3)) * np.sqrt(np.diag(R))
         X += np.cumsum(rng.standard_normal((T, 3)) @ LQ.T, axis=0)
         W = wccv(X, J)
-        lo, hi = W.conf_int()
+        ci = W.conf_int()
+        lo, hi = ci[..., 0], ci[..., 1]
         est.append(W.cov)
         hit.append((lo <= A) & (A <= hi))
     est = np.array(est)
@@ -296,7 +296,7 @@ def test_result_api():
     assert wv.freq == 10.0 and wv.n_levels == res.wccv.n_levels
     s = res.summary()
     assert "a" in s and "95% CI" in s and "WV ratio" in s
-    json.dumps(res.to_dict())
+    json.dumps(res.to_json_dict(), allow_nan=False)
     again = gmwm.svo(X, weights="short", n_boot=50, names=["a", "b", "c"], freq=10.0)
     np.testing.assert_array_equal(again.cov, res.cov)   # seeded
     no_ci = svo(res.wccv, "short")
@@ -304,6 +304,49 @@ def test_result_api():
     assert np.all(np.isnan(no_ci.se))
     eq = equal(X)
     np.testing.assert_allclose(eq.coef, 1 / 3)
+
+
+def _check_protocol(res, n_params: int) -> None:
+    """The library's result protocol: params / param_names / se / conf_int / summary /
+    to_json_dict, immutable with read-only arrays."""
+    import dataclasses
+
+    params, se = res.params, res.se
+    assert params.shape == (n_params,) and se.shape == (n_params,)
+    assert isinstance(res.param_names, list) and len(res.param_names) == n_params
+    assert all(isinstance(n, str) for n in res.param_names)
+    ci = res.conf_int()
+    assert isinstance(ci, np.ndarray) and ci.shape == (n_params, 2)
+    assert res.conf_int(alpha=0.05).shape == (n_params, 2)
+    assert np.array_equal(np.isnan(ci).any(axis=1), np.isnan(se))
+    assert isinstance(res.summary(), str) and res.summary()
+    d = res.to_json_dict()
+    assert json.loads(json.dumps(d, allow_nan=False)) == d
+    with pytest.raises(ValueError, match="read-only"):
+        params[0] = 1.0
+    field = dataclasses.fields(res)[0].name
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        setattr(res, field, None)
+
+
+def test_svo_result_protocol():
+    X = _array(4096, 3, np.random.default_rng(15))
+    boot = svo(X, n_boot=20, names=["a", "b", "c"])
+    _check_protocol(boot, 3)
+    assert boot.param_names == ["a", "b", "c"]
+    np.testing.assert_array_equal(boot.params, boot.coef)
+    assert np.all(np.isfinite(boot.conf_int()))
+    assert np.all(boot.conf_int(0.01)[:, 1] > boot.conf_int(0.1)[:, 1])
+    with pytest.raises(ValueError, match="read-only"):
+        boot.cov[0, 0] = 0.0
+    for res in (equal(X), rdvg(X)):             # no bootstrap: se and intervals NaN, JSON null
+        _check_protocol(res, 3)
+        assert np.all(np.isnan(res.conf_int())) and res.to_json_dict()["se"] == [None] * 3
+    with pytest.raises(ValueError, match="read-only"):
+        rdvg(X).extra["Q"][0, 0] = 0.0
+    # the WCCV's intervals end in a (low, high) axis as well
+    ci = boot.wccv.conf_int()
+    assert ci.shape == (*boot.wccv.cov.shape, 2) and np.all(ci[..., 0] < ci[..., 1])
 
 
 def test_rdvg_recovers_q_based_coefficients():

@@ -105,14 +105,14 @@ def test_bootstrap_chunks_round_trip_and_table():
 def test_summary_row_pass_and_warn():
     good = replicate_fit(MODEL, TRUTH, 2**14, 0, study="t", base_seed=2, settings=SETTINGS)
     rep = identify.check(good, n_starts=4)
-    row = identify.summary_row("good", rep)
-    assert row == identify.summary_row("good", json.loads(json.dumps(rep.to_json_dict())))
+    row = un.summary_row("good", rep)
+    assert row == un.summary_row("good", json.loads(json.dumps(rep.to_json_dict())))
     assert row["status"] == "pass" and row["reasons"] == "" and row["posterior"] == "not run"
     # two AR1 fitted to a one-AR1 signal: flagged, with reasons
     model = Model(MODEL)
     x = model.simulate(model.theta(TRUTH), 2**12, np.random.default_rng(3))
     bad = fit(x, "WN+2*AR1", n_starts=2)
-    row = identify.summary_row("bad", identify.check(bad, n_starts=4))
+    row = un.summary_row("bad", identify.check(bad, n_starts=4))
     assert row["status"] == "warn" and row["reasons"]
 
 

@@ -8,6 +8,7 @@ from scipy.integrate import quad
 
 from gmwm import units as u
 from gmwm.errors import InputError, ModelError
+from gmwm_studies import sensors as s
 
 # SPEC 4.2, "discrete (from Table I)" column (rounded to 5 significant digits there)
 EXPECTED = {
@@ -19,8 +20,8 @@ EXPECTED = {
 
 @pytest.mark.parametrize("sensor", ["gyro", "accel"])
 def test_stim300_truth_matches_spec_table(sensor):
-    truth = u.stim300_truth(sensor)
-    exp = EXPECTED[u.canonical_sensor(sensor)]
+    truth = s.stim300_truth(sensor)
+    exp = EXPECTED[s.canonical_sensor(sensor)]
     assert list(truth) == list(exp)  # canonical order QN, WN, RW, DR
     for k, v in exp.items():
         assert truth[k] == pytest.approx(v, rel=6e-5)  # 5 significant digits in SPEC
@@ -28,12 +29,12 @@ def test_stim300_truth_matches_spec_table(sensor):
 
 @pytest.mark.parametrize("sensor", ["gyroscope", "accelerometer"])
 def test_to_table_units_roundtrips_table_i(sensor):
-    truth = u.stim300_truth(sensor)
+    truth = s.stim300_truth(sensor)
     for name, value in truth.items():
         ctype = name.split("[")[0]
-        table_value, table_unit = u.STIM300_TABLE_I[sensor][ctype]
-        assert u.to_table_units(name, value, sensor, 250.0) == pytest.approx(table_value, rel=1e-12)
-        assert u.table_unit(name, sensor) == table_unit
+        table_value, table_unit = s.STIM300_TABLE_I[sensor][ctype]
+        assert s.to_table_units(name, value, sensor, 250.0) == pytest.approx(table_value, rel=1e-12)
+        assert s.table_unit(name, sensor) == table_unit
 
 
 def test_hour_conversions_and_inverses():
@@ -63,13 +64,13 @@ def test_bad_inputs_raise():
     with pytest.raises(InputError):
         u.wn_from_density(1e-3, 0.0)
     with pytest.raises(InputError):
-        u.to_table_units("WN[1].sigma2", -1.0, "gyro")
+        s.to_table_units("WN[1].sigma2", -1.0, "gyro")
     with pytest.raises(InputError):
-        u.stim300_truth("magnetometer")
+        s.stim300_truth("magnetometer")
     with pytest.raises(ModelError):
-        u.to_table_units("AR1[1].phi", 0.5, "gyro")
+        s.to_table_units("AR1[1].phi", 0.5, "gyro")
     with pytest.raises(ModelError):
-        u.to_table_units("WN[1].gamma2", 0.5, "gyro")
+        s.to_table_units("WN[1].gamma2", 0.5, "gyro")
 
 
 def _av_quadrature(b, f0, tau):
@@ -88,16 +89,16 @@ def _av_quadrature(b, f0, tau):
 def test_bias_instability_av_matches_quadrature(tau):
     b, f0 = 4.8e-5, 0.5
     ref = _av_quadrature(b, f0, tau)
-    assert u.bias_instability_av(b, f0, tau) == pytest.approx(ref, rel=1e-8)
+    assert s.bias_instability_av(b, f0, tau) == pytest.approx(ref, rel=1e-8)
 
 
 def test_bias_instability_wv_level_convention_and_limit():
     b, f0, freq = 2.0, 0.5, 250.0
     scales = 2.0 ** np.arange(1, 31)
-    wv = u.bias_instability_wv(b, f0, scales, freq)
+    wv = s.bias_instability_wv(b, f0, scales, freq)
     # WV at level j is half the AV at cluster time 2^{j-1}/f_s
-    assert wv[4] == pytest.approx(u.bias_instability_av(b, f0, 2.0 ** 4 / freq) / 2, rel=1e-14)
-    ideal = u.bias_instability_wv_ideal(b, scales)
+    assert wv[4] == pytest.approx(s.bias_instability_av(b, f0, 2.0 ** 4 / freq) / 2, rel=1e-14)
+    ideal = s.bias_instability_wv_ideal(b, scales)
     assert np.allclose(ideal, np.log(2) / np.pi * b * b)
     # large tau: bracket = ln2 - O(1/x) with x = pi f0 tau; at tau = 2^29/250 s, x ~ 3.4e6
     assert wv[-1] == pytest.approx(ideal[-1], rel=1e-5)
@@ -108,21 +109,21 @@ def test_bias_instability_wv_level_convention_and_limit():
 
 @pytest.mark.parametrize("sensor,sigma2", [("gyro", 6.85e-7), ("accel", 6.0e-5)])
 def test_navchip_datasheet(sensor, sigma2):
-    ds = u.navchip_datasheet(sensor)
+    ds = s.navchip_datasheet(sensor)
     assert ds.components["WN"]["sigma2"] == pytest.approx(sigma2, rel=3e-3)  # README rounding
     assert ds.missing["RW"] == "not given"
     scales = 2.0 ** np.arange(1, 21)
-    comp = u.datasheet_wv(ds, scales)
+    comp = s.datasheet_wv(ds, scales)
     assert set(comp) == {"WN", "BI", "total"}
     assert np.allclose(comp["total"], comp["WN"] + comp["BI"])
     assert np.allclose(comp["WN"] * scales, ds.components["WN"]["sigma2"])
-    ideal = u.datasheet_wv(ds, scales, bi_form="ideal")["BI"]
+    ideal = s.datasheet_wv(ds, scales, bi_form="ideal")["BI"]
     assert np.all(comp["BI"] <= ideal * (1 + 1e-12))
     with pytest.raises(InputError):
-        u.datasheet_wv(ds, scales, bi_form="flat")
+        s.datasheet_wv(ds, scales, bi_form="flat")
 
 
 def test_navchip_gyro_bi_in_rad_per_s():
-    ds = u.navchip_datasheet("gyroscope")
+    ds = s.navchip_datasheet("gyroscope")
     assert ds.components["BI"]["B"] == pytest.approx(10.0 / 3600 * np.pi / 180)
     assert ds.unit == "rad/s"

@@ -623,13 +623,13 @@ def format_table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
 
 
 def _print_json(obj: Any, out: TextIO) -> None:
-    from gmwm.io import to_jsonable
+    from gmwm.atomic import to_jsonable
 
     out.write(json.dumps(to_jsonable(obj), indent=2, allow_nan=False) + "\n")
 
 
 def _save_plot(ax_or_fig: Any, path: str) -> None:
-    from gmwm.io import save_figure
+    from gmwm.atomic import save_figure
 
     save_figure(getattr(ax_or_fig, "figure", ax_or_fig), path)
 
@@ -677,7 +677,7 @@ def _wv_table_rows(wv: Any):
 def _write_csv(args: argparse.Namespace, headers: Sequence[str], rows: Sequence[Sequence]) -> None:
     if not getattr(args, "output", None):
         return
-    from gmwm.io import write_text_atomic
+    from gmwm.atomic import write_text_atomic
 
     if Path(args.output).suffix.lower() != ".csv":
         raise UsageError(f"--output {args.output}: the table is written as CSV, use a .csv name")
@@ -700,7 +700,8 @@ def _warn(err: TextIO, messages: Sequence[str], prefix: str = "") -> None:
 
 
 def cmd_simulate(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    from gmwm.io import SIGNAL_SUFFIXES, write_signal
+    from gmwm.atomic import write_signal
+    from gmwm.readers.tables import SIGNAL_SUFFIXES
 
     suffix = Path(args.output).suffix.lower()
     if suffix not in SIGNAL_SUFFIXES:  # before a possibly long simulation
@@ -971,7 +972,7 @@ def _readings_text(readings: dict[str, dict], single: bool) -> str:
 def _fit_data(args: argparse.Namespace) -> tuple[dict[str, Any], bool]:
     """Per-column data (a signal, or a WaveletVariance from a table) and whether it is a table;
     sets ``args.freq_hz``."""
-    from gmwm.io import is_wv_table, read_wv_table, table_channels
+    from gmwm.readers.tables import is_wv_table, read_wv_table, table_channels
 
     p = Path(args.input)
     if not p.exists():

@@ -47,8 +47,7 @@ from .wv import WaveletVariance
 
 __all__ = ["COND_MAX", "LOADING_MIN", "RANK_RTOL", "SD_FREE_MAX", "GlobalCheck",
            "IdentifiabilityReport", "LocalCheck", "PosteriorCheck", "batch_wv", "check",
-           "corner_plot", "degeneracies", "global_check", "local_check", "posterior_check",
-           "summary_row"]
+           "corner_plot", "degeneracies", "global_check", "local_check", "posterior_check"]
 
 COND_MAX = 1e6
 RANK_RTOL = 1e-8
@@ -884,30 +883,3 @@ def check(result: GMWMResult, *, posterior: bool = False, seed: int = 0, n_start
         glob = None
     post = posterior_check(result, seed=seed, cov=cov, **posterior_kwargs) if posterior else None
     return IdentifiabilityReport(result.model.spec, loc, glob, post, time.perf_counter() - t0)
-
-
-
-def summary_row(label: str, report: IdentifiabilityReport | dict[str, Any]) -> dict[str, Any]:
-    """One row of a pass/warn table from a report or its ``to_json_dict()``: fit label, model,
-    status, local rank and condition number, distinct and near-equal optima, posterior modality,
-    longest autocorrelation time and chain length, range of posterior SD / Laplace SE, and the
-    reasons joined by '; '."""
-    d = report.to_json_dict() if isinstance(report, IdentifiabilityReport) else report
-    loc, glob, post = d["local"], d.get("global"), d.get("posterior")
-    row: dict[str, Any] = {
-        "fit": label, "model": d["model"], "status": d["status"],
-        "rank": f"{loc['rank']}/{loc['n_active']}",
-        "condition_number": np.nan if loc["condition_number"] is None else loc["condition_number"],
-        "optima": np.nan if glob is None else len(glob["optima"]),
-        "near_equal_optima": np.nan if glob is None else len(glob["alternatives"]),
-        "posterior": "not run", "tau_max": np.nan, "n_steps": np.nan,
-        "sd_ratio_min": np.nan, "sd_ratio_max": np.nan}
-    if post is not None:
-        tau = [t for t in post["tau"].values() if t is not None]
-        ratio = [r for n, r in post["sd_ratio"].items() if r is not None and post["tau"][n] is not None]
-        row.update(posterior="unimodal" if post["unimodal"] else "multimodal",
-                   tau_max=max(tau) if tau else np.nan, n_steps=post["n_steps"])
-        if ratio:
-            row.update(sd_ratio_min=min(ratio), sd_ratio_max=max(ratio))
-    row["reasons"] = "; ".join(d["reasons"])
-    return row

@@ -89,7 +89,7 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     gyroscope, m/s^2 or g an accelerometer), ``warnings`` (list of str) and ``datasheet``.
     ``timing``: lines on the recording's time base (rate source, jitter, gaps, gap policy).
     """
-    from gmwm.io import save_figure, write_text_atomic
+    from gmwm.atomic import save_figure, write_text_atomic
     from gmwm.plots import plot_wv
 
     out = Path(outdir)

@@ -1,6 +1,7 @@
 """Virtual gyroscope by Scale-wise Variance Optimisation (SVO, paper 003; SPEC section 6).
 
-(The module is ``gmwm.virtual``; its main function is exported lazily as ``gmwm.svo``.)
+(The module is ``gmwm.virtual``; its main function is exported lazily as ``gmwm.svo``. The WCCV
+is :mod:`gmwm.wccv`; the Numba kernels are :mod:`gmwm._svokernels`, loaded on first use.)
 
 ``p`` signals of one axis ``X_t`` (columns of a ``(T, p)`` array) are combined into a virtual
 signal ``S_t = c'X_t`` with ``c'1 = 1``. With ``A_j`` the Haar wavelet cross-covariance (WCCV)
@@ -27,21 +28,24 @@ weighted least squares of ``A_j[i, k]`` on the Haar WN and RW columns ``1/tau_j`
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import cache
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
-from numba import njit
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
 from scipy.stats import norm
 
+from gmwm.atomic import to_jsonable
 from gmwm.errors import InputError, ModelError
-from gmwm.wv import WaveletVariance, _as_signal, _check_alpha_freq, _layout, _n_levels, chi2_ci
+from gmwm.wccv import WaveletCrossCovariance, _as_array, _unpack, wccv
+from gmwm.wv import WaveletVariance, _n_levels
 
-__all__ = ["PAPER_OMEGA_LONG", "PAPER_OMEGA_SHORT", "SVOResult", "WaveletCrossCovariance",
-           "block_length", "mbb_svo_draws", "mbb_svo_draws_schemes", "mbb_wccv", "rdvg",
-           "svo", "svo_coef", "svo_jacobian", "svo_schemes", "svo_weights", "wccv"]
+__all__ = ["PAPER_OMEGA_LONG", "PAPER_OMEGA_SHORT", "SVOResult", "block_length", "equal",
+           "mbb_svo_draws", "mbb_svo_draws_schemes", "mbb_wccv", "rdvg", "svo", "svo_coef",
+           "svo_jacobian", "svo_schemes", "svo_weights"]
 
 #: Paper 003 App. C1 scale weights for J = 19 (printed, sums 0.998 and 1.002; renormalised on use).
 #: omega_1 ("long": random-walk scales) and omega_2 ("short": white-noise scales).
@@ -52,294 +56,19 @@ PAPER_OMEGA_SHORT = (0.118, 0.118, 0.117, 0.117, 0.116, 0.112, 0.104, 0.086, 0.0
 
 
 # --------------------------------------------------------------------------------------------------
-# numba kernels: the pyramid of gmwm.wv for p interleaved signals (rows = times, columns = signals)
+# moving-block bootstrap passes (Numba kernels in gmwm._svokernels, loaded on first use)
 
 
-@njit(cache=True, fastmath={"reassoc", "contract"})
-def _step_p(src: np.ndarray, dst: np.ndarray, lo: int, hi: int, lag: int, sums: np.ndarray,
-            row: int, dbuf: np.ndarray) -> None:
-    """One level on rows ``[lo, hi)``: ``dst[t] = (src[t] + src[t-lag]) / 2`` and add the packed
-    upper triangle of ``sum_t d_t d_t'`` (``d = src[t] - src[t-lag] = 2 W_t``) to ``sums[row]``.
+@cache
+def _kernels() -> Any:
+    from gmwm import _svokernels
 
-    The differences go to ``dbuf`` (one contiguous row per signal) first so that every pair's sum
-    is a contiguous dot product; ``reassoc`` lets LLVM split it into vector lanes (values of
-    ``dst`` are unaffected)."""
-    p = src.shape[1]
-    n = hi - lo
-    for t in range(lo, hi):
-        for i in range(p):
-            a = src[t, i]
-            b = src[t - lag, i]
-            dbuf[i, t - lo] = a - b
-            dst[t, i] = 0.5 * (a + b)
-    q = 0
-    for i in range(p):
-        di = dbuf[i]
-        for k in range(i, p):
-            dk = dbuf[k]
-            acc = 0.0
-            for t in range(n):
-                acc += di[t] * dk[t]
-            sums[row, q] += acc
-            q += 1
-
-
-@njit(cache=True)
-def _avg_p(src: np.ndarray, dst: np.ndarray, lo: int, hi: int, lag: int) -> None:
-    p = src.shape[1]
-    for t in range(lo, hi):
-        for i in range(p):
-            dst[t, i] = 0.5 * (src[t, i] + src[t - lag, i])
-
-
-@njit(cache=True)
-def _pyramid_p(a: np.ndarray, b: np.ndarray, n: int, n_levels: int, unit: int, acc_from: int,
-               sums: np.ndarray, first: int, dbuf: np.ndarray) -> int:
-    """``gmwm._wvkernels._pyramid`` for p signals: levels ``1..n_levels`` on rows ``[0, n)`` with lags in
-    multiples of ``unit`` rows; products at rows ``>= acc_from`` go to ``sums[first + j - 1]``."""
-    src, dst = a, b
-    which = 0
-    for j in range(1, n_levels + 1):
-        lag = unit << (j - 1)
-        lo = (2 * lag) - unit
-        if lo >= n:
-            break
-        acc_lo = max(lo, acc_from)
-        if acc_lo > lo:
-            _avg_p(src, dst, lo, min(acc_lo, n), lag)
-        if acc_lo < n:
-            _step_p(src, dst, acc_lo, n, lag, sums, first + j - 1, dbuf)
-        src, dst = dst, src
-        which = 1 - which
-    return which
-
-
-@njit(cache=True)
-def _wccv_sums(x: np.ndarray, n_levels: int, n_block: int, sums: np.ndarray, buf_a: np.ndarray,
-               buf_b: np.ndarray, v_l: np.ndarray, pan_a: np.ndarray, pan_b: np.ndarray,
-               dbuf: np.ndarray) -> None:
-    """Add ``sum_t (2 W_{i,j,t})(2 W_{k,j,t})`` (packed ``i <= k``) to ``sums[j-1]``: the two-phase
-    layout of ``gmwm._wvkernels.wv_sums`` (time blocks with a recomputed halo for levels ``1..L``, then
-    interleaved sub-series of ``V_L`` for the levels above), every row holding the p signals."""
-    T = x.shape[0]
-    p = x.shape[1]
-    L = n_block
-    halo = (1 << L) - 1
-    block = buf_a.shape[0] - halo
-    x0 = x[0].copy()
-    b0 = 0
-    while b0 < T:
-        b1 = min(T, b0 + block)
-        s0 = max(0, b0 - halo)
-        n = b1 - s0
-        for r in range(n):
-            for i in range(p):
-                buf_a[r, i] = x[s0 + r, i] - x0[i]
-        which = _pyramid_p(buf_a, buf_b, n, L, 1, b0 - s0, sums, 0, dbuf)
-        if n_levels > L:
-            src = buf_a if which == 0 else buf_b
-            for t in range(max(b0, halo), b1):
-                for i in range(p):
-                    v_l[t - halo, i] = src[t - s0, i]
-        b0 = b1
-    if n_levels <= L:
-        return
-    P = halo + 1
-    n_out = T - halo
-    rows = (n_out + P - 1) // P
-    width = min(pan_a.shape[0] // rows, P)
-    r0 = 0
-    while r0 < P:
-        c = min(width, P - r0)
-        last = min(max(n_out - (rows - 1) * P - r0, 0), c)
-        for k in range(rows - 1):
-            base = k * P + r0
-            for ci in range(c):
-                for i in range(p):
-                    pan_a[k * c + ci, i] = v_l[base + ci, i]
-        base = (rows - 1) * P + r0
-        for ci in range(last):
-            for i in range(p):
-                pan_a[(rows - 1) * c + ci, i] = v_l[base + ci, i]
-        _pyramid_p(pan_a, pan_b, (rows - 1) * c + last, n_levels - L, c, 0, sums, L, dbuf)
-        r0 += c
-
-
-def _wccv_raw(x: np.ndarray, J: int) -> np.ndarray:
-    """Packed sums ``(J, p(p+1)/2)`` of ``4 W_i W_k`` over the boundary-free coefficients."""
-    T, p = x.shape
-    n_block, blen, panel = _layout(T, J)
-    n_block = min(n_block, J)
-    halo = (1 << n_block) - 1
-    blen = min(T, blen)
-    buf_a = np.empty((blen + halo, p))
-    buf_b = np.empty((blen + halo, p))
-    if J > n_block:
-        n_out = T - halo
-        rows = -(-n_out // (halo + 1))
-        v_l = np.empty((n_out, p))
-        pan_a = np.empty((rows * panel, p))
-        pan_b = np.empty((rows * panel, p))
-    else:
-        v_l = pan_a = pan_b = np.empty((0, p))
-    sums = np.zeros((J, p * (p + 1) // 2))
-    dbuf = np.empty((p, max(buf_a.shape[0], pan_a.shape[0])))
-    _wccv_sums(x, J, n_block, sums, buf_a, buf_b, v_l, pan_a, pan_b, dbuf)
-    return sums
-
-
-@njit(cache=True)
-def _centred(x: np.ndarray) -> np.ndarray:
-    """Copy of ``x`` (T, p) minus its first row (keeps the Haar pyramid exact under offsets)."""
-    T, p = x.shape
-    cur = np.empty((T, p))
-    for t in range(T):
-        for i in range(p):
-            cur[t, i] = x[t, i] - x[0, i]
-    return cur
-
-
-@njit(cache=True, inline="always")
-def _haar_step(cur: np.ndarray, nxt: np.ndarray, t: int, lag: int, y: np.ndarray,
-               w: np.ndarray) -> float:
-    """One Haar step at time ``t``: wavelet coefficients into ``w``, the next level's scaling
-    coefficients into ``nxt[t]``; returns the projection ``w'y``."""
-    s = 0.0
-    for i in range(w.shape[0]):
-        a = cur[t, i]
-        b = cur[t - lag, i]
-        w[i] = 0.5 * (a - b)
-        nxt[t, i] = 0.5 * (a + b)
-        s += w[i] * y[i]
-    return s
-
-
-@njit(cache=True)
-def _mbb_pass(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
-              p_starts: np.ndarray, p_block: int, p_last: int, p_refill: np.ndarray,
-              p_out: np.ndarray, t_starts: np.ndarray, t_block: int, t_last: int,
-              t_sums: np.ndarray, t_counts: np.ndarray, cur: np.ndarray, nxt: np.ndarray,
-              cum: np.ndarray) -> None:
-    """Both MBB schemes in one pass over the Haar pyramid (a scheme with an empty output array
-    is skipped): :func:`_mbb_kernel` (``p_*``) and :func:`_mbb_time_kernel` (``t_*``) share the
-    pyramid, which is most of the work (memory bound: two ``(T, p)`` arrays per level).
-
-    The paper scheme keeps its per-level prefix sum ``cum[m]`` as a running sum and captures the
-    ``2 H`` refill rows as the pass reaches them (refill starts visited in sorted order); the time
-    scheme stores ``cum`` (``(T+1, q)``, passed in with the pyramid's two level arrays, see
-    :func:`_pass_buffers`) as its blocks start anywhere. Every floating-point
-    operation and its order are those of the separate kernels of commit af632e6
-    (``cum[m+1] = cum[m] + f_m``; a draw adds ``cum[hi] - cum[lo]`` per block in block order), so
-    the output is bit-identical to running the schemes one by one."""
-    T, p = x.shape
-    npair = p * (p + 1) // 2
-    qj = npair if full else p
-    do_p = p_out.shape[0] > 0
-    do_t = t_sums.shape[0] > 0
-    MJ = T - (1 << J) + 1
-    Hp = p_out.shape[0]
-    ncol = p_out.shape[1]
-    trimmed = np.zeros((MJ + 1 if do_p else 1, ncol))
-    rlo = np.empty((Hp, qj))
-    Ht, nbt = t_starts.shape
-    for t in range(T):
-        for i in range(p):
-            cur[t, i] = x[t, i] - x[0, i]
-    w = np.empty(p)
-    f = np.empty(qj)
-    cp = np.empty(qj)
-    rs = np.empty(Hp, dtype=np.int64)
-    for j in range(1, J + 1):
-        lag = 1 << (j - 1)
-        tau = 2 * lag
-        sh = tau - 1
-        Mj = T - tau + 1
-        Dj = Mj - MJ
-        off = (j - 1) * npair if full else 0
-        for q in range(qj):
-            cp[q] = 0.0
-            cum[0, q] = 0.0
-        refill = do_p and Dj > 0
-        if refill:
-            for h in range(Hp):
-                rs[h] = p_refill[h, j - 1]
-            ordr = np.argsort(rs)
-        else:
-            ordr = np.empty(0, dtype=np.int64)
-        ia = 0
-        ib = 0
-        for m in range(Mj + 1):
-            # cp = the paper scheme's cum[m]
-            if refill:
-                while ia < Hp and rs[ordr[ia]] == m:
-                    h = ordr[ia]
-                    for q in range(qj):
-                        rlo[h, q] = cp[q]
-                    ia += 1
-                while ib < Hp and rs[ordr[ib]] + Dj == m:
-                    h = ordr[ib]
-                    for q in range(qj):
-                        p_out[h, off + q] += cp[q] - rlo[h, q]
-                    ib += 1
-            if m == Mj:
-                break
-            s = _haar_step(cur, nxt, m + tau - 1, lag, y, w)
-            if do_p:
-                if full:
-                    q = 0
-                    for i in range(p):
-                        for k in range(i, p):
-                            f[q] = wf[j - 1] * w[i] * w[k]
-                            q += 1
-                else:
-                    for i in range(p):
-                        f[i] = wf[j - 1] * s * w[i]
-                for q in range(qj):
-                    cp[q] = cp[q] + f[q]
-                if m >= Dj:
-                    r = m - Dj + 1
-                    for q in range(qj):
-                        trimmed[r, off + q] += f[q]
-            if do_t:
-                if full:
-                    q = 0
-                    for i in range(p):
-                        for k in range(i, p):
-                            cum[m + 1, q] = cum[m, q] + w[i] * w[k]
-                            q += 1
-                else:
-                    for i in range(p):
-                        cum[m + 1, i] = cum[m, i] + s * w[i]
-        for h in range(Ht if do_t else 0):
-            cnt = 0
-            for bi in range(nbt):
-                length = t_last if bi == nbt - 1 else t_block
-                lo = max(t_starts[h, bi] - sh, 0)
-                hi = t_starts[h, bi] + length - sh
-                if hi <= lo:
-                    continue
-                cnt += hi - lo
-                for q in range(qj):
-                    t_sums[h, j - 1, q] += cum[hi, q] - cum[lo, q]
-            t_counts[h, j - 1] = cnt
-        cur, nxt = nxt, cur
-    if not do_p:
-        return
-    for r in range(1, MJ + 1):
-        for q in range(ncol):
-            trimmed[r, q] += trimmed[r - 1, q]
-    nb = p_starts.shape[1]
-    for h in range(Hp):
-        for bi in range(nb):
-            u = p_starts[h, bi]
-            length = p_last if bi == nb - 1 else p_block
-            for q in range(ncol):
-                p_out[h, q] += trimmed[u + length, q] - trimmed[u, q]
+    return _svokernels
 
 
 def _pass_buffers(T: int, p: int, q: int, time_scheme: bool) -> tuple[np.ndarray, ...]:
-    """Work arrays of :func:`_mbb_pass` (two pyramid levels, the time scheme's prefix sums),
-    allocated by NumPy, which asks Linux for transparent huge pages on large arrays (Numba's
+    """Work arrays of :func:`gmwm._svokernels.mbb_pass` (two pyramid levels, the time scheme's
+    prefix sums), allocated by NumPy, which asks Linux for transparent huge pages on large arrays (Numba's
     allocator does not): the time scheme reads its prefix sums at ~1e6 random rows per level,
     and 2 MB pages spare most of the TLB misses. Contents are irrelevant (overwritten)."""
     return (np.empty((T, p)), np.empty((T, p)), np.empty((T + 1 if time_scheme else 1, q)))
@@ -358,9 +87,9 @@ def _mbb_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray
     """
     p = x.shape[1]
     q = p * (p + 1) // 2 if full else p
-    _mbb_pass(x, J, full, y, wf, starts, block, last, refill, out,
-              np.zeros((0, 1), dtype=np.int64), 1, 1, np.zeros((0, J, q)),
-              np.zeros((0, J), dtype=np.int64), *_pass_buffers(*x.shape, q, False))
+    _kernels().mbb_pass(x, J, full, y, wf, starts, block, last, refill, out,
+                        np.zeros((0, 1), dtype=np.int64), 1, 1, np.zeros((0, J, q)),
+                        np.zeros((0, J), dtype=np.int64), *_pass_buffers(*x.shape, q, False))
 
 
 def _mbb_time_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, starts: np.ndarray,
@@ -369,157 +98,9 @@ def _mbb_time_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, starts: n
     on the common time axis ``0..T-1``; level ``j`` uses the resampled times where it has a
     coefficient (``t >= 2**j - 1``). ``sums[h, j-1]`` gets the feature sums (``w (w'y)`` or packed
     ``w_i w_k``), ``counts[h, j-1]`` the number of coefficients used."""
-    _mbb_pass(x, J, full, y, np.zeros(J), np.zeros((0, 1), dtype=np.int64), 1, 1,
-              np.zeros((0, J), dtype=np.int64), np.zeros((0, sums.shape[2])), starts, block,
-              last, sums, counts, *_pass_buffers(*x.shape, sums.shape[2], True))
-
-
-# --------------------------------------------------------------------------------------------------
-# validation helpers
-
-
-def _as_array(X: Any, name: str = "X") -> np.ndarray:
-    """``X`` as a C-contiguous float64 ``(T, p)`` array with ``p >= 2`` finite columns."""
-    arr = _as_signal(X, name, ndim=2, layout="2-D (T samples, p signals)")
-    if arr.shape[1] < 2:
-        raise InputError(f"{name} has {arr.shape[1]} signal column(s); at least 2 are needed")
-    if arr.shape[1] > arr.shape[0]:
-        raise InputError(f"{name} has shape {arr.shape}: more signals than samples "
-                         "(pass one signal per column)")
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        t, i = np.argwhere(bad)[0]
-        raise InputError(f"{name} contains {int(bad.sum())} NaN/infinite values "
-                         f"(first at sample {t}, column {i})")
-    return arr
-
-
-def _names(names: Sequence[str] | None, p: int) -> tuple[str, ...]:
-    if names is None:
-        return tuple(f"x{i + 1}" for i in range(p))
-    out = tuple(str(n) for n in names)
-    if len(out) != p:
-        raise InputError(f"names has {len(out)} entries for {p} signals")
-    return out
-
-
-def _unpack(packed: np.ndarray, p: int) -> np.ndarray:
-    """``(..., p(p+1)/2)`` packed upper triangles -> symmetric ``(..., p, p)``."""
-    iu = np.triu_indices(p)
-    out = np.zeros(packed.shape[:-1] + (p, p))
-    out[..., iu[0], iu[1]] = packed
-    out[..., iu[1], iu[0]] = packed
-    return out
-
-
-# --------------------------------------------------------------------------------------------------
-# wavelet cross-covariance
-
-
-@dataclass(frozen=True, eq=False)
-class WaveletCrossCovariance:
-    """Haar WCCV of ``p`` signals per level: ``cov[j-1]`` is the ``p x p`` matrix ``A_j`` in
-    (signal unit)**2, ``scales`` filter lengths in samples, ``n`` the ``M_j`` coefficients.
-
-    CIs: the diagonal (each signal's WV) uses the eta_3 chi-square interval of :func:`gmwm.wvar`;
-    off-diagonal entries a Gaussian interval with variance ``(A_ii A_kk + A_ik^2) / eta_j`` (the
-    analogue of ``2 nu^2 / eta_j``, conservative like eta_3)."""
-
-    levels: np.ndarray
-    scales: np.ndarray
-    cov: np.ndarray
-    n: np.ndarray
-    n_samples: int
-    names: tuple[str, ...]
-    freq: float = 1.0
-    alpha: float = 0.05
-
-    def __post_init__(self) -> None:
-        for name, dtype in (("levels", np.int64), ("scales", np.float64), ("cov", np.float64),
-                            ("n", np.int64)):
-            arr = np.array(getattr(self, name), dtype=dtype, copy=True)
-            arr.setflags(write=False)
-            object.__setattr__(self, name, arr)
-        object.__setattr__(self, "names", tuple(self.names))
-
-    @property
-    def n_levels(self) -> int:
-        return int(self.levels.size)
-
-    @property
-    def n_signals(self) -> int:
-        return int(self.cov.shape[1])
-
-    @property
-    def edof(self) -> np.ndarray:
-        """``eta_j = max(M_j / 2**j, 1)``."""
-        return np.maximum(self.n / self.scales, 1.0)
-
-    @property
-    def correlation(self) -> np.ndarray:
-        """Wavelet correlation ``A_ik / sqrt(A_ii A_kk)`` per level, ``(J, p, p)``."""
-        d = np.sqrt(np.einsum("jii->ji", self.cov))
-        return self.cov / (d[:, :, None] * d[:, None, :])
-
-    def conf_int(self, alpha: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Lower and upper CI bounds, each ``(J, p, p)``, at level ``1 - alpha``."""
-        alpha = self.alpha if alpha is None else float(alpha)
-        _check_alpha_freq(alpha, self.freq)
-        eta = self.edof[:, None, None]
-        var = np.einsum("jii->ji", self.cov)
-        sd = np.sqrt((var[:, :, None] * var[:, None, :] + self.cov**2) / eta)
-        z = norm.ppf(1.0 - alpha / 2.0)
-        low, high = self.cov - z * sd, self.cov + z * sd
-        dlow, dhigh = chi2_ci(var, np.broadcast_to(self.edof[:, None], var.shape), alpha)
-        idx = np.arange(self.n_signals)
-        low[:, idx, idx] = dlow
-        high[:, idx, idx] = dhigh
-        return low, high
-
-    def variance(self, i: int | str) -> WaveletVariance:
-        """WV of signal ``i`` (index or name), identical to :func:`gmwm.wvar` of that column."""
-        k = self.names.index(i) if isinstance(i, str) else int(i)
-        return self.combine(np.eye(self.n_signals)[k])
-
-    def combine(self, c: Any, alpha: float | None = None) -> WaveletVariance:
-        """WV of the virtual signal ``c'X``: ``nu_j = c' A_j c`` (the WV of the combined
-        coefficients, so equal to ``wvar(X @ c)`` up to rounding), eta_3 chi-square CI."""
-        c = np.asarray(c, dtype=np.float64).reshape(-1)
-        if c.size != self.n_signals or not np.all(np.isfinite(c)):
-            raise InputError(f"coefficients must be {self.n_signals} finite numbers")
-        alpha = self.alpha if alpha is None else float(alpha)
-        nu = np.einsum("i,jik,k->j", c, self.cov, c)
-        if np.any(nu <= 0):
-            raise InputError("the virtual signal has a zero wavelet variance at some level")
-        low, high = chi2_ci(nu, self.edof, alpha)
-        return WaveletVariance(self.levels, self.scales, nu, low, high, self.n, self.n_samples,
-                               self.freq, alpha)
-
-    def subset(self, levels: int) -> WaveletCrossCovariance:
-        """Keep levels ``1..levels``."""
-        if not 1 <= int(levels) <= self.n_levels:
-            raise InputError(f"subset needs 1 <= levels <= {self.n_levels}, got {levels}")
-        k = int(levels)
-        return WaveletCrossCovariance(self.levels[:k], self.scales[:k], self.cov[:k], self.n[:k],
-                                      self.n_samples, self.names, self.freq, self.alpha)
-
-
-def wccv(X: Any, levels: int | None = None, alpha: float = 0.05, freq: float = 1.0,
-         names: Sequence[str] | None = None) -> WaveletCrossCovariance:
-    """Haar wavelet cross-covariance of the columns of ``X`` ``(T, p)`` at levels ``1..J`` (default
-    ``J = floor(log2 T) - 1``) in one fused pass; each column's first sample is subtracted first
-    (the filter annihilates constants), so large offsets cost no digits. ``freq`` in Hz."""
-    arr = _as_array(X)
-    T, p = arr.shape
-    J = _n_levels(T, levels)
-    _check_alpha_freq(alpha, freq)
-    sums = _wccv_raw(arr, J)
-    if not np.all(np.isfinite(sums)):
-        raise InputError("X is too large in magnitude: products of differences overflow float64")
-    lev = np.arange(1, J + 1)
-    n = T - (1 << lev) + 1
-    cov = _unpack(0.25 * sums / n[:, None], p)
-    return WaveletCrossCovariance(lev, 2.0**lev, cov, n, T, _names(names, p), freq, alpha)
+    _kernels().mbb_pass(x, J, full, y, np.zeros(J), np.zeros((0, 1), dtype=np.int64), 1, 1,
+                        np.zeros((0, J), dtype=np.int64), np.zeros((0, sums.shape[2])), starts,
+                        block, last, sums, counts, *_pass_buffers(*x.shape, sums.shape[2], True))
 
 
 # --------------------------------------------------------------------------------------------------
@@ -673,8 +254,8 @@ def _run_mbb_schemes(arr: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.
             raise InputError(f"unknown MBB scheme {scheme!r}: use 'paper' or 'time'")
     if len({scheme for scheme, _ in runs}) != len(runs):
         raise InputError("each MBB scheme may appear once per pass")
-    _mbb_pass(arr, J, full, y, wf, *p_args, *t_args,
-              *_pass_buffers(T, p, q, t_args[3].shape[0] > 0))
+    _kernels().mbb_pass(arr, J, full, y, wf, *p_args, *t_args,
+                        *_pass_buffers(T, p, q, t_args[3].shape[0] > 0))
     outs = []
     for scheme, _ in runs:
         if scheme == "paper":
@@ -776,7 +357,10 @@ def _rdvg_q(cov: np.ndarray, scales: np.ndarray, edof: np.ndarray) -> tuple[np.n
 class SVOResult:
     """A virtual gyroscope ``S = c'X``. ``coef`` sums to 1; ``cov`` = estimated ``Cov(c_hat)``
     (``Sigma / T``; None without bootstrap), ``weights`` the renormalised scale weights (None for
-    RDVG/equal), ``wccv`` the data's WCCV. ``method``: ``"svo"``, ``"rdvg"`` or ``"equal"``."""
+    RDVG/equal), ``wccv`` the data's WCCV. ``method``: ``"svo"``, ``"rdvg"`` or ``"equal"``.
+
+    Result protocol of the library: ``params`` (= ``coef``), ``param_names`` (the signal names),
+    ``se``, ``conf_int``, ``summary``, ``to_json_dict``; immutable (arrays read-only)."""
 
     coef: np.ndarray
     cov: np.ndarray | None
@@ -786,11 +370,31 @@ class SVOResult:
     n_boot: int = 0
     block: int = 0
     alpha: float = 0.05
-    extra: dict[str, Any] | None = None
+    extra: Mapping[str, Any] | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("coef", "cov", "weights"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, _read_only(getattr(self, name)))
+        if self.extra is not None:
+            object.__setattr__(self, "extra", MappingProxyType(
+                {k: _read_only(v) if isinstance(v, np.ndarray) else v
+                 for k, v in self.extra.items()}))
 
     @property
     def names(self) -> tuple[str, ...]:
         return self.wccv.names
+
+    @property
+    def params(self) -> np.ndarray:
+        """The coefficients ``c`` (``(p,)``, read-only), as every result of the library calls
+        its estimates."""
+        return self.coef
+
+    @property
+    def param_names(self) -> list[str]:
+        """Names of the combined signals, in the order of ``params``."""
+        return list(self.names)
 
     @property
     def se(self) -> np.ndarray:
@@ -800,7 +404,9 @@ class SVOResult:
         return np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
 
     def conf_int(self, alpha: float | None = None) -> np.ndarray:
-        """Wald intervals ``c_i -/+ z_{1-alpha/2} se_i`` (SPEC 6.1 eq. 9), shape ``(p, 2)``."""
+        """Wald intervals ``c_i -/+ z_{1-alpha/2} se_i`` (SPEC 6.1 eq. 9), shape ``(p, 2)``; NaN
+        without bootstrap. ``alpha`` None: the level the result was made with (``self.alpha``,
+        0.05 unless chosen)."""
         alpha = self.alpha if alpha is None else float(alpha)
         if not 0.0 < alpha < 1.0:
             raise InputError(f"alpha must be in (0, 1), got {alpha}")
@@ -849,22 +455,31 @@ class SVOResult:
     def __str__(self) -> str:
         return self.summary()
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-able dict."""
-        return {
+    def to_json_dict(self) -> dict[str, Any]:
+        """Strict-JSON-able dict (non-finite numbers as None)."""
+        return to_jsonable({
             "method": self.method,
             "names": list(self.names),
-            "coef": self.coef.tolist(),
-            "se": [None if not np.isfinite(v) else float(v) for v in self.se],
-            "cov": None if self.cov is None else self.cov.tolist(),
-            "weights": None if self.weights is None else self.weights.tolist(),
+            "coef": self.coef,
+            "se": self.se,
+            "cov": self.cov,
+            "weights": self.weights,
             "n_boot": self.n_boot,
             "block": self.block,
             "alpha": self.alpha,
             "n_samples": self.wccv.n_samples,
             "levels": self.wccv.n_levels,
             "freq": self.wccv.freq,
-        }
+        })
+
+    # temporary: cli.py is being rewritten (it still calls to_dict)
+    to_dict = to_json_dict
+
+
+def _read_only(a: Any) -> np.ndarray:
+    out = np.array(a, dtype=np.float64, copy=True)
+    out.setflags(write=False)
+    return out
 
 
 def _wccv_of(X: Any, levels: int | None, alpha: float, freq: float,
@@ -961,43 +576,13 @@ def equal(X: Any, *, levels: int | None = None, alpha: float = 0.05, freq: float
     return SVOResult(np.full(p, 1.0 / p), None, None, W, "equal", 0, 0, alpha)
 
 
-def read_weights(path: Any) -> np.ndarray:
-    """Scale weights from a text file: numbers separated by commas, spaces or newlines, one per
-    level from j = 1; ``#`` starts a comment."""
-    from pathlib import Path
-
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"weights file {p} not found")
-    tokens = []
-    for line in p.read_text(encoding="utf-8", errors="replace").splitlines():
-        tokens += line.split("#", 1)[0].replace(",", " ").split()
-    try:
-        values = np.array([float(t) for t in tokens])
-    except ValueError as exc:
-        raise InputError(f"weights file {p}: {exc}") from None
-    if values.size == 0:
-        raise InputError(f"weights file {p} holds no numbers")
-    return values
+# temporary: cli.py is being rewritten (it imports these two from here)
+_MOVED = {"read_weights": "gmwm.readers.tables", "plot_virtual_wv": "gmwm.plots"}
 
 
-def plot_virtual_wv(result: SVOResult, ax: Any = None, units: str = "") -> Any:
-    """WV of every input signal (thin lines) and of the virtual signal (thick, with its CI band)
-    against the scale in seconds (``freq`` of the WCCV); returns the Axes."""
-    from gmwm.plots import PALETTE, new_axes, style, variance_label
+def __getattr__(name: str) -> Any:
+    if name in _MOVED:
+        from importlib import import_module
 
-    W = result.wccv
-    ax = new_axes(ax)
-    x = W.scales / W.freq
-    with style():
-        for k, name in enumerate(W.names):
-            ax.loglog(x, np.einsum("jii->ji", W.cov)[:, k], lw=0.9, alpha=0.8,
-                      color=PALETTE[(k % (len(PALETTE) - 2)) + 2], label=name)
-        wv = result.wv()
-        ax.fill_between(x, wv.ci_low, wv.ci_high, color=PALETTE[0], alpha=0.2, lw=0)
-        ax.loglog(x, wv.variance, lw=2.2, color=PALETTE[0], marker="o", ms=3,
-                  label=f"virtual ({result.method})")
-        ax.set_xlabel("Scale τ [samples]" if W.freq == 1.0 else "Scale τ [s]")
-        ax.set_ylabel(variance_label("Wavelet variance", units))
-        ax.legend(fontsize="small", ncol=2)
-    return ax
+        return getattr(import_module(_MOVED[name]), name)
+    raise AttributeError(f"module 'gmwm.virtual' has no attribute {name!r}")

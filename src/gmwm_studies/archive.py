@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from gmwm.io import write_json_atomic, write_text_atomic
+from gmwm.atomic import write_json_atomic, write_text_atomic
 from gmwm_studies.montecarlo import format_markdown_table
 
 __all__ = ["config_hash", "git_commit", "make_archive", "package_versions", "read_benchmarks",

@@ -32,8 +32,8 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from gmwm.atomic import atomic_path
 from gmwm.errors import DataUnavailableError, InputError
-from gmwm.io import atomic_path
 
 Fetch = Callable[[str], bytes]
 
@@ -288,7 +288,7 @@ def _sidecar(path: Path) -> dict[str, Any]:
 
 def _channel_rows(path: str | os.PathLike, sensor: str, axis: str,
                   columns: list[str]) -> tuple[pd.DataFrame, dict[str, Any]]:
-    from gmwm.units import canonical_sensor
+    from gmwm_studies.sensors import canonical_sensor
 
     path = Path(path)
     if not path.is_file():

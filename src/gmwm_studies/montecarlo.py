@@ -22,8 +22,8 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
+from gmwm.atomic import write_text_atomic
 from gmwm.errors import GMWMError, InputError, ModelError
-from gmwm.io import write_text_atomic
 from gmwm_studies.seeds import replicate_rng, replicate_seed
 from gmwm_studies.store import WVChunk
 

@@ -9,7 +9,7 @@ rad/s, accelerometer in m/s^2, 250 Hz, T = 3,105,250), obtained by :func:`gmwm_s
 * Standard errors: those of :func:`gmwm.fit` (sandwich of SPEC 5.5 with the model covariance of
   the WV estimate, :mod:`gmwm.inference`); the bootstrap CIs are a separate step reading the fits
   file written here. Components at the boundary 0 get no SE.
-* Datasheet model: WN + bias instability (:func:`gmwm.units.navchip_datasheet`), BI drawn as
+* Datasheet model: WN + bias instability (:func:`gmwm_studies.sensors.navchip_datasheet`), BI drawn as
   band-limited flicker; the datasheet gives no RW, QN or DR.
 * Goodness of fit: share of scales where a model WV lies inside the empirical WV's CI.
 """
@@ -27,6 +27,7 @@ import pandas as pd
 
 from gmwm import units
 from gmwm.errors import InputError
+from gmwm_studies import sensors
 
 __all__ = [
     "AXES",
@@ -121,12 +122,12 @@ def _boundary(result: Any) -> np.ndarray:
 
 def datasheet_wv(sensor: str, scales: np.ndarray, freq: float) -> dict[str, np.ndarray]:
     """Datasheet model WV (keys WN, BI, total) at ``scales`` [samples]; BI band-limited flicker."""
-    return units.datasheet_wv(units.navchip_datasheet(sensor, freq), scales, bi_form="band-limited")
+    return sensors.datasheet_wv(sensors.navchip_datasheet(sensor, freq), scales, bi_form="band-limited")
 
 
 def datasheet_label(sensor: str, freq: float = 250.0) -> str:
     """How the datasheet model is drawn, for legends and captions."""
-    ds = units.navchip_datasheet(sensor, freq)
+    ds = sensors.navchip_datasheet(sensor, freq)
     bi = ds.components["BI"]
     return (f"Datasheet: WN {ds.datasheet['WN']} + BI {ds.datasheet['BI']} "
             f"(band-limited flicker, f0 = {bi['f0']:g} Hz); RW not given")
@@ -141,7 +142,7 @@ def fit_channel(wv: Any, model: str, sensor: str, axis: str,
     res = fit(wv, model, freq=wv.freq, **settings)
     boundary = _boundary(res)
     sheet = datasheet_wv(sensor, wv.scales, wv.freq)["total"]
-    return ChannelFit(sensor=units.canonical_sensor(sensor), axis=str(axis).upper(), wv=res.wv,
+    return ChannelFit(sensor=sensors.canonical_sensor(sensor), axis=str(axis).upper(), wv=res.wv,
                       model=res.model, params=np.asarray(res.params, float),
                       se=np.asarray(res.se, float), se_library=np.asarray(res.se, float),
                       boundary=boundary, inside=inside_ci(wv, res.model_wv()),
@@ -269,7 +270,7 @@ def gof_table(fits: Sequence[ChannelFit], threshold: float) -> pd.DataFrame:
     verdict ``model_fits`` (share >= threshold), the white-noise density against the datasheet."""
     rows = []
     for cf in fits:
-        sheet = units.navchip_datasheet(cf.sensor, cf.wv.freq)
+        sheet = sensors.navchip_datasheet(cf.sensor, cf.wv.freq)
         n_est = float(units.wn_density_from_sigma2(cf.as_dict()["WN[1].sigma2"], cf.wv.freq))
         n_sheet = float(sheet.components["WN"]["density"])
         outside = [int(j) for j, ok in zip(cf.wv.levels, cf.inside, strict=True) if not ok]
@@ -350,7 +351,7 @@ def write_tables(estimates: pd.DataFrame, gof: pd.DataFrame, threshold: float, m
                  estimates_csv: str | os.PathLike, estimates_md: str | os.PathLike,
                  gof_csv: str | os.PathLike, gof_md: str | os.PathLike) -> None:
     """Write the estimates and goodness-of-fit tables as CSV and Markdown (atomically)."""
-    from gmwm.io import write_text_atomic
+    from gmwm.atomic import write_text_atomic
     from gmwm_studies.montecarlo import format_markdown_table
 
     write_text_atomic(estimates_csv, estimates.to_csv(index=False))

@@ -3,7 +3,7 @@
 Per replicate one WN + RW + AR1 + SIN signal is simulated from
 :func:`seeds.replicate_rng` ``(study, T, r, seed)`` (so results do not depend on chunking), the
 GMWM is fitted to the signal (timed as one call, WV computation included) and, for the first
-``n_mle`` replicates of each sample size, the MLE of :func:`gmwm.mle.fit_mle` (sinusoid frequency
+``n_mle`` replicates of each sample size, the MLE of :func:`gmwm_studies.mle.fit_mle` (sinusoid frequency
 known) once per configured *variant*, i.e. per starting rule:
 
 * ``moment``: the MLE's own data-driven start (NNLS fit of the model to the empirical variogram
@@ -122,7 +122,7 @@ def _check_model(model: Any, truth: Mapping[str, float]) -> float:
 
 def _fit_variant(x: np.ndarray, beta: float, rule: str, gmwm_start: dict[str, float] | None,
                  settings: Mapping[str, Any], names: Sequence[str]) -> dict[str, Any]:
-    from gmwm.mle import fit_mle
+    from gmwm_studies.mle import fit_mle
 
     out: dict[str, Any] = {"estimate": np.full(len(names), np.nan), "converged": False,
                            "start": "", "loglike": np.nan}
@@ -133,7 +133,7 @@ def _fit_variant(x: np.ndarray, beta: float, rule: str, gmwm_start: dict[str, fl
     t0 = time.perf_counter()
     try:
         res = fit_mle(x, beta, gmwm_start if rule == "gmwm" else None, **kw)
-        out.update(estimate=np.array([res.params.get(n, np.nan) for n in names]),
+        out.update(estimate=np.array([res.as_dict().get(n, np.nan) for n in names]),
                    converged=bool(res.converged), start=res.start, loglike=float(res.loglike),
                    message=res.message)
     except _FAILURES as exc:
@@ -194,9 +194,9 @@ def run_replicate(
 
 def _warm_up(model_spec: str, backend: str) -> None:
     """Compile the WV and filter kernels and load the libraries before timing anything."""
-    from gmwm.mle import fit_mle
     from gmwm.model import Model
     from gmwm.wv import wvar
+    from gmwm_studies.mle import fit_mle
 
     rng = np.random.default_rng(0)
     wvar(rng.normal(size=1024))

@@ -28,8 +28,8 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from gmwm import units
 from gmwm.errors import InputError
+from gmwm_studies import sensors as units  # Table I and its units (formerly in gmwm.units)
 from gmwm_studies.montecarlo import check_truth, gather, summarize
 from gmwm_studies.store import WVChunk
 
@@ -147,7 +147,7 @@ def fit_chunk_all(chunk: WVChunk, estimators: Mapping[str, Mapping[str, Any]], f
 
 def write_estimates(path: str | os.PathLike, datasets: Mapping[str, xr.Dataset]) -> None:
     """Write several estimators' Datasets to one NetCDF-4 file, one group per estimator (atomic)."""
-    from gmwm.io import atomic_path
+    from gmwm.atomic import atomic_path
 
     if not datasets:
         raise InputError("no estimates to write")
@@ -266,7 +266,8 @@ def figure_boxplots(groups: Mapping[tuple[str, int], xr.Dataset], sensor: str, f
     """Figure 1 of paper 004: per parameter one panel, boxes of the estimates (Table I units) per
     sample size and estimator (converged fits), the true value as a dashed line. A panel whose
     values span more than a factor 20 (none below truth / 1000) uses a log axis."""
-    from gmwm.plots import PALETTE, boxplot_grouped, subplots
+    from gmwm.plots import PALETTE, subplots
+    from gmwm_studies.figures import boxplot_grouped
 
     conv = {key: to_table_units(ds, sensor, freq) for key, ds in groups.items()}
     estimators = list(dict.fromkeys(e for e, _ in conv))
@@ -327,7 +328,7 @@ def figure_rmse(table: pd.DataFrame, title: str = "") -> Any:
     per estimator (log-log)."""
     from matplotlib.ticker import NullFormatter
 
-    from gmwm.plots import plot_rmse_curves
+    from gmwm_studies.figures import plot_rmse_curves
 
     lengths = sorted(table["n_samples"].unique())
     rmse: dict[str, dict[str, np.ndarray]] = {}

@@ -1,7 +1,7 @@
 """On-disk cache of Monte Carlo wavelet variances (HDF5) and of estimates (NetCDF/HDF5).
 
 Only wavelet variances are cached, never raw signals: at T = 1e7 a signal is 80 MB while its WV
-is 22 numbers. Every write goes through :func:`gmwm.io.atomic_path` (temporary file in the target's
+is 22 numbers. Every write goes through :func:`gmwm.atomic.atomic_path` (temporary file in the target's
 directory, then ``os.replace``, atomic on POSIX), so a killed job never leaves a file that a later
 run would take for complete.
 """
@@ -17,8 +17,8 @@ import h5py
 import numpy as np
 import xarray as xr
 
+from gmwm.atomic import atomic_path
 from gmwm.errors import InputError
-from gmwm.io import atomic_path
 
 __all__ = [
     "WVChunk",

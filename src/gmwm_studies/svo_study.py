@@ -31,15 +31,14 @@ from gmwm.processes import ar1_unit_wv
 from gmwm.virtual import (
     PAPER_OMEGA_LONG,
     PAPER_OMEGA_SHORT,
-    WaveletCrossCovariance,
     equal,
     rdvg,
     svo,
     svo_coef,
     svo_schemes,
     svo_weights,
-    wccv,
 )
+from gmwm.wccv import WaveletCrossCovariance, wccv
 
 METHODS = ("svo_w1", "svo_w2", "rdvg", "equal")
 METHOD_LABELS = {"svo_w1": "SVO $\\omega_1$", "svo_w2": "SVO $\\omega_2$", "rdvg": "RDVG",
@@ -373,7 +372,8 @@ def _colors() -> dict[str, str]:
 def figure_wv(res: Mapping[str, np.ndarray], freq: float, case_name: str) -> Any:
     """Paper Fig. 2/7: lower = mean WV of the virtual signals with CI band and one test array's
     gyros; upper = ratio of the mean WV to the equal-weights one."""
-    from gmwm.plots import REPLICATE_COLOR, subplots
+    from gmwm.plots import subplots
+    from gmwm_studies.figures import REPLICATE_COLOR
 
     rows = wv_table(res, freq)
     J = res["wv"].shape[-1]

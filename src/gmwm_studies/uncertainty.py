@@ -5,7 +5,8 @@ Built on the core method :mod:`gmwm.bootstrap`; the Snakemake rules of
 ``navchip_result`` (the Navchip fit of one axis, from the navchip rule's fits file),
 ``bootstrap_to_dataset`` / ``bootstrap_from_dataset`` (chunks on disk), ``bootstrap_table``
 (Table-1 rows: estimate, percentile and basic CIs, bootstrap and sandwich SEs),
-``coverage_chunk`` / ``coverage_summary`` / ``plot_coverage`` (coverage study). The fit of one
+``coverage_chunk`` / ``coverage_summary`` / ``plot_coverage`` (coverage study), ``summary_row``
+(one row of the identifiability table of the fits). The fit of one
 Monte Carlo replicate is :func:`montecarlo.replicate_fit`, the studies' own.
 """
 
@@ -20,11 +21,12 @@ import numpy as np
 from gmwm.bootstrap import BootstrapResult, coverage, parametric_bootstrap
 from gmwm.errors import GMWMError, InputError
 from gmwm.estimator import GMWMResult, fit
+from gmwm.identify import IdentifiabilityReport
 from gmwm.model import Model
 from gmwm_studies.montecarlo import fit_kwargs, replicate_fit
 
 __all__ = ["CI_KINDS", "bootstrap_from_dataset", "bootstrap_table", "bootstrap_to_dataset",
-           "coverage_chunk", "coverage_summary", "navchip_result", "plot_coverage"]
+           "coverage_chunk", "coverage_summary", "navchip_result", "plot_coverage", "summary_row"]
 
 CI_KINDS = ("percentile", "basic", "wald")
 
@@ -256,3 +258,29 @@ def plot_coverage(summary, level: float = 0.95, ax=None):
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     fig.tight_layout()
     return fig
+
+
+def summary_row(label: str, report: IdentifiabilityReport | dict[str, Any]) -> dict[str, Any]:
+    """One row of a pass/warn table from a report or its ``to_json_dict()``: fit label, model,
+    status, local rank and condition number, distinct and near-equal optima, posterior modality,
+    longest autocorrelation time and chain length, range of posterior SD / Laplace SE, and the
+    reasons joined by '; '."""
+    d = report.to_json_dict() if isinstance(report, IdentifiabilityReport) else report
+    loc, glob, post = d["local"], d.get("global"), d.get("posterior")
+    row: dict[str, Any] = {
+        "fit": label, "model": d["model"], "status": d["status"],
+        "rank": f"{loc['rank']}/{loc['n_active']}",
+        "condition_number": np.nan if loc["condition_number"] is None else loc["condition_number"],
+        "optima": np.nan if glob is None else len(glob["optima"]),
+        "near_equal_optima": np.nan if glob is None else len(glob["alternatives"]),
+        "posterior": "not run", "tau_max": np.nan, "n_steps": np.nan,
+        "sd_ratio_min": np.nan, "sd_ratio_max": np.nan}
+    if post is not None:
+        tau = [t for t in post["tau"].values() if t is not None]
+        ratio = [r for n, r in post["sd_ratio"].items() if r is not None and post["tau"][n] is not None]
+        row.update(posterior="unimodal" if post["unimodal"] else "multimodal",
+                   tau_max=max(tau) if tau else np.nan, n_steps=post["n_steps"])
+        if ratio:
+            row.update(sd_ratio_min=min(ratio), sd_ratio_max=max(ratio))
+    row["reasons"] = "; ".join(d["reasons"])
+    return row

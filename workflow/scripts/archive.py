@@ -3,7 +3,7 @@ reports/archive/<timestamp>-<config hash>/ directory (never overwriting an earli
 
 from wflog import get_logger
 
-from gmwm.io import write_json_atomic
+from gmwm.atomic import write_json_atomic
 from gmwm_studies.archive import config_hash, make_archive, read_benchmarks
 
 snakemake = globals()["snakemake"]  # injected by Snakemake

@@ -5,8 +5,9 @@ from pathlib import Path
 
 from wflog import get_logger
 
-from gmwm.io import save_figure
-from gmwm.plots import boxplot_standardized, subplots
+from gmwm.atomic import save_figure
+from gmwm.plots import subplots
+from gmwm_studies.figures import boxplot_standardized
 from gmwm_studies.montecarlo import standardized_errors
 from gmwm_studies.store import read_dataset
 

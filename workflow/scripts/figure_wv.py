@@ -8,9 +8,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 from wflog import get_logger
 
-from gmwm.io import save_figure
+from gmwm.atomic import save_figure
 from gmwm.model import Model
-from gmwm.plots import plot_wv_replicates
+from gmwm_studies.figures import plot_wv_replicates
 from gmwm_studies.store import read_wv_chunks
 
 snakemake = globals()["snakemake"]  # injected by Snakemake

@@ -5,7 +5,7 @@ from pathlib import Path
 import pandas as pd
 from wflog import get_logger
 
-from gmwm.io import write_text_atomic
+from gmwm.atomic import write_text_atomic
 from gmwm_studies.archive import archived_summary, read_benchmarks, render_index, run_summary
 
 KEY_COLUMNS = ["method",  # STIM-300: GMWM / ARMAV / AVSM rows of one table

@@ -7,7 +7,7 @@ import matplotlib
 matplotlib.use("Agg")
 from wflog import get_logger
 
-from gmwm.io import save_figure
+from gmwm.atomic import save_figure
 from gmwm_studies.misspec import BASIC_PARAMS, misspec_table, plot_fig6
 from gmwm_studies.montecarlo import write_table
 from gmwm_studies.store import read_dataset

@@ -10,7 +10,7 @@ import pandas as pd
 import xarray as xr
 from wflog import get_logger
 
-from gmwm.io import save_figure, write_text_atomic
+from gmwm.atomic import save_figure, write_text_atomic
 from gmwm_studies.montecarlo import write_table
 from gmwm_studies.navigation import (
     gnss_schedule,

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from wflog import get_logger
 
-from gmwm.io import write_json_atomic
+from gmwm.atomic import write_json_atomic
 from gmwm_studies.navchip import fit_channels, fits_to_json
 
 snakemake = globals()["snakemake"]  # injected by Snakemake

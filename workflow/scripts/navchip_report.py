@@ -5,7 +5,7 @@ from pathlib import Path
 
 from wflog import get_logger
 
-from gmwm.io import save_figure
+from gmwm.atomic import save_figure
 from gmwm_studies.navchip import (
     channels_from_fits,
     estimates_table,

@@ -11,8 +11,9 @@ import matplotlib.pyplot as plt
 import pandas as pd
 from wflog import get_logger
 
-from gmwm.io import save_figure
-from gmwm.plots import boxplot_grouped, plot_rmse_curves, plot_runtime, style
+from gmwm.atomic import save_figure
+from gmwm.plots import style
+from gmwm_studies.figures import boxplot_grouped, plot_rmse_curves, plot_runtime
 from gmwm_studies.sim1 import COMPARED, PARAM_LABELS, method_label, standardized_by_method
 from gmwm_studies.store import read_dataset
 

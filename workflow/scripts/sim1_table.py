@@ -2,7 +2,7 @@
 
 from wflog import get_logger
 
-from gmwm.io import write_text_atomic
+from gmwm.atomic import write_text_atomic
 from gmwm_studies.montecarlo import write_table
 from gmwm_studies.sim1 import counts_text, study_tables
 from gmwm_studies.store import read_dataset

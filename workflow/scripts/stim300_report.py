@@ -5,7 +5,7 @@ from pathlib import Path
 
 from wflog import get_logger
 
-from gmwm.io import save_figure, write_text_atomic
+from gmwm.atomic import save_figure, write_text_atomic
 from gmwm_studies import stim300 as ac
 
 snakemake = globals()["snakemake"]  # injected by Snakemake

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 from wflog import get_logger
 
-from gmwm.io import save_figure, write_text_atomic
+from gmwm.atomic import save_figure, write_text_atomic
 from gmwm_studies.montecarlo import format_markdown_table
 from gmwm_studies.svo_study import coef_table, figure_coefs, figure_gmwm, figure_wv, merge, wv_table
 

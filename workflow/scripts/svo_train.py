@@ -3,7 +3,7 @@
 import numpy as np
 from wflog import get_logger
 
-from gmwm.io import atomic_path
+from gmwm.atomic import atomic_path
 from gmwm_studies.svo_study import train_chunk
 
 snakemake = globals()["snakemake"]  # injected by Snakemake

@@ -4,7 +4,7 @@ import numpy as np
 from wflog import get_logger
 
 from gmwm.bootstrap import parametric_bootstrap
-from gmwm.io import read_result
+from gmwm.codec import read_result
 from gmwm_studies.store import write_dataset
 from gmwm_studies.uncertainty import bootstrap_to_dataset
 

@@ -4,8 +4,9 @@ GMWM estimate marked."""
 import numpy as np
 from wflog import get_logger
 
+from gmwm.atomic import save_figure
+from gmwm.codec import read_result
 from gmwm.identify import corner_plot
-from gmwm.io import read_result, save_figure
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

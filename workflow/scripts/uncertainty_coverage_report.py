@@ -4,7 +4,7 @@ sandwich SE ratios (CSV + Markdown), and the coverage figure."""
 import xarray as xr
 from wflog import get_logger
 
-from gmwm.io import save_figure
+from gmwm.atomic import save_figure
 from gmwm_studies.montecarlo import write_table
 from gmwm_studies.store import read_dataset
 from gmwm_studies.uncertainty import coverage_summary, plot_coverage

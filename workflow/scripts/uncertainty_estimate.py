@@ -1,10 +1,10 @@
 """Rule uncertainty_estimate: the fitted model that the bootstrap and the identifiability checks
 use (replicate 0 of a study, or one Navchip axis from the navchip rule's fits file), as a lossless
-JSON result (gmwm.io.write_result; the consumers rebuild it with gmwm.io.read_result)."""
+JSON result (gmwm.codec.write_result; the consumers rebuild it with gmwm.codec.read_result)."""
 
 from wflog import get_logger
 
-from gmwm.io import write_result
+from gmwm.codec import write_result
 from gmwm_studies.montecarlo import replicate_fit
 from gmwm_studies.uncertainty import navchip_result
 

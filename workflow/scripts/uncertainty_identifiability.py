@@ -5,8 +5,8 @@ import json
 import pandas as pd
 from wflog import get_logger
 
-from gmwm.identify import summary_row
 from gmwm_studies.montecarlo import write_table
+from gmwm_studies.uncertainty import summary_row
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

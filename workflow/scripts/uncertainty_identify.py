@@ -4,8 +4,9 @@ checks of one fitted model; report as JSON, posterior draws as .npz (empty if no
 import numpy as np
 from wflog import get_logger
 
+from gmwm.atomic import atomic_path, write_json_atomic
+from gmwm.codec import read_result
 from gmwm.identify import check
-from gmwm.io import atomic_path, read_result, write_json_atomic
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)

@@ -5,7 +5,7 @@ import pandas as pd
 from wflog import get_logger
 
 from gmwm.bootstrap import BootstrapResult
-from gmwm.io import read_result
+from gmwm.codec import read_result
 from gmwm_studies.montecarlo import write_table
 from gmwm_studies.store import read_dataset
 from gmwm_studies.uncertainty import bootstrap_from_dataset, bootstrap_table

@@ -177,7 +177,7 @@ def _finish(p: Path, fmt: str, channels: dict[str, np.ndarray], file_units: dict
             tb: TimeBase | None, freq: float | None, units: Any, notes: list[str],
             topic: str | None = None) -> Recording:
     """Check the channels, merge the user's units with the file's, settle the time base."""
-    from gmwm.io import _validated
+    from gmwm.readers.tables import _validated
 
     names = list(channels)
     given = _check_unit_map(units, names, p)
@@ -247,7 +247,7 @@ def _from_table(p: Path, columns: Any, time_unit: str | None, freq: float | None
     names = _select(data, columns, p, default_all=known)
     chans = {n: numeric(t, n, str(p)) for n in names}
     if t.header:  # a WV/AV table read as a very short signal is almost surely a mistake
-        from gmwm.io import _check_not_a_table
+        from gmwm.readers.tables import _check_not_a_table
 
         _check_not_a_table(list(t.columns), next(iter(chans.values())).size, p)
     tb = None
@@ -312,7 +312,7 @@ def _from_npz(p: Path, columns: Any, time_unit: str | None, freq: float | None, 
 
 def _from_io(p: Path, kind: str, columns: Any, dataset: str | None, freq: float | None,
              units: Any) -> Recording:
-    from gmwm.io import read_channels
+    from gmwm.readers.tables import read_channels
 
     ch = read_channels(p, columns, dataset=dataset)
     tb = getattr(ch, "time", None)

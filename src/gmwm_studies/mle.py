@@ -30,7 +30,7 @@ import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numba import njit
@@ -39,11 +39,14 @@ from scipy.optimize import minimize, nnls
 if TYPE_CHECKING:
     from statsmodels.tsa.statespace.structural import UnobservedComponents
 
+from gmwm.atomic import to_jsonable
 from gmwm.errors import InputError, ModelError
 
-__all__ = ["BACKENDS", "PARAM_KEYS", "MLEResult", "fit_mle", "kalman_loglike"]
+__all__ = ["BACKENDS", "PARAM_KEYS", "PARAM_NAMES", "MLEResult", "fit_mle", "kalman_loglike"]
 
 PARAM_KEYS = ("WN[1].sigma2", "RW[1].gamma2", "AR1[1].phi", "AR1[1].sigma2")
+#: Order of ``MLEResult.params``: the estimated parameters, then the sinusoid amplitude.
+PARAM_NAMES = (*PARAM_KEYS, "SIN[1].alpha")
 _SM_NAMES = {  # statsmodels name -> our name (sigma2.ar is the AR innovation variance, see tests)
     "sigma2.irregular": "WN[1].sigma2",
     "sigma2.level": "RW[1].gamma2",
@@ -63,24 +66,74 @@ BACKENDS = ("kalman", "statsmodels")
 _LOG2PI = float(np.log(2.0 * np.pi))
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
 class MLEResult:
     """Outcome of :func:`fit_mle`.
 
-    ``params`` holds ``WN[1].sigma2``, ``RW[1].gamma2``, ``AR1[1].phi``, ``AR1[1].sigma2`` (innovation
-    variance), all per sample, plus ``SIN[1].alpha`` (amplitude, for information). ``loglike`` is the
-    exact Gaussian log-likelihood (statsmodels' exact-diffuse convention). ``start`` names the winning
-    start: ``'gmwm'`` (the supplied start), ``'variogram'`` (data-driven), ``'grid-k'``, ``'default'``
-    (statsmodels' own start values).
+    ``params`` (read-only, in the order of ``param_names`` = :data:`PARAM_NAMES`) holds
+    ``WN[1].sigma2``, ``RW[1].gamma2``, ``AR1[1].phi``, ``AR1[1].sigma2`` (innovation variance),
+    all per sample, plus ``SIN[1].alpha`` (amplitude, for information); :meth:`as_dict` maps them
+    by name. ``loglike`` is the exact Gaussian log-likelihood (statsmodels' exact-diffuse
+    convention). ``start`` names the winning start: ``'gmwm'`` (the supplied start),
+    ``'variogram'`` (data-driven), ``'grid-k'``, ``'default'`` (statsmodels' own start values).
+    The baseline computes no standard errors: ``se`` and ``conf_int`` are NaN (result protocol of
+    the library: ``params``, ``param_names``, ``se``, ``conf_int``, ``summary``,
+    ``to_json_dict``).
     """
 
-    params: dict[str, float]
+    params: np.ndarray
     converged: bool
     loglike: float
     start: str
     n_starts: int
     seconds: float
     message: str
+
+    def __post_init__(self) -> None:
+        params = np.array(self.params, dtype=np.float64, copy=True)
+        if params.shape != (len(PARAM_NAMES),):
+            raise InputError(f"MLEResult needs {len(PARAM_NAMES)} parameters "
+                             f"({', '.join(PARAM_NAMES)}), got shape {params.shape}")
+        params.setflags(write=False)
+        object.__setattr__(self, "params", params)
+
+    @property
+    def param_names(self) -> list[str]:
+        return list(PARAM_NAMES)
+
+    @property
+    def se(self) -> np.ndarray:
+        """NaN for every parameter: the baseline computes no standard errors."""
+        return np.full(len(PARAM_NAMES), np.nan)
+
+    def conf_int(self, alpha: float = 0.05) -> np.ndarray:
+        """``(p, 2)`` intervals, NaN (no standard errors); ``alpha`` is checked all the same."""
+        if not 0.0 < float(alpha) < 1.0:
+            raise InputError(f"alpha must be in (0, 1), got {alpha}")
+        return np.full((len(PARAM_NAMES), 2), np.nan)
+
+    def as_dict(self) -> dict[str, float]:
+        return dict(zip(PARAM_NAMES, self.params.tolist(), strict=True))
+
+    def summary(self) -> str:
+        """Plain-text table of the estimates with the optimiser's verdict."""
+        lines = [(f"Kalman-filter MLE (WN+RW+AR1+SIN, {self.n_starts} start(s)): "
+                  f"log-likelihood = {self.loglike:.6f}, converged = {self.converged}"),
+                 f"  {self.message}",
+                 f"{'parameter':<16}{'estimate':>14}",
+                 "-" * 30]
+        lines += [f"{n:<16}{v:>14.6g}" for n, v in zip(PARAM_NAMES, self.params, strict=True)]
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """Strict-JSON-able dict (non-finite numbers as None)."""
+        return to_jsonable({
+            "params": self.as_dict(), "se": dict(zip(PARAM_NAMES, self.se, strict=True)),
+            "converged": self.converged, "loglike": self.loglike, "start": self.start,
+            "n_starts": self.n_starts, "seconds": self.seconds, "message": self.message})
 
 
 # ----------------------------------------------------------------------------------------------
@@ -645,7 +698,6 @@ def fit_mle(x: np.ndarray, beta: float, start: dict[str, float] | None = None, *
         message = f"not converged: {msg} (start {name})"
     else:
         message = f"converged from start {name} ({msg})"
-    params = {k: theta.get(k, np.nan) for k in PARAM_KEYS}
-    params["SIN[1].alpha"] = float(np.hypot(*b))
-    return MLEResult(params=params, converged=converged, loglike=float(ll), start=name,
+    params = [theta.get(k, np.nan) for k in PARAM_KEYS] + [float(np.hypot(*b))]
+    return MLEResult(params=np.array(params), converged=converged, loglike=float(ll), start=name,
                      n_starts=len(starts), seconds=time.perf_counter() - t0, message=message)

@@ -1,25 +1,22 @@
-"""Signal and table input/output.
+"""Signal and table readers: the boundary where every input is checked once.
 
 * :func:`read_signal` reads a 1-D signal from ``.npy``, ``.csv``/``.tsv``/``.txt`` or HDF5
-  (``.h5``/``.hdf5``) and validates it once, at the boundary (finite, numeric, 1-D, non-empty).
-* :func:`read_wv_table` reads a wavelet variance shared as a CSV table (scale, variance, CI bounds).
-* :func:`atomic_path` and the ``write_*`` helpers write every output through a temporary file in the
-  same directory that is renamed onto the target only on success, so a killed job never leaves a file
-  that looks complete.
+  (``.h5``/``.hdf5``) and validates it (finite, numeric, 1-D, non-empty).
+* :func:`read_channels` reads several columns of one recording and its sampling frequency from a
+  time column or an HDF5 attribute.
+* :func:`read_wv_table` reads a wavelet (or Allan) variance shared as a CSV table (scale,
+  variance, CI bounds).
 
-Every user problem raises :class:`gmwm.errors.InputError` with a one-line message naming it.
+Every user problem raises :class:`gmwm.errors.InputError` with a one-line message naming it. The
+module loads only NumPy (pandas and h5py on first use of a CSV or HDF5 file) and the error classes.
 """
 
 from __future__ import annotations
 
-import json
 import os
 import re
-import uuid
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 from dataclasses import dataclass
-from dataclasses import fields as dataclass_fields
 from pathlib import Path
 from typing import Any
 
@@ -28,23 +25,16 @@ import numpy as np
 from gmwm.errors import InputError
 
 __all__ = [
+    "MIN_TABLE_SIGNAL",
     "SIGNAL_SUFFIXES",
     "Channels",
-    "atomic_path",
     "is_wv_table",
     "read_channels",
-    "read_result",
     "read_signal",
+    "read_weights",
     "read_wv_table",
-    "result_from_dict",
-    "result_to_dict",
-    "save_figure",
     "table_channels",
     "time_column_unit",
-    "write_json_atomic",
-    "write_result",
-    "write_signal",
-    "write_text_atomic",
 ]
 
 _CSV_SEPARATORS = {".csv": ",", ".tsv": "\t", ".txt": r"\s+"}
@@ -742,229 +732,23 @@ def _table_freq(samples: np.ndarray | None, seconds: np.ndarray | None, freq: fl
 
 
 # --------------------------------------------------------------------------------------------------
-# writing
+# scale weights (SVO)
 # --------------------------------------------------------------------------------------------------
 
 
-@contextmanager
-def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
-    """Yield a temporary path next to ``path``; rename it onto ``path`` on success, remove it on error.
-
-    The temporary name keeps the suffix of ``path`` so writers that infer the format from the
-    extension (``np.save``, ``Figure.savefig``) behave as for the final name. Missing parent
-    directories are created.
-    """
-    target = Path(path)
-    if target.is_dir():
-        raise InputError(f"output path {target} is a directory: give a file name")
-    if target.parent.exists() and not target.parent.is_dir():
-        raise InputError(f"cannot write {target}: {target.parent} is not a directory")
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = target.with_name(f".{target.stem}.{uuid.uuid4().hex[:12]}.tmp{target.suffix}")
-    try:
-        yield tmp
-        if not tmp.exists():
-            raise FileNotFoundError(f"nothing was written to the temporary file for {target}")
-        os.replace(tmp, target)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-
-
-def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
-    """Write ``text`` (UTF-8) to ``path`` atomically; return the path."""
-    with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
-    return Path(path)
-
-
-def write_json_atomic(path: str | os.PathLike, obj: Any, indent: int | None = 2) -> Path:
-    """Write ``obj`` as strict JSON (numpy values converted, NaN/inf as null) atomically."""
-    text = json.dumps(to_jsonable(obj), indent=indent, allow_nan=False)
-    return write_text_atomic(path, text + "\n")
-
-
-def to_jsonable(obj: Any) -> Any:
-    """Convert numpy scalars/arrays, paths and tuples to JSON types; non-finite floats become None."""
-    if isinstance(obj, dict):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [to_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return to_jsonable(obj.tolist())
-    if isinstance(obj, np.bool_ | bool):
-        return bool(obj)
-    if isinstance(obj, np.integer | int):
-        return int(obj)
-    if isinstance(obj, np.floating | float):
-        v = float(obj)
-        return v if np.isfinite(v) else None
-    if isinstance(obj, os.PathLike):
-        return os.fspath(obj)
-    return obj
-
-
-def write_signal(path: str | os.PathLike, x: np.ndarray, name: str = "signal") -> Path:
-    """Write a 1-D signal atomically as ``.npy``, ``.csv``/``.tsv``/``.txt`` (header ``name``) or HDF5
-    (dataset ``/name``), chosen by the extension; full float64 precision is kept in every format."""
+def read_weights(path: Any) -> np.ndarray:
+    """Scale weights from a text file: numbers separated by commas, spaces or newlines, one per
+    level from j = 1; ``#`` starts a comment."""
     p = Path(path)
-    suffix = p.suffix.lower()
-    x = np.asarray(x, dtype=np.float64)
-    if suffix not in SIGNAL_SUFFIXES:
-        raise InputError(
-            f"unknown output extension '{p.suffix}' for {p}: use one of {', '.join(SIGNAL_SUFFIXES)}"
-        )
-    with atomic_path(p) as tmp:
-        if suffix == ".npy":
-            np.save(tmp, x)
-        elif suffix in _HDF5_SUFFIXES:
-            import h5py
-
-            with h5py.File(tmp, "w") as fh:
-                fh.create_dataset(name, data=x)
-        else:
-            sep = "," if suffix == ".csv" else "\t" if suffix == ".tsv" else " "
-            np.savetxt(tmp, x, fmt="%.17g", header=name, comments="", delimiter=sep)
-    return p
-
-
-_FIGURE_FORMATS = ("png", "pdf", "svg", "eps", "ps", "jpg", "jpeg", "tif", "tiff", "webp")
-
-
-def save_figure(
-    fig: Any,
-    path: str | os.PathLike,
-    formats: Sequence[str] = ("png", "pdf"),
-    dpi: int = 200,
-) -> list[Path]:
-    """Save a matplotlib figure atomically; return the paths written.
-
-    If ``path`` ends with a known image extension (``.png``, ``.pdf``, ``.svg``, ...) exactly that
-    file is written; otherwise one file per entry of ``formats`` is written as ``path.<format>``.
-    """
-    p = Path(path)
-    ext = p.suffix.lower().lstrip(".")
-    targets = [p] if ext in _FIGURE_FORMATS else [p.with_name(f"{p.name}.{f.lstrip('.')}") for f in formats]
-    for target in targets:
-        with atomic_path(target) as tmp:
-            # no creation date in the file: a rerun with the same numbers writes the same bytes
-            fig.savefig(tmp, dpi=dpi, bbox_inches="tight",
-                        metadata=_NO_DATE.get(target.suffix.lower().lstrip(".")))
-    return targets
-
-
-_NO_DATE = {"pdf": {"CreationDate": None}, "svg": {"Date": None}}
-
-
-# -- lossless GMWMResult files ---------------------------------------------------------------------
-RESULT_FORMAT = "gmwm-result/2"  # 2: fields by name, non-finite scalars as {"__float__"}
-_NONFINITE = {"NaN": np.nan, "Infinity": np.inf, "-Infinity": -np.inf}
-
-
-def _enc_float(v: float) -> float | str:
-    """A float as JSON: itself (Python's repr round-trips every float64) or "NaN"/"Infinity"."""
-    v = float(v)
-    if np.isfinite(v):
-        return v
-    return "NaN" if np.isnan(v) else ("Infinity" if v > 0 else "-Infinity")
-
-
-def _dec_float(v: float | str) -> float:
-    return _NONFINITE[v] if isinstance(v, str) else float(v)
-
-
-def _enc_array(a: Any) -> dict[str, Any]:
-    a = np.asarray(a)
-    flat = a.reshape(-1).tolist()
-    if a.dtype.kind in "fc":
-        flat = [_enc_float(v) for v in flat]
-    return {"__ndarray__": a.dtype.str, "shape": list(a.shape), "data": flat}
-
-
-def _dec_array(d: dict[str, Any]) -> np.ndarray:
-    dtype = np.dtype(d["__ndarray__"])
-    data = [_dec_float(v) for v in d["data"]] if dtype.kind in "fc" else d["data"]
-    return np.array(data, dtype=dtype).reshape(d["shape"])
-
-
-def _enc_tree(obj: Any) -> Any:
-    """settings/diagnostics: dicts (str keys), lists/tuples (read back as lists), arrays, scalars."""
-    if isinstance(obj, dict):
-        return {str(k): _enc_tree(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_enc_tree(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _enc_array(obj)
-    if isinstance(obj, np.generic):
-        obj = obj.item()
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return {"__float__": _enc_float(obj)}
-    if obj is None or isinstance(obj, bool | int | float | str):
-        return obj
-    raise InputError(f"cannot store a {type(obj).__name__} in a result file")
-
-
-def _dec_tree(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        if "__ndarray__" in obj:
-            return _dec_array(obj)
-        if "__float__" in obj:
-            return _dec_float(obj["__float__"])
-        return {k: _dec_tree(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_dec_tree(v) for v in obj]
-    return obj
-
-
-def result_to_dict(result: Any) -> dict[str, Any]:
-    """Lossless JSON-able dict of a :class:`gmwm.estimator.GMWMResult` (read back by
-    :func:`result_from_dict`): the model as spec and frequency, every other field of the result
-    and of its WV by name. Every float64 is stored exactly; non-finite values as "NaN"/"Infinity"
-    (strict JSON). Unlike :meth:`GMWMResult.to_json_dict` (a readable summary), nothing is
-    dropped."""
-    out = {"format": RESULT_FORMAT, "model": result.model.spec,
-           "model_freq": float(result.model.freq),
-           "wv": {f.name: _enc_tree(getattr(result.wv, f.name))
-                  for f in dataclass_fields(result.wv)}}
-    for f in dataclass_fields(result):
-        if f.name not in out:
-            out[f.name] = _enc_tree(getattr(result, f.name))
-    return out
-
-
-def result_from_dict(d: dict[str, Any]) -> Any:
-    """The :class:`gmwm.estimator.GMWMResult` stored by :func:`result_to_dict` (same arrays, bit
-    for bit; tuples in settings/diagnostics come back as lists)."""
-    from gmwm.estimator import GMWMResult
-    from gmwm.model import Model
-    from gmwm.wv import WaveletVariance
-
-    if not isinstance(d, dict) or d.get("format") != RESULT_FORMAT:
-        got = d.get("format") if isinstance(d, dict) else type(d).__name__
-        raise InputError(f"not a gmwm result ({RESULT_FORMAT!r} expected, got {got!r})")
+    if not p.is_file():
+        raise InputError(f"weights file {p} not found")
+    tokens = []
+    for line in p.read_text(encoding="utf-8", errors="replace").splitlines():
+        tokens += line.split("#", 1)[0].replace(",", " ").split()
     try:
-        wv = WaveletVariance(**{k: _dec_tree(v) for k, v in d["wv"].items()})
-        rest = {f.name: _dec_tree(d[f.name]) for f in dataclass_fields(GMWMResult)
-                if f.name not in ("model", "wv")}
-        return GMWMResult(model=Model(d["model"], freq=float(d["model_freq"])), wv=wv, **rest)
-    except (KeyError, TypeError, ValueError) as exc:
-        raise InputError(f"damaged gmwm result: {type(exc).__name__} {exc}") from None
-
-
-def write_result(path: str | os.PathLike, result: Any) -> Path:
-    """Write a GMWMResult losslessly as JSON (:func:`result_to_dict`), atomically."""
-    text = json.dumps(result_to_dict(result), allow_nan=False)
-    return write_text_atomic(path, text + "\n")
-
-
-def read_result(path: str | os.PathLike) -> Any:
-    """Read a GMWMResult written by :func:`write_result`."""
-    p = _existing_file(path)
-    try:
-        d = json.loads(p.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"{p} is not a JSON gmwm result ({exc})") from None
-    try:
-        return result_from_dict(d)
-    except InputError as exc:
-        raise InputError(f"{p}: {exc}") from None
+        values = np.array([float(t) for t in tokens])
+    except ValueError as exc:
+        raise InputError(f"weights file {p}: {exc}") from None
+    if values.size == 0:
+        raise InputError(f"weights file {p} holds no numbers")
+    return values

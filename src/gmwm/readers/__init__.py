@@ -1,0 +1,19 @@
+"""Readers of recordings and shared tables; each checks its input at the boundary and raises
+:class:`gmwm.errors.InputError` with a one-line message naming the problem."""
+
+from gmwm.readers.recording import Recording, read_recording
+from gmwm.readers.tables import (
+    MIN_TABLE_SIGNAL,
+    SIGNAL_SUFFIXES,
+    Channels,
+    is_wv_table,
+    read_channels,
+    read_signal,
+    read_weights,
+    read_wv_table,
+    table_channels,
+    time_column_unit,
+)
+
+__all__ = ["MIN_TABLE_SIGNAL", "SIGNAL_SUFFIXES", "Channels", "Recording", "read_recording", "is_wv_table", "read_channels",
+           "read_signal", "read_weights", "read_wv_table", "table_channels", "time_column_unit"]
