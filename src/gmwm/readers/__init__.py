@@ -15,5 +15,17 @@ from gmwm.readers.tables import (
     time_column_unit,
 )
 
-__all__ = ["MIN_TABLE_SIGNAL", "SIGNAL_SUFFIXES", "Channels", "Recording", "read_recording", "is_wv_table", "read_channels",
-           "read_signal", "read_weights", "read_wv_table", "table_channels", "time_column_unit"]
+__all__ = [
+    "MIN_TABLE_SIGNAL",
+    "SIGNAL_SUFFIXES",
+    "Channels",
+    "Recording",
+    "is_wv_table",
+    "read_channels",
+    "read_recording",
+    "read_signal",
+    "read_weights",
+    "read_wv_table",
+    "table_channels",
+    "time_column_unit",
+]
