@@ -82,8 +82,8 @@ def calibrate(model: Model, theta: np.ndarray, component: str, z: float, T: int)
         b = a + step
         zb = zval(b)
         if not (np.isfinite(zb) and (zb > za if step > 0 else zb < za)):
-            raise ValueError(f"{component}: expected z-value not monotone near {math.exp(b):.3g}"
-                             f" at T = {T} (z = {zb:.3g}); target {z} not reachable")
+            raise ValueError(f"the expected z-value of {component} saturates at {max(za, zb):.3g}"
+                             f" < {z:g}")
         if (zb - z) * (za - z) <= 0:
             break
         a, za = b, zb
@@ -260,7 +260,7 @@ def main() -> None:
             try:
                 summ, cpu, nc = run(s, 2**k, args.reps)
             except ValueError as err:
-                skipped.append(f"{s.label} at T = 2^{k} ({err})")
+                skipped.append(f"{s.label} at T = 2^{k}: {err}")
                 print(f"{s.label:<28} T=2^{k}: skipped: {err}", flush=True)
                 continue
             rows.append((s, 2**k, summ, cpu, nc))
