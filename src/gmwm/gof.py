@@ -85,7 +85,8 @@ def _imhof_sf(x: float, lam: np.ndarray) -> float:
 
     def phi_rho(u: float) -> tuple[float, float]:
         lu = lam * u
-        return 0.5 * float(np.sum(np.arctan(lu))), u * math.exp(0.25 * float(np.sum(np.log1p(lu * lu))))
+        return (0.5 * float(np.arctan(lu).sum()),
+                u * math.exp(0.25 * float(np.log1p(lu * lu).sum())))
 
     def head(u: float) -> float:
         ph, d = phi_rho(u)
