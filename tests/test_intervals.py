@@ -31,9 +31,9 @@ def test_rule_by_kind():
     theta = np.array([1.0, 0.9995, 1e-4, 0.5, 3.1, 1e-7, -2e-3])
     se = np.array([0.01, 0.001, 1e-4, 0.05, 0.1, 1e-7, 1e-4])
     ci = param_intervals(m, theta, np.diag(se**2))
-    # strong scale parameter: log scale, asymmetric around the estimate, positive
-    assert ci[0, 0] == pytest.approx(math.exp(-Z * 0.01)) and ci[0, 0] > 0
-    assert ci[0, 1] == pytest.approx(math.exp(Z * 0.01))
+    # strong scale parameter: Wald lower end, log-scale upper end (contains the Wald interval)
+    assert ci[0, 0] == pytest.approx(1 - Z * 0.01) and ci[0, 0] > 0
+    assert ci[0, 1] == pytest.approx(math.exp(Z * 0.01)) and ci[0, 1] > 1 + Z * 0.01
     # phi: Wald cut at 1
     assert ci[1, 0] == pytest.approx(0.9995 - Z * 0.001) and ci[1, 1] == 1.0
     # weak variance: reaches 0, Wald upper end
@@ -41,8 +41,9 @@ def test_rule_by_kind():
     assert ci[5, 0] == 0.0
     # SIN beta cut at pi
     assert ci[4, 1] == pytest.approx(math.pi)
-    # negative drift keeps its sign, log scale on |omega|
-    assert ci[6, 1] < 0 and ci[6, 0] == pytest.approx(-2e-3 * math.exp(Z * 0.05))
+    # negative drift keeps its sign: the rule on |omega|, mirrored
+    assert ci[6, 1] == pytest.approx(-2e-3 + Z * 1e-4) and ci[6, 1] < 0
+    assert ci[6, 0] == pytest.approx(-2e-3 * math.exp(Z * 0.05))
     # agreement with the weak flag at alpha = 0.05
     scale = [0, 2, 3, 5, 6]
     weak = is_weak(theta, se)

@@ -7,8 +7,8 @@ free coordinates ``Process.free_map_kinds``):
 * **Scale parameters** (the one that is 0 when a component vanishes: WN sigma2, QN Q2, RW
   gamma2, AR1/GM variance, SIN alpha, DR |omega|):
 
-  - distinguishable from 0 (``|theta| >= z se``): Wald on the log scale,
-    ``theta exp(-+ z se / theta)``;
+  - distinguishable from 0 (``|theta| >= z se``): ``[theta - z se, theta exp(z se / theta)]``,
+    the Wald lower end and the log-scale upper end;
   - near 0 (``|theta| < z se``: the fit's warning "not distinguishable from zero"):
     ``[0, |theta| + z se]``, the Wald interval cut at 0;
   - component at the boundary 0 (no sandwich SE): ``[0, z se_0]``, ``se_0`` the SE of its
@@ -21,14 +21,16 @@ free coordinates ``Process.free_map_kinds``):
   the boundary 0 its shape is not identified: the whole domain.
 
 So an interval reaches 0 exactly when the estimate is within ``z`` standard errors of 0, which
-is what the fit's "not distinguishable from zero" warning says (at alpha = 0.05). Why these
-scales (``benchmarks/bench_intervals.py``, coverage against plain Wald on a few hundred fits
-per model): variance estimates are right-skewed with an SE that grows with the estimate, and
-the log scale covers as well as Wald or better there; near 0 the SE is set by the other
-components and the natural scale is the right one. The shape estimates are not log-normal:
-a log-scale interval for GM beta and an atanh-scale interval for an AR1 phi near 1 both lost
-coverage (0.93 and 0.88 against Wald's 0.97 and 0.98), the Wald interval cut to the domain
-did not.
+is what the fit's "not distinguishable from zero" warning says (at alpha = 0.05), and every
+interval contains the Wald interval cut to the domain, so it never covers less. Why the upper
+end of a scale parameter comes from the log scale (``benchmarks/bench_intervals.py``, coverage
+on a few hundred fits per model): a variance estimated from a few long scales is right-skewed
+with an SE that grows with the estimate, and Wald's upper end misses it (a random walk at 3 SE:
+Wald 0.88, log scale 0.95); where the SE is set by the other components the estimate is close to
+normal and the log scale's lower end is too high (a Gauss-Markov variance at 3 SE: Wald 0.98,
+log scale 0.93). The union of the two keeps the better side of each. The shape estimates are not
+log-normal: a log-scale interval for GM beta and an atanh-scale interval for an AR1 phi near 1
+both lost coverage (0.93 and 0.88 against Wald's 0.97 and 0.98).
 
 Datasheet coefficients that are monotone functions of one parameter (ARW, RRW, QN, RR, GM
 correlation time and sigma, SIN frequency and amplitude) take the image of that parameter's
@@ -88,7 +90,8 @@ def param_intervals(model: Any, theta: np.ndarray, cov: np.ndarray | None, alpha
                     *, fixed: np.ndarray | None = None,
                     boundary_upper: np.ndarray | None = None,
                     se: np.ndarray | None = None) -> np.ndarray:
-    """(p, 2) intervals at level ``1 - alpha`` inside each parameter's domain (module table).
+    """(p, 2) intervals at level ``1 - alpha`` inside each parameter's domain (the rule of the
+    module docstring).
 
     ``cov``: covariance of the estimate (NaN rows for parameters held at the boundary);
     ``fixed``: parameters of components at the boundary 0; ``boundary_upper``: the upper ends
@@ -116,13 +119,11 @@ def param_intervals(model: Any, theta: np.ndarray, cov: np.ndarray | None, alpha
             continue
         if not (np.isfinite(s) and np.isfinite(th)):
             continue
-        if scale[i]:  # variance, amplitude, |drift|: log scale, or [0, .] near 0
+        if scale[i]:  # variance, amplitude, |drift|
             a, sign = abs(th), (-1.0 if th < 0 else 1.0)
-            if a < z * s:
-                lo, hi = 0.0, a + z * s
-            else:
-                h = z * s / a
-                lo, hi = a * math.exp(-h), a * math.exp(h)
+            # Wald cut at 0, the upper end widened to the log-scale one (module docstring)
+            lo = max(a - z * s, 0.0)
+            hi = a + z * s if lo == 0.0 else a * math.exp(z * s / a)
             out[i] = (lo, hi) if sign > 0 else (-hi, -lo)
         else:  # shape (AR1 phi, GM beta, SIN beta): natural scale, cut to the closed domain
             d_lo, d_hi = _DOMAIN[kind]
@@ -205,8 +206,9 @@ def image_interval(fn: Callable[[float], float], interval: Sequence[float]) -> t
 def function_interval(fn: Callable[[np.ndarray], float], theta: np.ndarray, cov: np.ndarray,
                       alpha: float = 0.05, weak: bool = False) -> tuple[float, float]:
     """Interval of a positive function ``fn(theta)`` of several parameters by the delta method,
-    with the parameter rule: log scale, or ``[0, value + z se]`` when ``weak`` (a component
-    whose scale is not distinguishable from 0) or the value is within ``z`` SE of 0."""
+    with the rule of a scale parameter: ``[value - z se, value exp(z se / value)]``, or
+    ``[0, value + z se]`` when ``weak`` (a component whose scale is not distinguishable from 0)
+    or the value is within ``z`` SE of 0."""
     theta = np.asarray(theta, float)
     value = float(fn(theta))
     cov = np.asarray(cov, float)
@@ -225,7 +227,7 @@ def function_interval(fn: Callable[[np.ndarray], float], theta: np.ndarray, cov:
     z, s = _z(alpha), math.sqrt(var)
     if weak or value < z * s:
         return (0.0, value + z * s)
-    return (value * math.exp(-z * s / value), value * math.exp(z * s / value))
+    return (value - z * s, value * math.exp(z * s / value))
 
 
 def bootstrap_basic(model: Any, estimate: np.ndarray, q: np.ndarray) -> np.ndarray:
