@@ -24,13 +24,14 @@ So an interval reaches 0 exactly when the estimate is within ``z`` standard erro
 is what the fit's "not distinguishable from zero" warning says (at alpha = 0.05), and every
 interval contains the Wald interval cut to the domain, so it never covers less. Why the upper
 end of a scale parameter comes from the log scale (``benchmarks/bench_intervals.py``, coverage
-on a few hundred fits per model): a variance estimated from a few long scales is right-skewed
-with an SE that grows with the estimate, and Wald's upper end misses it (a random walk at 3 SE:
-Wald 0.88, log scale 0.95); where the SE is set by the other components the estimate is close to
-normal and the log scale's lower end is too high (a Gauss-Markov variance at 3 SE: Wald 0.98,
-log scale 0.93). The union of the two keeps the better side of each. The shape estimates are not
-log-normal: a log-scale interval for GM beta and an atanh-scale interval for an AR1 phi near 1
-both lost coverage (0.93 and 0.88 against Wald's 0.97 and 0.98).
+on 300 fits per model; the log-scale-only figures from a run of it with that rule): a variance
+estimated from a few long scales is right-skewed with an SE that grows with the estimate, and
+Wald's upper end misses it (a random walk at 3 SE: Wald 0.88, log scale 0.95); where the SE is
+set by the other components the estimate is close to normal and the log scale's lower end is
+too high (a Gauss-Markov variance at 3 SE: Wald 0.98, log scale 0.93). The union of the two
+keeps the better side of each. The shape estimates are not log-normal: in the same run a
+log-scale interval for GM beta and an atanh-scale interval for an AR1 phi near 1 both lost
+coverage (0.93 and 0.88 against Wald's 0.97 and 0.98).
 
 Datasheet coefficients that are monotone functions of one parameter (ARW, RRW, QN, RR, GM
 correlation time and sigma, SIN frequency and amplitude) take the image of that parameter's
