@@ -1,0 +1,211 @@
+"""Size and power of the goodness-of-fit test (gmwm.gof), by simulation.
+
+    python benchmarks/bench_gof.py [--R 400] [--R-power 100] [--lengths 14 17] [--write]
+
+Size: ``R`` seeded signals of each true model, fitted with the defaults (CI weights; some rows
+with efficient weights or ARMAV); the share of p-values below 1 %, 5 %, 10 % and the KS test of
+their uniformity, for the test (:func:`gmwm.gof.gof_test`, Imhof) and alternatives read off the
+same fits: the same statistic with the Satterthwaite (moment-matched scaled chi-square) p-value,
+the minimised objective against its own weighted chi-square null (``objective_test``) and the
+generalised Wald statistic ``r' (M V M')^+ r`` (``generalised_wald``). Power: ``R_power``
+signals of a generating model fitted with a model that lacks a component (its strength set by
+its expected z-value in the generating model); the share rejected at 5 % by the test and by
+the objective. ``--write`` replaces this benchmark's section of ``benchmarks/README.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy import stats
+
+import gmwm
+from gmwm.gof import generalised_wald, gof_test, objective_test
+from gmwm.model import Model
+
+HERE = Path(__file__).resolve().parent
+
+_AR1_RW = {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.99, "AR1[1].sigma2": 1e-3, "RW[1].gamma2": 1e-6}
+_GM = {"WN[1].sigma2": 1e-4, "GM[1].beta": 0.5, "GM[1].sigma2": 1e-6, "RW[1].gamma2": 1e-9}
+# label -> (model, truth, freq, fit options)
+SIZE: dict[str, tuple[str, dict[str, float], float, dict]] = {
+    "WN+RW": ("WN+RW", {"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-5}, 1.0, {}),
+    "WN+AR1+RW": ("WN+AR1+RW", _AR1_RW, 1.0, {}),
+    "QN+WN+RW+DR": ("QN+WN+RW+DR", {"QN[1].Q2": 1.0, "WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-3,
+                                     "DR[1].omega": 1e-3}, 1.0, {}),
+    "WN+AR1+SIN": ("WN+AR1+SIN", {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.975,
+                                   "AR1[1].sigma2": 0.03, "SIN[1].alpha": 0.85,
+                                   "SIN[1].beta": 0.35}, 1.0, {}),
+    "WN+GM+RW (100 Hz)": ("WN+GM+RW", _GM, 100.0, {}),
+    "WN+AR1+RW, efficient weights": ("WN+AR1+RW", _AR1_RW, 1.0, {"weights": "efficient"}),
+    "WN+AR1+RW, ARMAV": ("WN+AR1+RW", _AR1_RW, 1.0, {"method": "armav"}),
+}
+# label -> (generating model, base truth, missing component, freq); the fitted model lacks the
+# component, whose strength is set by its expected z-value in the generating model
+POWER: dict[str, tuple[str, dict[str, float], str, float]] = {
+    "WN+RW fitted to WN+AR1+RW (AR1 missing)": ("WN+AR1+RW", _AR1_RW, "AR1[1]", 1.0),
+    "WN+RW fitted to WN+GM+RW (gyro, GM missing)": ("WN+GM+RW", _GM, "GM[1]", 100.0),
+    "WN+GM fitted to WN+GM+RW (RW missing)": ("WN+GM+RW", _GM, "RW[1]", 100.0),
+    "WN+AR1+RW, sinusoid missing": (
+        "WN+AR1+SIN+RW", {**_AR1_RW, "SIN[1].alpha": 0.1, "SIN[1].beta": 0.05}, "SIN[1]", 1.0),
+    "QN+WN+RW, drift missing": (
+        "QN+WN+RW+DR", {"QN[1].Q2": 1.0, "WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-4,
+                        "DR[1].omega": 2e-4}, "DR[1]", 1.0),
+    "WN fitted to a ramp in white noise": (
+        "WN+DR", {"WN[1].sigma2": 1.0, "DR[1].omega": 1e-4}, "DR[1]", 1.0),
+}
+#: expected z-values of the missing component
+POWER_Z = (3.0, 5.0, 10.0)
+
+
+def satterthwaite(objective: float, lam: np.ndarray) -> float:
+    m1, m2 = lam.sum(), (lam**2).sum()
+    return float(stats.chi2.sf(objective * m1 / m2, m1**2 / m2))
+
+
+def size_row(label: str, T: int, R: int, seed: int = 2029) -> dict:
+    spec, truth, freq, opts = SIZE[label]
+    model = Model(spec, freq)
+    theta = model.theta(truth)
+    p = {"test": [], "satterthwaite": [], "objective": [], "generalised Wald": []}
+    t0 = time.process_time()
+    t_gof = 0.0
+    for r in range(R):
+        x = model.simulate_fast(theta, T, np.random.default_rng([seed, T, r]))
+        res = gmwm.fit(x, model, freq=freq, **opts)
+        t1 = time.process_time()
+        g = gof_test(res)
+        t_gof += time.process_time() - t1
+        p["test"].append(g.p_value)
+        U = g.statistic * g.eigenvalues.sum() / g.df
+        p["satterthwaite"].append(satterthwaite(U, g.eigenvalues))
+        p["objective"].append(objective_test(res)[2])
+        p["generalised Wald"].append(generalised_wald(res)[2])
+    return {"p": {k: np.array(v) for k, v in p.items()}, "cpu": time.process_time() - t0,
+            "gof_ms": 1e3 * t_gof / R}
+
+
+def power_row(label: str, T: int, z: float, R: int, seed: int = 2030) -> dict:
+    """Rejections of the fit without the missing component (ValueError: z not reachable)."""
+    from bench_selection import calibrate
+
+    spec, truth, missing, freq = POWER[label]
+    model = Model(spec, freq)
+    theta = calibrate(model, model.theta(truth), missing, z, T)
+    comps = [c.process.name for c in model.components if c.name != missing]
+    fitted = "+".join(comps)
+    p, q = [], []
+    for r in range(R):
+        x = model.simulate_fast(theta, T, np.random.default_rng([seed, T, r]))
+        res = gmwm.fit(x, fitted, freq=freq)
+        p.append(gof_test(res).p_value)
+        q.append(objective_test(res)[2])
+    return {"p": np.array(p), "objective": np.array(q)}
+
+
+def size_table(rows: list[tuple[str, int, dict]], R: int) -> list[str]:
+    lines = [("| true model | T | test: 1 % / 5 % / 10 % | KS p | Satterthwaite p: 1 % / 5 % | "
+              "objective: 5 % (KS p) | generalised Wald: 5 % (KS p) | test ms/fit |"),
+             "|---|---|---|---|---|---|---|---|"]
+
+    def rate_ks(x: np.ndarray) -> str:
+        x = x[np.isfinite(x)]
+        return f"{np.mean(x < .05):.3f} ({stats.kstest(x, 'uniform').pvalue:.2g})"
+
+    for label, T, out in rows:
+        p = out["p"]
+        t = p["test"]
+        ok = np.isfinite(t)
+        sat = p["satterthwaite"][ok]
+        lines.append(
+            f"| {label} | 2^{round(math.log2(T))} | {np.mean(t[ok] < .01):.3f} / "
+            f"{np.mean(t[ok] < .05):.3f} / {np.mean(t[ok] < .1):.3f} | "
+            f"{stats.kstest(t[ok], 'uniform').pvalue:.2g} | {np.mean(sat < .01):.3f} / "
+            f"{np.mean(sat < .05):.3f} | {rate_ks(p['objective'])} | "
+            f"{rate_ks(p['generalised Wald'])} | {out['gof_ms']:.1f} |")
+    se = math.sqrt(0.05 * 0.95 / R)
+    lines += ["", (f"{R} replicates per row: the Monte Carlo SE of a 5 % rejection share is "
+              f"{se:.3f}.")]
+    return lines
+
+
+def power_table(rows: list[tuple[str, int, dict[float, dict | str]]], R: int) -> list[str]:
+    zs = sorted({z for _, _, out in rows for z in out})
+    lines = ["| misspecification | T | " + " | ".join(f"missing at z = {z:g}" for z in zs) + " |",
+             "|---|---|" + "---|" * len(zs)]
+    for label, T, out in rows:
+        cells = []
+        for z in zs:
+            o = out.get(z)
+            cells.append(o if isinstance(o, str) else
+                         f"{np.mean(o['p'] < .05):.2f} / {np.mean(o['objective'] < .05):.2f}")
+        lines.append(f"| {label} | 2^{round(math.log2(T))} | " + " | ".join(cells) + " |")
+    lines += ["", (f"Share rejected at 5 % by the test / by the objective, {R} replicates per "
+              "cell; z = the "
+              "missing component's expected z-value (estimate / SE) in the generating model at "
+              "that length (n/a: not reachable there).")]
+    return lines
+
+
+def write_section(text: str, name: str = "bench_gof") -> None:
+    begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
+    path = HERE / "README.md"
+    src = path.read_text()
+    block = f"{begin}\n{text}\n{end}"
+    if begin in src and end in src:
+        src = src[:src.index(begin)] + block + src[src.index(end) + len(end):]
+    else:
+        src = src.rstrip("\n") + "\n\n" + block + "\n"
+    path.write_text(src)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--R", type=int, default=400)
+    ap.add_argument("--R-power", type=int, default=100)
+    ap.add_argument("--lengths", type=int, nargs="+", default=[14, 17], metavar="K")
+    ap.add_argument("--size", nargs="*", default=list(SIZE))
+    ap.add_argument("--power", nargs="*", default=list(POWER))
+    ap.add_argument("--write", action="store_true")
+    args = ap.parse_args()
+    t0 = time.perf_counter()
+    srows, prows = [], []
+    for label in args.size:
+        for k in args.lengths:
+            out = size_row(label, 2**k, args.R)
+            srows.append((label, 2**k, out))
+            print("\n".join(size_table([srows[-1]], args.R)[2:3]), f"[{out['cpu']:.0f} s CPU]",
+                  flush=True)
+    sys.path.insert(0, str(HERE))
+    for label in args.power:
+        for k in args.lengths:
+            cells: dict[float, dict | str] = {}
+            for z in POWER_Z:
+                try:
+                    cells[z] = power_row(label, 2**k, z, args.R_power)
+                except ValueError:
+                    cells[z] = "n/a"
+            prows.append((label, 2**k, cells))
+            print("\n".join(power_table([prows[-1]], args.R_power)[2:3]), flush=True)
+    lines = ["Size (true model fitted; share of p-values below each level):", "",
+             *size_table(srows, args.R), "", ("Power (a component missing from the fitted "
+             "model; default fit):"), "", *power_table(prows, args.R_power)]
+    print("\n".join(lines))
+    if args.write:
+        from bench_selection import commit
+
+        head = (f"Generated by `python benchmarks/bench_gof.py --R {args.R} --R-power "
+                f"{args.R_power} --lengths {' '.join(map(str, args.lengths))} --write` (commit "
+                f"{commit()}, {time.perf_counter() - t0:.0f} s wall, 1-minute load "
+                f"{os.getloadavg()[0]:.1f} at the end).\n")
+        write_section(head + "\n" + "\n".join(lines))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,130 @@
+"""Goodness-of-fit test (gmwm.gof): the weighted chi-square tail, p-value calibration under two
+true models (KS over seeded replicates), power against clear misspecifications, the ramp fitted
+as white noise, boundary components and the degenerate cases."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import stats
+
+import gmwm
+from gmwm.gof import gof_test, objective_test, weighted_chi2_sf
+from gmwm.model import Model
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from bench_selection import calibrate
+
+AR1_RW = {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.99, "AR1[1].sigma2": 1e-3, "RW[1].gamma2": 1e-6}
+
+
+def test_weighted_chi2_tail():
+    # equal weights: the chi-square itself
+    assert weighted_chi2_sf(18.3, np.full(10, 2.0))[0] == pytest.approx(stats.chi2.sf(9.15, 10))
+    # unequal weights: Imhof against a large Monte Carlo sample
+    lam = np.array([5.0, 2.0, 1.0, 0.5, 0.3, 0.1, 0.05, 0.01])
+    draws = (np.random.default_rng(0).standard_normal((400_000, lam.size)) ** 2) @ lam
+    for q in (0.5, 0.9, 0.99):
+        x = np.quantile(draws, q)
+        p, method = weighted_chi2_sf(x, lam)
+        assert method == "imhof"
+        assert p == pytest.approx(1 - q, abs=4 * np.sqrt(q * (1 - q) / draws.size) + 1e-4)
+    # df = 1 (slowest decay of the inversion integrand) against the exact value
+    assert weighted_chi2_sf(3.0, np.array([1.0, 1e-9]))[0] == pytest.approx(
+        stats.chi2.sf(3.0, 1), rel=1e-5)
+    # far tail: the saddlepoint, within a few % of the chi-square it nearly is
+    p, method = weighted_chi2_sf(80.0, np.array([1.0, 1.0, 1.0, 0.999]))
+    assert method == "saddlepoint"
+    assert p == pytest.approx(stats.chi2.sf(80.0, 4), rel=0.05)
+
+
+def _pvalues(spec: str, truth: dict, T: int, R: int, seed: int) -> np.ndarray:
+    m = Model(spec)
+    theta = m.theta(truth)
+    out = []
+    for r in range(R):
+        x = m.simulate_fast(theta, T, np.random.default_rng([seed, r]))
+        out.append(gof_test(gmwm.fit(x, m)).p_value)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("spec,truth,R", [
+    ("WN+RW", {"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-5}, 160),
+    ("WN+AR1+RW", AR1_RW, 100),
+], ids=["WN+RW", "WN+AR1+RW"])
+def test_pvalues_uniform_under_the_model(spec, truth, R):
+    """Default fits of the true model at T = 2^14: p-values uniform (KS) and the 5 % test's
+    rejection share within 3 Monte Carlo SE of 5 %."""
+    p = _pvalues(spec, truth, 2**14, R, seed=41)
+    assert np.all(np.isfinite(p))
+    assert stats.kstest(p, "uniform").pvalue > 0.01
+    assert abs(np.mean(p < 0.05) - 0.05) < 3 * np.sqrt(0.05 * 0.95 / R)
+
+
+def test_power_against_clear_misspecification():
+    # a strong AR1 fitted as WN+RW, and a drift at 3 SE left out of QN+WN+RW
+    m = Model("WN+AR1+RW")
+    theta = m.theta(AR1_RW)
+    rejected = 0
+    for r in range(10):
+        x = m.simulate_fast(theta, 2**14, np.random.default_rng([43, r]))
+        rejected += gof_test(gmwm.fit(x, "WN+RW")).rejected()
+    assert rejected == 10
+    m = Model("QN+WN+RW+DR")
+    theta = calibrate(m, m.theta({"QN[1].Q2": 1.0, "WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-4,
+                                  "DR[1].omega": 2e-4}), "DR[1]", 3.0, 2**14)
+    p_test, p_obj = [], []
+    for r in range(10):
+        x = m.simulate_fast(theta, 2**14, np.random.default_rng([44, r]))
+        res = gmwm.fit(x, "QN+WN+RW")
+        p_test.append(gof_test(res).p_value)
+        p_obj.append(objective_test(res)[2])
+    # the long scales the CI weights ignore: the test sees the drift, the objective does not
+    assert np.mean(np.array(p_test) < 0.05) >= 0.7
+    assert np.mean(np.array(p_test) < 0.05) > np.mean(np.array(p_obj) < 0.05)
+
+
+def test_ramp_fitted_as_white_noise_is_rejected():
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal(2**15) + 1e-3 * np.arange(2**15)
+    res = gmwm.fit(x, "WN")
+    assert res.converged   # the fit itself reports nothing wrong
+    g = gof_test(res)
+    assert g.rejected() and g.p_value < 1e-10
+    w = g.warning()
+    assert w is not None and "rejected" in w
+    # the misfit sits at the long scales, the short ones fit
+    u = np.abs(g.residuals)
+    assert np.all(u[-5:] > 30) and np.all(u[:6] < 3)
+    d = g.to_json_dict()
+    assert {"statistic", "df", "p_value", "residuals", "scales_s", "rejected"} <= set(d)
+    assert d["df"] == res.wv.n_levels - 1 and d["rejected"] is True
+
+
+def test_boundary_component_counts_as_held_and_no_df():
+    m = Model("WN+AR1+RW")
+    x = m.simulate(m.theta(AR1_RW), 2**15, np.random.default_rng(3))
+    res = gmwm.fit(x, m)
+    assert res.diagnostics["at_boundary"] == ["RW[1]"]   # this seed puts the RW at 0
+    g = gof_test(res)
+    assert g.df == res.wv.n_levels - 3 and 0 < g.p_value <= 1
+    # as many parameters as scales: not testable, said so
+    wv = gmwm.wvar(x, levels=2)
+    g0 = gof_test(gmwm.fit(wv, "WN+RW"))
+    assert g0.df == 0 and np.isnan(g0.p_value) and not g0.rejected()
+    assert "not testable" in g0.line()
+
+
+def test_efficient_weights_and_armav():
+    m = Model("WN+AR1+RW")
+    x = m.simulate(m.theta(AR1_RW), 2**15, np.random.default_rng(5))
+    for kw in ({"weights": "efficient"}, {"method": "armav"}):
+        g = gof_test(gmwm.fit(x, m, **kw))
+        assert 0.01 < g.p_value <= 1 and g.df >= res_df(m, x)
+
+
+def res_df(m: Model, x: np.ndarray) -> int:
+    return gmwm.wvar(x).n_levels - m.n_params
