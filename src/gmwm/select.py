@@ -60,6 +60,7 @@ import numpy as np
 
 from .errors import GMWMError, InputError, ModelError
 from .model import Model, as_model, parse_model, spec_of
+from .processes import PROCESSES, SINGLETONS
 from .settings import prepare_wv
 from .wv import WaveletVariance
 
@@ -71,7 +72,7 @@ _LOG10E = np.log10(np.e)
 # caps of the automatic candidate set (issue 11): up to 3 AR1/GM and 2 SIN components
 MAX_AR = 3
 MAX_SIN = 2
-_SINGLE = ("QN", "WN", "RW", "DR")
+_SINGLE = tuple(n for n in PROCESSES if n in SINGLETONS)  # QN, WN, RW, DR
 
 
 @dataclass(frozen=True)
@@ -205,7 +206,7 @@ def auto_candidates(base: str | Model, *, max_ar: int = MAX_AR, max_sin: int = M
     if counts.get("AR1", 0) + counts.get("GM", 0) > max_ar or counts.get("SIN", 0) > max_sin:
         raise ModelError(f"base model {spec!r} exceeds the automatic caps ({max_ar} AR1/GM, "
                          f"{max_sin} SIN)")
-    order = ["QN", "WN", "AR1", "GM", "SIN", "RW", "DR"]
+    order = list(PROCESSES)
     base_c = {k: counts.get(k, 0) for k in order}
     out: list[str] = [_spec(base_c)]
 
