@@ -58,9 +58,11 @@ EXPLORE_NFEV = 60
 
 # -- NNLS ---------------------------------------------------------------------------------------
 def _nnls_core() -> Any:
-    """SciPy's Lawson-Hanson kernel without the public wrapper's input checks (a third of a
-    small call's time; the VP search makes thousands), if this SciPy has the private kernel
-    with the expected signature; else None (the public ``nnls`` is used)."""
+    """SciPy's Lawson-Hanson kernel without the public wrapper's input checks, if this SciPy has
+    the private kernel with the expected signature (checked on a small problem); else None and
+    the public ``scipy.optimize.nnls`` is used. The search solves thousands of small NNLS
+    problems per fit, on which the wrapper costs several times the kernel
+    (``benchmarks/bench_nnls.py`` measures both, and that the estimates are identical)."""
     try:
         from scipy.optimize._slsqplib import nnls as core
         x, _, info = core(np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]),
