@@ -117,3 +117,20 @@ def test_damaged_and_missing_files(fitted, tmp_path):
         read_result(p)
     with pytest.raises(InputError, match="file not found"):
         read_result(tmp_path / "missing.json")
+
+
+def test_a_file_of_the_earlier_settings_layout_still_reads(signal, fitted):
+    # before FitSettings: settings a dict (a user covariance as weights "covariance" plus
+    # weights_cov), a copy in diagnostics, and method a field of its own
+    model, x = signal
+    user = gmwm.fit(x, model, freq=100.0, weights=fitted.wv_cov, n_starts=2, seed=5)
+    d = result_to_dict(user)
+    tree = dict(d["settings"])
+    old = {k: tree[k] for k in ("method", "n_starts", "reweight", "seed", "levels", "max_nfev",
+                                "nested", "se_cov")}
+    old.update(weights="covariance", weights_cov=tree["weights"])
+    d.update(settings=old, method=tree["method"])
+    d["diagnostics"]["settings"] = {k: v for k, v in old.items() if k != "weights_cov"}
+    back = result_from_dict(json.loads(json.dumps(d, allow_nan=False)))
+    assert back.settings == user.settings
+    np.testing.assert_array_equal(back.params, user.params, strict=True)

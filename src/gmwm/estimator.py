@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -30,6 +30,9 @@ from .results import freeze_arrays, json_safe, wald_ci
 from .search import Search
 from .settings import N_STARTS, FitSettings, prepare_wv
 from .wv import WaveletVariance
+
+if TYPE_CHECKING:
+    from .avsm import AVSMResult
 
 __all__ = ["N_STARTS", "GMWMResult", "fit", "weight_matrix"]
 
@@ -155,7 +158,8 @@ class GMWMResult:
 
 # -- main entry -----------------------------------------------------------------------------------
 def fit(data: np.ndarray | WaveletVariance, model: str | Model, *,
-        settings: FitSettings | None = None, freq: float | None = None, **options: Any) -> Any:
+        settings: FitSettings | None = None, freq: float | None = None,
+        **options: Any) -> GMWMResult | AVSMResult:
     """Estimate ``model`` from a signal or a precomputed wavelet variance.
 
     Parameters
