@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -109,7 +110,7 @@ def test_cis_ses_tables_and_efficient_fit(wn_ar1_fit):
                                                          th[pos] ** 2 / q[pos, 0]]))
     assert np.all(bc[pos] > 0)
     assert np.all(pc[:, 0] < pc[:, 1])
-    np.testing.assert_allclose(boot.se(), np.std(boot.theta_used, axis=0, ddof=1))
+    np.testing.assert_allclose(boot.se, np.std(boot.theta_used, axis=0, ddof=1))
     df = boot.to_frame()
     assert list(df.columns[:6]) == ["parameter", "estimate", "ci_low", "ci_high", "boot_se",
                                     "sandwich_se"]
@@ -152,7 +153,7 @@ def test_failed_refits_are_counted_not_used(wn_ar1_fit, monkeypatch):
             raise ModelError("boom")
         res = real(*args, **kwargs)
         if calls["n"] == 4:
-            res.converged, res.message = False, "iteration limit"
+            res = dataclasses.replace(res, converged=False, message="iteration limit")
         return res
 
     monkeypatch.setattr(bs, "fit", flaky)
@@ -160,7 +161,7 @@ def test_failed_refits_are_counted_not_used(wn_ar1_fit, monkeypatch):
     assert boot.n_failed == 2 and boot.n_converged == 4
     assert set(boot.messages) == {1, 3}
     assert np.all(np.isnan(boot.theta[1])) and np.all(np.isfinite(boot.theta[3]))
-    np.testing.assert_allclose(boot.se(), np.std(boot.theta[[0, 2, 4, 5]], axis=0, ddof=1))
+    np.testing.assert_allclose(boot.se, np.std(boot.theta[[0, 2, 4, 5]], axis=0, ddof=1))
     assert "2 failed" in boot.summary()
     assert np.all(np.isfinite(boot.wv))  # the WV of a failed draw still enters the covariance
 

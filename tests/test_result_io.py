@@ -63,15 +63,15 @@ def test_round_trip_is_bit_identical(fitted, tmp_path):
 def test_non_finite_values_and_user_covariance(signal, fitted, tmp_path):
     model, x = signal
     user = gmwm.fit(x, model, freq=100.0, weights=fitted.wv_cov, n_starts=2, seed=5)
-    assert isinstance(user.settings["weights_cov"], np.ndarray)
+    assert isinstance(user.settings.weights, np.ndarray)
     odd = dataclasses.replace(
         user, se=np.array([np.nan, np.inf, 1.0]), objective=-np.inf,
         diagnostics={**user.diagnostics, "condition_number": np.inf, "tup": (1, np.float64(2.5)),
                      "label": "NaN", "fixed": np.array([True, False, True])})
     back = read_result(write_result(tmp_path / "odd.json", odd))
     _assert_same(odd, back)
-    np.testing.assert_array_equal(back.settings["weights_cov"], user.settings["weights_cov"],
-                                  strict=True)
+    np.testing.assert_array_equal(back.settings.weights, user.settings.weights, strict=True)
+    assert back.settings == user.settings
     assert back.diagnostics["condition_number"] == np.inf
     assert back.diagnostics["tup"] == [1, 2.5] and back.diagnostics["label"] == "NaN"
     np.testing.assert_array_equal(back.diagnostics["fixed"], [True, False, True], strict=True)
@@ -117,3 +117,20 @@ def test_damaged_and_missing_files(fitted, tmp_path):
         read_result(p)
     with pytest.raises(InputError, match="file not found"):
         read_result(tmp_path / "missing.json")
+
+
+def test_a_file_of_the_earlier_settings_layout_still_reads(signal, fitted):
+    # before FitSettings: settings a dict (a user covariance as weights "covariance" plus
+    # weights_cov), a copy in diagnostics, and method a field of its own
+    model, x = signal
+    user = gmwm.fit(x, model, freq=100.0, weights=fitted.wv_cov, n_starts=2, seed=5)
+    d = result_to_dict(user)
+    tree = dict(d["settings"])
+    old = {k: tree[k] for k in ("method", "n_starts", "reweight", "seed", "levels", "max_nfev",
+                                "nested", "se_cov")}
+    old.update(weights="covariance", weights_cov=tree["weights"])
+    d.update(settings=old, method=tree["method"])
+    d["diagnostics"]["settings"] = {k: v for k, v in old.items() if k != "weights_cov"}
+    back = result_from_dict(json.loads(json.dumps(d, allow_nan=False)))
+    assert back.settings == user.settings
+    np.testing.assert_array_equal(back.params, user.params, strict=True)

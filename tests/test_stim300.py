@@ -63,7 +63,7 @@ def test_gmwm_and_armav_recover_a_noise_free_wv_exactly():
 
 def test_bad_estimator_settings_are_rejected():
     wv = _theoretical(GYRO, stim300_truth("gyro"), 2**16)
-    with pytest.raises(InputError, match="unknown estimator method"):
+    with pytest.raises(InputError, match="unknown method"):
         ac.fit_wv(wv, GYRO, {"method": "mle"})
     with pytest.raises(InputError, match="do not apply"):
         ac.fit_wv(wv, GYRO, {"method": "avsm", "n_starts": 3})

@@ -17,7 +17,7 @@ from gmwm.errors import InputError
 from gmwm.estimator import fit
 from gmwm.model import Model
 from gmwm_studies import uncertainty as un
-from gmwm_studies.montecarlo import fit_chunk, fit_kwargs, replicate_fit, simulate_wv_chunk
+from gmwm_studies.montecarlo import estimator_settings, fit_chunk, replicate_fit, simulate_wv_chunk
 
 MODEL = "WN+AR1"
 TRUTH = {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.9, "AR1[1].sigma2": 0.5}
@@ -40,11 +40,11 @@ def test_replicate_fit_equals_the_study_fit():
     # the single-model setting (Simulation 1's gmwm_single) reaches the fit
     single = replicate_fit(MODEL, TRUTH, T, 3, study="s", base_seed=9,
                            settings={**SETTINGS, "nested": False})
-    assert res.diagnostics["settings"]["nested"] is True
-    assert single.diagnostics["settings"]["nested"] is False
-    # AVSM-only keys are dropped, GMWM keys kept
-    assert fit_kwargs({"n_starts": 2, "min_edof": 2, "max_nfev": 50}) == {"n_starts": 2,
-                                                                             "max_nfev": 50}
+    assert res.settings.nested is True and single.settings.nested is False
+    # an estimator's settings are validated: another estimator's option is an error
+    assert estimator_settings({"n_starts": 2, "max_nfev": 50}).max_nfev == 50
+    with pytest.raises(InputError, match="do not apply"):
+        estimator_settings({"n_starts": 2, "min_edof": 2})
 
 
 def test_coverage_chunk_does_not_depend_on_chunking(cov_ds):
@@ -95,7 +95,7 @@ def test_bootstrap_chunks_round_trip_and_table():
     q_lo = whole.quantiles()[:, 0]
     expected = np.where([True, False, True], est.params**2 / q_lo, 2 * est.params - q_lo)
     np.testing.assert_allclose(df.basic_high, expected)
-    np.testing.assert_allclose(df.boot_se, whole.se())
+    np.testing.assert_allclose(df.boot_se, whole.se)
     assert (df.B == 9).all() and list(df.parameter) == est.param_names
     other = replicate_fit(MODEL, TRUTH, T, 1, study="t", base_seed=1, settings=SETTINGS)
     with pytest.raises(InputError):

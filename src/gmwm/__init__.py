@@ -23,15 +23,16 @@ _EXPORTS = {
     "GMWMError": "errors", "IdentifiabilityError": "errors", "InputError": "errors",
     "ModelError": "errors", "DataUnavailableError": "errors",
     "Model": "model", "fit": "estimator", "GMWMResult": "estimator",
+    "FitSettings": "settings", "prepare_wv": "settings",
     "wvar": "wv", "avar": "wv", "WaveletVariance": "wv", "AllanVariance": "wv",
     "fit_avsm": "avsm",
     "svo": "virtual",
     "select_model": "select", "rank_models": "select",
 }
 
-__all__ = ["AllanVariance", "DataUnavailableError", "GMWMError", "GMWMResult",
+__all__ = ["AllanVariance", "DataUnavailableError", "FitSettings", "GMWMError", "GMWMResult",
            "IdentifiabilityError", "InputError", "Model", "ModelError", "WaveletVariance", "avar",
-           "fit", "fit_avsm", "rank_models", "select_model", "svo", "wvar"]
+           "fit", "fit_avsm", "prepare_wv", "rank_models", "select_model", "svo", "wvar"]
 
 
 def __getattr__(name: str) -> Any:

@@ -30,13 +30,17 @@ it is assumed to dominate, ignoring the other terms there.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 from math import sqrt
+from typing import Any
 
 import numpy as np
 
 from gmwm import units
 from gmwm.errors import InputError, ModelError
+from gmwm.results import freeze_arrays, json_safe, readonly, wald_ci
+from gmwm.settings import FitSettings
 
 #: AD slope of each supported term on log-log axes.
 SLOPES = {"QN": -1.0, "WN": -0.5, "BI": 0.0, "RW": 0.5, "DR": 1.0}
@@ -65,9 +69,11 @@ class SlopeRegion:
         return 10.0 ** (self.intercept + self.slope * np.log10(np.asarray(tau_s, dtype=float)))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class AVSMResult:
-    """AVSM estimate: discrete parameters in the model's order plus the regions used per term."""
+    """AVSM estimate (the result protocol of :mod:`gmwm.results`): discrete parameters in the
+    model's order plus the regions used per term. AVSM has no standard errors: ``se`` and
+    ``conf_int`` are NaN."""
 
     params: np.ndarray
     param_names: list[str]
@@ -79,9 +85,38 @@ class AVSMResult:
     adev: np.ndarray         # their empirical AD [u]
     converged: bool
     message: str
+    settings: FitSettings = field(default_factory=lambda: FitSettings(method="avsm"))
+    seconds_wv: float = 0.0
+    seconds_fit: float = 0.0
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self, ("params", "tau_s", "adev"))
+        freeze_arrays(self, ("levels",), dtype=int)
+        object.__setattr__(self, "param_names", list(self.param_names))
+
+    @property
+    def method(self) -> str:
+        return "avsm"
+
+    @property
+    def se(self) -> np.ndarray:
+        """No standard errors: NaN per parameter."""
+        return readonly(np.full(len(self.param_names), np.nan))
+
+    @property
+    def warnings(self) -> list[str]:
+        return []
+
+    def conf_int(self, alpha: float = 0.05) -> np.ndarray:
+        """No intervals: (p, 2) NaN."""
+        return wald_ci(self.params, self.se, alpha)
 
     def as_dict(self) -> dict[str, float]:
         return {n: float(v) for n, v in zip(self.param_names, self.params, strict=True)}
+
+    def fit_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of :func:`gmwm.fit` that repeat this fit."""
+        return self.settings.fit_kwargs()
 
     def model_wv(self, scales=None) -> np.ndarray:
         """Theoretical WV of the estimated model at ``scales`` (default: the input's scales)."""
@@ -91,6 +126,42 @@ class AVSMResult:
     def component_wv(self, scales=None) -> dict[str, np.ndarray]:
         scales = self.wv.scales if scales is None else np.asarray(scales, dtype=float)
         return self.model.component_wv(self.params, scales)
+
+    def _spec(self) -> str:
+        return str(getattr(self.model, "spec", "+".join(self.regions)))
+
+    def summary(self) -> str:
+        """Plain-text table: each parameter with the AD slope, levels and reading of its term."""
+        head = (f"AVSM fit of {self._spec()}  |  T = {self.wv.n_samples}, "
+                f"J = {len(self.wv.scales)}, freq = {float(getattr(self.wv, 'freq', 1.0)):g} Hz")
+        lines = [head, f"converged = {self.converged}   ({self.message})",
+                 f"{'parameter':<16}{'estimate':>14}{'slope':>7}  {'read by':<12}levels",
+                 "-" * 60]
+        for name, est in zip(self.param_names, self.params, strict=True):
+            r = self.regions.get(name.split(".", 1)[0])
+            how = "" if r is None else (f"{r.slope:>7.2g}  {r.method:<12}"
+                                        + ",".join(str(int(v)) for v in r.levels))
+            lines.append(f"{name:<16}{est:>14.6g}{how}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """JSON-able summary (model, n, params, se (None), converged, regions, settings, WV,
+        timings)."""
+        wv = self.wv
+        return json_safe({
+            "model": self._spec(), "method": "avsm", "n": int(wv.n_samples),
+            "freq": float(getattr(wv, "freq", 1.0)), "params": self.as_dict(),
+            "se": dict.fromkeys(self.param_names), "converged": bool(self.converged),
+            "message": self.message, "warnings": self.warnings,
+            "settings": self.settings.to_json_dict(),
+            "regions": {c: {"slope": r.slope, "levels": r.levels, "intercept": r.intercept,
+                            "method": r.method, "read_tau_s": r.read_tau_s,
+                            "coefficient": r.coefficient} for c, r in self.regions.items()},
+            "wv": wv.to_dict() if hasattr(wv, "to_dict") else None,
+            "seconds_wv": self.seconds_wv, "seconds_fit": self.seconds_fit})
 
 
 def _component_types(model) -> list[tuple[str, str, str]]:
@@ -163,15 +234,25 @@ def fit_avsm(wv, model, *, min_edof: float = 2.0, slope_tol: float = 0.1) -> AVS
     -------
     AVSMResult with ``params`` in the model's parameter order (discrete, per sample).
     ``converged`` is False when a parameter is not finite; ``message`` names the terms read by the
-    tangent fallback.
+    tangent fallback. ``gmwm.fit(x, model, method="avsm")`` is the same estimator from a signal
+    or a WV.
     """
+    settings = FitSettings(method="avsm", min_edof=min_edof, slope_tol=slope_tol)
+    return avsm_fit(wv, model, settings)
+
+
+def avsm_fit(wv, model, settings: FitSettings, seconds_wv: float = 0.0) -> AVSMResult:
+    """:func:`fit_avsm` with validated ``settings`` (``min_edof``, ``slope_tol``); what
+    :func:`gmwm.fit` calls for ``method="avsm"``."""
+    t0 = time.perf_counter()
+    min_edof, slope_tol = settings.min_edof, settings.slope_tol
     freq = float(getattr(wv, "freq", 1.0))
     model = _resolve_model(model, freq)
     terms = _component_types(model)
     keep = usable_levels(wv, min_edof)
     if keep.sum() < 2:
-        raise InputError(f"AVSM needs at least 2 levels with eta_j >= {min_edof} and positive WV, "
-                         f"got {int(keep.sum())}")
+        raise InputError(f"AVSM needs at least 2 levels with eta_j >= {min_edof:g} and positive "
+                         f"WV, got {int(keep.sum())}")
     levels = np.asarray(getattr(wv, "levels", np.log2(wv.scales).round()), dtype=int)[keep]
     tau_s = np.asarray(wv.scales, dtype=float)[keep] / (2.0 * freq)
     adev = np.sqrt(2.0 * np.asarray(wv.variance, dtype=float)[keep])
@@ -188,7 +269,8 @@ def fit_avsm(wv, model, *, min_edof: float = 2.0, slope_tol: float = 0.1) -> AVS
         if ctype == "BI":
             coef /= units.BI_AD_FACTOR
         params[i] = _coefficient_to_param(ctype, pname, coef, freq)
-        regions[comp] = SlopeRegion(comp, slope, levels[idx], b, method, tau_read, float(coef))
+        regions[comp] = SlopeRegion(comp, slope, readonly(levels[idx], int), b, method, tau_read,
+                                    float(coef))
         if method == "tangent":
             fallback.append(comp)
 
@@ -198,4 +280,5 @@ def fit_avsm(wv, model, *, min_edof: float = 2.0, slope_tol: float = 0.1) -> AVS
         parts.append("tangent fallback (no slope region) for " + ", ".join(fallback))
     return AVSMResult(params=params, param_names=list(model.param_names), model=model, wv=wv,
                       regions=regions, levels=levels, tau_s=tau_s, adev=adev,
-                      converged=converged, message="; ".join(parts) or "ok")
+                      converged=converged, message="; ".join(parts) or "ok", settings=settings,
+                      seconds_wv=seconds_wv, seconds_fit=time.perf_counter() - t0)

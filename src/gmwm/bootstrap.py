@@ -23,9 +23,11 @@ The paper's uncertainty study (chunks on disk, Table 1, the coverage study) is b
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from itertools import permutations
 from typing import Any, NamedTuple
 
@@ -34,6 +36,9 @@ import numpy as np
 from .errors import GMWMError, InputError
 from .estimator import GMWMResult, fit
 from .model import Model
+from .processes import PROCESSES
+from .results import check_alpha, freeze_arrays, json_safe, readonly
+from .settings import FitSettings
 from .wv import wvar
 
 __all__ = ["BootstrapResult", "Coverage", "bootstrap_cov", "coverage", "covers", "draw_seed",
@@ -51,12 +56,9 @@ def _free(model: Model, theta: np.ndarray) -> np.ndarray:
 def _positive_params(model: Model) -> np.ndarray:
     """Per parameter: its estimates live in [0, inf) (every parameter but AR1 phi and SIN beta;
     DR omega counts: the WV identifies only |omega| and fits report omega >= 0)."""
-    out = []
-    for c in model.components:
-        for n in c.process.param_names:
-            out.append(not ((c.process.name == "AR1" and n == "phi")
-                            or (c.process.name == "SIN" and n == "beta")))
-    return np.array(out, dtype=bool)
+    return np.array([pos for c in model.components for pos in c.process.positive], dtype=bool)
+
+
 SeedLike = int | np.random.SeedSequence
 
 
@@ -156,12 +158,16 @@ def bootstrap_cov(wv_draws: np.ndarray) -> np.ndarray:
 
 
 # -- parametric bootstrap -------------------------------------------------------------------------
-@dataclass
+@dataclass(frozen=True, eq=False)
 class BootstrapResult:
-    """Draws of a parametric bootstrap of ``estimate``; rows follow ``draws``.
+    """Draws of a parametric bootstrap of ``estimate``; rows follow ``draws`` (the result protocol
+    of :mod:`gmwm.results`: ``params`` are the estimate's, ``se`` the bootstrap SEs and
+    ``conf_int`` the percentile intervals, NaN without at least two converged refits).
 
     ``theta`` (n, p) holds the refits in canonical order (NaN where a refit raised),
-    ``converged`` (n,) marks refits used for CIs/SEs, ``wv`` (n, J) the simulated WVs.
+    ``converged`` (n,) marks refits used for CIs/SEs, ``wv`` (n, J) the simulated WVs,
+    ``settings`` the :class:`~gmwm.settings.FitSettings` of the refits (their seeds come from the
+    draws' streams), ``refit`` False when only the WVs were drawn.
     """
 
     estimate: GMWMResult
@@ -170,11 +176,25 @@ class BootstrapResult:
     converged: np.ndarray
     wv: np.ndarray
     seed: Any = 0
-    settings: dict[str, Any] = field(default_factory=dict)
+    settings: FitSettings = field(default_factory=FitSettings)
     messages: dict[int, str] = field(default_factory=dict)
     seconds: float = 0.0
+    refit: bool = True
+
+    def __post_init__(self) -> None:
+        freeze_arrays(self, ("theta", "wv"))
+        freeze_arrays(self, ("draws",), dtype=np.int64)
+        freeze_arrays(self, ("converged",), dtype=bool)
+        if isinstance(self.settings, dict):  # stored by gmwm_studies.uncertainty
+            object.__setattr__(self, "settings", FitSettings.from_tree(self.settings))
+        object.__setattr__(self, "refit", bool(self.refit))
 
     # -- sizes -----------------------------------------------------------------------------------
+    @property
+    def params(self) -> np.ndarray:
+        """The estimate's parameters (the bootstrap's centre)."""
+        return self.estimate.params
+
     @property
     def param_names(self) -> list[str]:
         return self.estimate.param_names
@@ -182,10 +202,6 @@ class BootstrapResult:
     @property
     def n_draws(self) -> int:
         return int(self.draws.size)
-
-    @property
-    def refit(self) -> bool:
-        return bool(self.settings.get("refit", True))
 
     @property
     def n_converged(self) -> int:
@@ -212,15 +228,16 @@ class BootstrapResult:
         SEs ``(A' V^-1 A)^-1`` from the sandwich with this V); ``kwargs`` go to :func:`gmwm.fit`.
         The drift sign (not identified by a WV) is copied from the estimate."""
         est = self.estimate
-        opts: dict[str, Any] = {"method": est.method, "seed": 0}
-        if "n_starts" in self.settings:
-            opts["n_starts"] = self.settings["n_starts"]
+        opts: dict[str, Any] = {"method": est.method, "seed": 0,
+                                "n_starts": self.settings.n_starts}
         opts.update(kwargs)
         res = fit(est.wv, est.model, weights=self.wv_cov, **opts)
+        params = np.array(res.params)
         for c in est.model.components:
-            if c.process.name == "DR" and est.params[c.start] < 0:
-                res.params[c.start] = -res.params[c.start]
-        return res
+            if c.process.signed:
+                flip = est.params[c.slice] < 0
+                params[c.slice] = np.where(flip, -params[c.slice], params[c.slice])
+        return dataclasses.replace(res, params=params)
 
     # -- intervals -------------------------------------------------------------------------------
     def _need_refits(self) -> np.ndarray:
@@ -233,9 +250,21 @@ class BootstrapResult:
                              "no interval can be formed")
         return used
 
+    @cached_property
     def se(self) -> np.ndarray:
-        """Bootstrap standard errors: SD (ddof = 1) of the converged, label-aligned refits."""
-        return np.std(self.aligned(), axis=0, ddof=1)
+        """Bootstrap standard errors: SD (ddof = 1) of the converged, label-aligned refits (NaN
+        without at least two)."""
+        if not self.refit or self.n_converged < 2:
+            return readonly(np.full(len(self.param_names), np.nan))
+        return readonly(np.std(self.aligned(), axis=0, ddof=1))
+
+    def conf_int(self, alpha: float = 0.05) -> np.ndarray:
+        """(p, 2) percentile intervals (:meth:`percentile_ci`; NaN without at least two
+        converged refits)."""
+        check_alpha(alpha)
+        if not self.refit or self.n_converged < 2:
+            return np.full((len(self.param_names), 2), np.nan)
+        return self.percentile_ci(alpha)
 
     def aligned(self) -> np.ndarray:
         """Converged refits with same-type components relabelled to match the estimate (the
@@ -244,8 +273,8 @@ class BootstrapResult:
         used = self._need_refits().copy()
         model = self.estimate.model
         est_eta = _free(model, self.estimate.params)
-        for name in ("AR1", "GM", "SIN"):
-            comps = [c for c in model.components if c.process.name == name]
+        for proc in PROCESSES.values():
+            comps = [c for c in model.components if c.process is proc]
             if len(comps) < 2:
                 continue
             perms = list(permutations(range(len(comps))))
@@ -268,7 +297,7 @@ class BootstrapResult:
         rule), which gives nominal coverage for exchangeable draws even at small ``n``; numpy's
         default ``a (n - 1) + 1`` makes 95% intervals from 50 draws cover only about 91%.
         """
-        _check_alpha(alpha)
+        check_alpha(alpha)
         q = np.quantile(self.aligned(), [alpha / 2, 1 - alpha / 2], axis=0,
                         method="weibull")
         return q.T
@@ -310,7 +339,7 @@ class BootstrapResult:
         import pandas as pd
 
         ci = self.ci(alpha, kind)
-        boot = self.se()
+        boot = self.se
         sand = np.asarray(self.estimate.se, dtype=float)
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = boot / sand
@@ -322,13 +351,18 @@ class BootstrapResult:
                         n_draws=self.n_draws, n_samples=int(self.estimate.wv.n_samples))
         return df
 
+    def _usable(self) -> bool:
+        return self.refit and self.n_converged >= 2
+
     def summary(self, alpha: float = 0.05, kind: str = "percentile") -> str:
-        """Plain-text table: parameter, estimate, CI low, CI high, boot SE, sandwich SE."""
+        """Plain-text table: parameter, estimate, CI low, CI high, boot SE, sandwich SE (NaN
+        without at least two converged refits)."""
         est = self.estimate
         head = (f"parametric bootstrap of {est.model.spec} ({est.method}), T = "
                 f"{est.wv.n_samples}: {self.n_draws} draws, {self.n_converged} refits used, "
                 f"{self.n_failed} failed/not converged; {100 * (1 - alpha):g}% {kind} CIs")
-        ci, boot = self.ci(alpha, kind), self.se()
+        ci = self.ci(alpha, kind) if self._usable() else self.conf_int(alpha)
+        boot = self.se
         lines = [head, (f"{'parameter':<16}{'estimate':>13}{'CI low':>13}{'CI high':>13}"
                        f"{'boot SE':>12}{'sandwich SE':>13}"), "-" * 80]
         for i, name in enumerate(self.param_names):
@@ -337,27 +371,30 @@ class BootstrapResult:
         return "\n".join(lines)
 
     def __str__(self) -> str:
-        return self.summary() if self.refit and self.n_converged >= 2 else repr(self)
+        return self.summary()
 
     def to_json_dict(self, alpha: float = 0.05) -> dict[str, Any]:
-        """JSON-able summary: settings, counts, CIs (both kinds), SEs, WV covariance."""
+        """JSON-able summary: settings, counts, CIs (both kinds), SEs, WV covariance (None with
+        fewer than two draws); non-finite numbers are None."""
+        est = self.estimate
         out: dict[str, Any] = {
-            "model": self.estimate.model.spec, "method": self.estimate.method,
-            "n_samples": int(self.estimate.wv.n_samples), "n_draws": self.n_draws,
+            "model": est.model.spec, "method": est.method,
+            "n_samples": int(est.wv.n_samples), "n_draws": self.n_draws,
             "n_converged": self.n_converged, "n_failed": self.n_failed,
-            "settings": {k: v for k, v in self.settings.items() if k != "weights_matrix"},
-            "estimate": self.estimate.as_dict(), "sandwich_se": self.estimate.se_dict(),
-            "wv_cov": self.wv_cov.tolist(), "seconds": self.seconds,
+            "settings": {"refit": self.refit, **self.settings.to_json_dict(),
+                         "n_samples": int(est.wv.n_samples), "freq": est.wv.freq},
+            "estimate": est.as_dict(), "sandwich_se": est.se_dict(),
+            "wv_cov": self.wv_cov if self.n_draws >= 2 else None, "seconds": self.seconds,
             "failures": {str(k): v for k, v in self.messages.items()},
         }
-        if self.refit and self.n_converged >= 2:
+        if self._usable():
             names = self.param_names
-            pc, bc, se = self.percentile_ci(alpha), self.basic_ci(alpha), self.se()
+            pc, bc, se = self.percentile_ci(alpha), self.basic_ci(alpha), self.se
             out.update(level=1 - alpha,
                        percentile_ci={n: pc[i].tolist() for i, n in enumerate(names)},
                        basic_ci={n: bc[i].tolist() for i, n in enumerate(names)},
                        boot_se=dict(zip(names, se.tolist(), strict=True)))
-        return out
+        return json_safe(out)
 
     # -- chunks ----------------------------------------------------------------------------------
     @classmethod
@@ -369,7 +406,7 @@ class BootstrapResult:
         for p in parts[1:]:
             same = (np.array_equal(p.estimate.params, first.estimate.params)
                     and p.estimate.model == first.estimate.model and repr(p.seed) == repr(first.seed)
-                    and p.settings.get("refit") == first.settings.get("refit"))
+                    and p.refit == first.refit and p.settings == first.settings)
             if not same:
                 raise InputError("bootstrap chunks come from different estimates, seeds or settings")
         draws = np.concatenate([p.draws for p in parts])
@@ -379,12 +416,8 @@ class BootstrapResult:
         cat = lambda name: np.concatenate([getattr(p, name) for p in parts])[order]
         messages = {k: v for p in parts for k, v in p.messages.items()}
         return cls(first.estimate, draws[order], cat("theta"), cat("converged"), cat("wv"),
-                   first.seed, dict(first.settings), messages, sum(p.seconds for p in parts))
-
-
-def _check_alpha(alpha: float) -> None:
-    if not 0 < alpha < 1:
-        raise InputError(f"alpha must lie in (0, 1), got {alpha}")
+                   first.seed, first.settings, messages, sum(p.seconds for p in parts),
+                   first.refit)
 
 
 def parametric_bootstrap(result: GMWMResult, B: int = 100, *, seed: SeedLike = 0,
@@ -396,8 +429,8 @@ def parametric_bootstrap(result: GMWMResult, B: int = 100, *, seed: SeedLike = 0
 
     Each draw ``b`` simulates ``T = result.wv.n_samples`` samples from ``result.params`` (stream
     :func:`draw_seed` ``(seed, b)``), computes its WV on the same J levels and, if ``refit``,
-    refits the same model with the same method, weights, reweighting and ``n_starts`` as the
-    estimate (its ``settings``, unless ``weights``/``reweight``/``n_starts`` are given). A
+    refits the same model with the estimate's settings (``result.settings``; ``weights``,
+    ``reweight``, ``n_starts`` replace theirs if given; diagonal Gaussian SEs). A
     refit that raises a :class:`GMWMError` or reports ``converged=False`` is kept in ``theta``
     but excluded from intervals and SEs (counted in ``n_failed``, message in ``messages``).
     ``draws`` restricts the run to those draw indices (chunks for a pipeline; join them with
@@ -408,17 +441,9 @@ def parametric_bootstrap(result: GMWMResult, B: int = 100, *, seed: SeedLike = 0
     model, theta = result.model, np.asarray(result.params, dtype=float)
     wv0 = result.wv
     J, T = wv0.n_levels, int(wv0.n_samples)
-    recorded = result.fit_kwargs()
-    if weights is None:
-        weights = recorded["weights"]
-    if reweight is None:
-        reweight = recorded["reweight"]
-    reweight = int(reweight)
-    if n_starts is None:
-        n_starts = recorded["n_starts"]
-    kind = weights if isinstance(weights, str) else "covariance"
-    settings = {"refit": bool(refit), "weights": kind, "reweight": reweight, "n_starts": n_starts,
-                "method": result.method, "levels": J, "n_samples": T, "freq": wv0.freq}
+    given = {"weights": weights, "reweight": reweight, "n_starts": n_starts}
+    settings = result.settings.replace(se_cov="gaussian", levels=J,
+                                       **{k: v for k, v in given.items() if v is not None})
     p = model.n_params
     th = np.full((idx.size, p), np.nan)
     ok = np.zeros(idx.size, dtype=bool)
@@ -431,9 +456,7 @@ def parametric_bootstrap(result: GMWMResult, B: int = 100, *, seed: SeedLike = 0
             nus[i] = wvar(x, levels=J).variance
         else:
             try:
-                res = fit(x, model, levels=J, freq=wv0.freq, weights=weights, method=result.method,
-                          n_starts=n_starts, seed=_fit_seed(ss), reweight=reweight,
-                          se_cov="gaussian", nested=recorded["nested"])
+                res = fit(x, model, settings=settings, freq=wv0.freq, seed=_fit_seed(ss))
                 nus[i] = res.wv.variance
                 th[i] = res.params
                 ok[i] = bool(res.converged) and bool(np.all(np.isfinite(res.params)))
@@ -446,7 +469,7 @@ def parametric_bootstrap(result: GMWMResult, B: int = 100, *, seed: SeedLike = 0
         if progress is not None:
             progress(i + 1, idx.size)
     return BootstrapResult(result, idx, th, ok, nus, seed, settings, messages,
-                           time.perf_counter() - t0)
+                           time.perf_counter() - t0, bool(refit))
 
 
 # -- coverage -------------------------------------------------------------------------------------

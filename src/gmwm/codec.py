@@ -60,6 +60,8 @@ def _enc_tree(obj: Any) -> Any:
         return [_enc_tree(v) for v in obj]
     if isinstance(obj, np.ndarray):
         return _enc_array(obj)
+    if hasattr(obj, "to_tree"):  # FitSettings: its options by name (read back by the result)
+        return _enc_tree(obj.to_tree())
     if isinstance(obj, np.generic):
         obj = obj.item()
     if isinstance(obj, float) and not np.isfinite(obj):

@@ -6,19 +6,21 @@ step is a factor ``e`` in a scale parameter, so thresholds are dimensionless:
 
 Local (:func:`local_check`), at the estimate, parameters at the boundary 0 left out:
 
-* ``A = L' d f(nu)/d eta`` (``Omega = L L'``) with unit-norm columns; its singular values give the
-  numerical ``rank`` (``s_i > RANK_RTOL * s_1``, ``RANK_RTOL = 1e-8``) and ``condition_number``
-  (warn above ``COND_MAX = 1e6``); right singular vectors of the small singular values name the
-  parameter combinations the WV cannot tell apart (loadings ``>= LOADING_MIN = 0.3``).
+* ``A = L' d f(nu)/d eta`` (``Omega = L L'``; :func:`gmwm.diagnostics.free_jacobian`, the matrix
+  the fit's own condition number is computed from) with unit-norm columns; its singular values
+  give the numerical ``rank`` (``s_i > RANK_RTOL * s_1``) and ``condition_number`` (warn above
+  ``COND_MAX``); right singular vectors of the small singular values name the parameter
+  combinations the WV cannot tell apart (loadings ``>= LOADING_MIN``). Thresholds and why:
+  :mod:`gmwm.diagnostics`.
 * Statistical size of the flat directions: eigenvectors of the sandwich covariance in free
   coordinates whose SD exceeds ``SD_FREE_MAX = 1`` (a 1-SD move changes a scale parameter by a
   factor e) are reported as weakly identified.
-* Known degenerate configurations at the estimate (:func:`degeneracies`): a component whose WV
-  is below the noise of the WV estimate (``sqrt(sum_j (nu_c,j / sd_j)^2) < 1``, ``sd_j`` the
-  Gaussian SD ``nu_j sqrt(2 / eta_j)``; it vanishes), an AR1/GM with ``phi ~ 0`` next to
-  a WN, an AR1/GM whose correlation time exceeds 5 times the longest scale (a random walk over the
-  observed scales), a SIN whose period exceeds the longest scale (confounded with a drift), two
-  AR1/GM or two SIN with nearly equal shape (only their sum is identified).
+* Known degenerate configurations at the estimate (:func:`gmwm.diagnostics.degeneracies`): a
+  component whose WV is below the noise of the WV estimate (it vanishes), an AR1/GM with
+  ``phi ~ 0`` next to a WN, an AR1/GM whose correlation time exceeds 5 times the longest scale (a
+  random walk over the observed scales), a SIN whose WV peaks beyond the longest scale
+  (confounded with a drift), two AR1/GM or two SIN with nearly equal shape (only their sum is
+  identified).
 
 Global (:func:`global_check`): least-squares refinements of the same objective from dispersed
 starts; two optima are distinct if some free coordinate differs by more than
@@ -39,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from .diagnostics import COND_MAX, LOADING_MIN, RANK_RTOL, SD_FREE_MAX, degeneracies, free_jacobian
 from .errors import GMWMError, InputError
 from .estimator import GMWMResult
 from .inference import Problem, f_jacobian, omega_from_cov, whitener, wv_cov
@@ -49,10 +52,6 @@ __all__ = ["COND_MAX", "LOADING_MIN", "RANK_RTOL", "SD_FREE_MAX", "GlobalCheck",
            "IdentifiabilityReport", "LocalCheck", "PosteriorCheck", "batch_wv", "check",
            "corner_plot", "degeneracies", "global_check", "local_check", "posterior_check"]
 
-COND_MAX = 1e6
-RANK_RTOL = 1e-8
-SD_FREE_MAX = 1.0
-LOADING_MIN = 0.3
 TAU_FACTOR = 50  # chains must be longer than TAU_FACTOR integrated autocorrelation times
 _LOG10E = np.log10(np.e)
 
@@ -138,72 +137,6 @@ def batch_wv(model: Model, theta: np.ndarray, scales: np.ndarray) -> np.ndarray:
     return model.wv_many(theta, scales)
 
 
-# -- degenerate configurations ----------------------------------------------------------------------
-def _ar1_a(comp, p: np.ndarray, freq: float) -> float:
-    """a = -ln(phi) (inf for phi <= 0) of an AR1 or GM component."""
-    if comp.process.name == "GM":
-        return float(p[0] / freq)
-    return float(-np.log(p[0])) if p[0] > 0 else np.inf
-
-
-def degeneracies(model: Model, theta: np.ndarray, wv: WaveletVariance) -> list[str]:
-    """Known non-identifiable configurations of ``theta`` given the observed scales of ``wv``
-    (criteria in the module docstring). Returns human-readable reasons (empty: none found)."""
-    theta = np.asarray(theta, dtype=float)
-    tau = wv.scales.astype(float)
-    tau_max = float(tau[-1])
-    total = model.wv(theta, tau)
-    sd = np.sqrt(2.0 / wv.edof) * np.abs(total)
-    notes: list[str] = []
-    comp_wv = model.component_wv(theta, tau)
-    for c in model.components:
-        nu_c = np.nan_to_num(comp_wv[c.name])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            snr = float(np.sqrt(np.sum(np.where(sd > 0, nu_c / sd, np.inf) ** 2)))
-        if snr < 1:
-            share = float(np.max(nu_c / total)) if np.all(total > 0) else 0.0
-            notes.append(f"{c.name} vanishes: its WV is below the noise of the WV estimate "
-                         f"(signal/noise {snr:.2g} over all scales, max share {share:.2g})")
-            continue
-        p = theta[c.slice]
-        name = c.process.name
-        if name == "AR1" and p[0] <= 0:
-            if p[0] < -0.999:
-                notes.append(f"{c.name} is at the edge phi -> -1 (phi = {p[0]:.7g}): an "
-                             "alternating process whose WV is concentrated at the first scale; "
-                             "its phi and variance are not separately identified")
-            elif p[0] > -0.05 and model.count("WN"):
-                notes.append(f"{c.name} collapses into white noise (phi = {p[0]:.3g} ~ 0): its "
-                             "split with WN[1] is not identified")
-        elif name in ("AR1", "GM"):
-            a = _ar1_a(c, p, model.freq)
-            if a > 3 and model.count("WN"):
-                notes.append(f"{c.name} collapses into white noise (phi = {np.exp(-a):.3g}, "
-                             "correlation time below one sample): its split with WN[1] is not "
-                             "identified")
-            elif a * tau_max / 2 < 0.1:
-                notes.append(f"{c.name} behaves like a random walk over the observed scales "
-                             f"(correlation time {1 / a:.3g} samples > 5 x the longest scale "
-                             f"{tau_max:g}): phi is not identified")
-        elif name == "SIN" and 2 * np.pi / p[1] > tau_max:
-            notes.append(f"{c.name} has a period of {2 * np.pi / p[1]:.3g} samples, beyond the "
-                         f"longest scale {tau_max:g}: confounded with a drift (DR)")
-    for name, rel in (("AR1", 0.1), ("GM", 0.1), ("SIN", 0.05)):
-        comps = [c for c in model.components if c.process.name == name]
-        for i, c1 in enumerate(comps):
-            for c2 in comps[i + 1:]:
-                if name == "SIN":
-                    s1, s2 = theta[c1.start + 1], theta[c2.start + 1]
-                else:
-                    s1 = _ar1_a(c1, theta[c1.slice], model.freq)
-                    s2 = _ar1_a(c2, theta[c2.slice], model.freq)
-                if np.isfinite(s1) and np.isfinite(s2) and abs(s1 - s2) < rel * max(s1, s2):
-                    what = "beta" if name == "SIN" else "correlation time"
-                    notes.append(f"{c1.name} and {c2.name} have nearly equal {what}: only their "
-                                 "sum is identified")
-    return notes
-
-
 # -- local ------------------------------------------------------------------------------------------
 def _loadings(v: np.ndarray, names: list[str]) -> dict[str, float]:
     v = v / np.max(np.abs(v)) * np.sign(v[np.argmax(np.abs(v))]) * np.linalg.norm(v)
@@ -282,9 +215,7 @@ def local_check(result: GMWMResult | tuple, *, cov: np.ndarray | None = None) ->
     null_dirs: list[dict[str, Any]] = []
     weak_dirs: list[dict[str, Any]] = []
     if act.any():
-        L = whitener(s.omega)
-        with np.errstate(all="ignore"):
-            A = L.T @ s.problem.jac_theta(theta)[:, act] * d[act]
+        A = free_jacobian(s.problem, theta, act)
         norms = np.linalg.norm(A, axis=0)
         if np.all(np.isfinite(A)) and np.all(norms > 0):
             _, sv, Vt = np.linalg.svd(A / norms, full_matrices=False)
@@ -357,8 +288,7 @@ def _finite_free(model: Model, theta: np.ndarray, wv: WaveletVariance) -> np.nda
         p = th[c.slice]
         if c.process.linear and p[0] == 0:
             col = c.process.wv(np.ones(1), wv.scales.astype(float), model.freq)
-            v = 1e-4 * np.min(wv.variance / col)
-            p[0] = np.sqrt(v) if c.process.name == "DR" else v
+            p = np.asarray(c.process.from_vp(0.0, 1e-4 * np.min(wv.variance / col), model.freq))
         th[c.slice] = p
     with np.errstate(all="ignore"):
         eta = model.to_free(th)
@@ -375,12 +305,7 @@ def _random_start(model: Model, eta_hat: np.ndarray, wv: WaveletVariance,
     tau_max = float(wv.scales[-1])
     th = model.from_free(eta)
     for c in model.components:
-        name = c.process.name
-        if name in ("AR1", "GM"):
-            a = np.exp(rng.uniform(np.log(0.2 / tau_max), np.log(3.0)))
-            th[c.start] = a * model.freq if name == "GM" else np.exp(-a)
-        elif name == "SIN":
-            th[c.start + 1] = np.exp(rng.uniform(np.log(1.0 / tau_max), np.log(0.999 * np.pi)))
+        th[c.slice] = c.process.random_shape(th[c.slice], rng, tau_max, model.freq)
     return model.to_free(th)
 
 
@@ -394,11 +319,13 @@ def _describe(model: Model, best: np.ndarray, alt: np.ndarray, far: np.ndarray,
     """Name what differs between two near-equal optima."""
     comps = [c.name for c in model.components if np.any(far[c.slice])]
     kinds: list[str] = []
-    for name in ("SIN", "AR1", "GM"):
-        moved = [c for c in model.components if c.process.name == name and c.name in comps]
-        if len(moved) >= 2:
-            verb = "swap roles" if name == "SIN" else "trade variance"
-            kinds.append(f"{' and '.join(c.name for c in moved)} {verb}")
+    groups: dict[str, list[Any]] = {}
+    for c in model.components:
+        if c.name in comps:
+            groups.setdefault(c.process.name, []).append(c)
+    for moved in groups.values():
+        if len(moved) >= 2 and moved[0].process.swap_verb:
+            kinds.append(f"{' and '.join(c.name for c in moved)} {moved[0].process.swap_verb}")
     before = set(degeneracies(model, best, wv))
     kinds += [d for d in degeneracies(model, alt, wv) if d not in before]
     if not kinds and comps:
@@ -635,7 +562,7 @@ def posterior_check(result: GMWMResult | tuple, *, n_walkers: int | None = None,
         if inside.any():
             TH = to_theta(E[inside])
             with np.errstate(all="ignore"):
-                nu = wv_of(_zero_fixed(TH, fixed_comps)) + offset
+                nu = wv_of(_zero_fixed(TH, fixed_comps, model.freq)) + offset
                 R = (target - s.problem.f(nu)) @ L
                 q = np.einsum("ij,ij->i", R, R)
             out[inside] = np.where(np.isfinite(q), -0.5 * q, -np.inf)
@@ -729,21 +656,13 @@ def posterior_check(result: GMWMResult | tuple, *, n_walkers: int | None = None,
     return pc
 
 
-def _zero_fixed(TH: np.ndarray, fixed_comps: list) -> np.ndarray:
+def _zero_fixed(TH: np.ndarray, fixed_comps: list, freq: float) -> np.ndarray:
     """Set the scale parameter of held-fixed components to zero (their WV is in the offset)."""
     if not fixed_comps:
         return TH
     TH = TH.copy()
     for c in fixed_comps:
-        name = c.process.name
-        if name in ("AR1", "GM"):
-            TH[:, c.start] = 0.5 if name == "AR1" else 1.0
-            TH[:, c.start + 1] = 0.0
-        elif name == "SIN":
-            TH[:, c.start] = 0.0
-            TH[:, c.start + 1] = 1.0
-        else:
-            TH[:, c.start] = 0.0
+        TH[:, c.slice] = c.process.off_params(freq)
     return TH
 
 

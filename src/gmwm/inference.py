@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares, leastsq
 
+from .diagnostics import VANISH_SHARE, condition_number, free_jacobian
 from .errors import InputError
 from .model import Model, spec_of
 from .wv import WaveletVariance
@@ -347,7 +348,7 @@ class Problem:
         obj = self.objective(raw)
         ok = bool(sol.status > 0 and np.all(np.isfinite(raw)) and np.isfinite(obj))
         vanished = {k for k, v in model.component_wv(raw, self.tau).items()
-                    if np.max(v / self.nu_hat) < 1e-6}
+                    if np.max(v / self.nu_hat) < VANISH_SHARE}
         edge = [n for n, e, a, b in zip(model.param_names, sol.x, lo, hi, strict=True)
                 if min(e - a, b - e) < 1e-3
                 and not (n.split(".")[0] in vanished and e - a < 1e-3)]
@@ -366,8 +367,9 @@ class Problem:
     def sandwich(self, theta: np.ndarray, V: np.ndarray,
                  fixed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float]:
         """Sandwich covariance of theta_hat (SPEC 5.5) for a covariance V of nu_hat, its SEs and
-        the condition number of the whitened Jacobian in free coordinates. Parameters flagged
-        in ``fixed`` (at the boundary) are held fixed: their rows/columns are NaN."""
+        the condition number of the whitened Jacobian in free coordinates
+        (:func:`gmwm.diagnostics.free_jacobian`). Parameters flagged in ``fixed`` (at the
+        boundary) are held fixed: their rows/columns are NaN."""
         theta = np.asarray(theta, dtype=float)
         p = theta.size
         keep = np.ones(p, bool) if fixed is None else ~np.asarray(fixed, bool)
@@ -394,19 +396,5 @@ class Problem:
                 se[keep] = np.sqrt(np.clip(np.diag(ck), 0, None))
             except np.linalg.LinAlgError:
                 pass
-            eta = self.model.to_free(np.where(theta == 0, np.nan, theta))
-            Aeta = (self.white @ self.jac_theta(theta)) * self.model.dtheta_deta(eta)
-            cond = condition_number(Aeta[:, keep])
+            cond = condition_number(free_jacobian(self, theta, keep))
         return cov, se, cond
-
-
-def condition_number(A: np.ndarray) -> float:
-    """2-norm condition number of A with unit-norm columns (inf if singular or non-finite)."""
-    norms = np.linalg.norm(A, axis=0)
-    if A.size == 0 or not np.all(np.isfinite(A)) or np.any(norms == 0):
-        return np.inf
-    try:
-        sv = np.linalg.svd(A / norms, compute_uv=False)
-    except np.linalg.LinAlgError:
-        return np.inf
-    return float(sv[0] / sv[-1]) if sv[-1] > 0 else np.inf

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ModelError
-from .processes import PROCESSES, SINGLETONS, FreeMap, Process, ar1_unit_wv_many, sin_unit_wv
+from .processes import PROCESSES, SINGLETONS, FreeMap, Process
 
 _TERM = re.compile(r"^\s*(?:(\d+)\s*\*\s*)?([A-Za-z][A-Za-z0-9]*)\s*$")
 
@@ -46,7 +46,7 @@ class Component:
 
 def spec_of(counts: Mapping[str, int]) -> str:
     """Model string of process counts in the given order, zero counts skipped:
-    ``{"AR1": 2, "WN": 1}`` -> ``"2*AR1+WN"``."""
+    ``{'AR1': 2, 'WN': 1}`` -> ``'2*AR1+WN'``."""
     return "+".join(f"{n}*{name}" if n > 1 else name for name, n in counts.items() if n > 0)
 
 
@@ -195,22 +195,8 @@ class Model:
         TH = np.atleast_2d(np.asarray(thetas, dtype=float))
         tau = np.asarray(scales, dtype=float)
         out = np.zeros((TH.shape[0], tau.size))
-        for c in self.components:
-            P = TH[:, c.slice]
-            name = c.process.name
-            if name == "AR1":
-                out += P[:, 1:2] * ar1_unit_wv_many(P[:, 0], tau)
-            elif name == "GM":
-                a = P[:, 0] / self.freq
-                out += (P[:, 1] * -np.expm1(-2 * a))[:, None] * ar1_unit_wv_many(np.exp(-a), tau)
-            elif name == "SIN":
-                out += P[:, :1] ** 2 * sin_unit_wv(P[:, 1:2], tau)
-            elif c.process.linear:  # nu = h(p) * column, h(p) = p (DR: p^2)
-                col = c.process.wv(np.ones(1), tau, self.freq)
-                h = P[:, :1] ** 2 if name == "DR" else P[:, :1]
-                out += h * col
-            else:
-                out += np.array([c.process.wv(p, tau, self.freq) for p in P])
+        for proc, sl in self._parts:
+            out += proc.wv_many(TH[:, sl], tau, self.freq)
         return out
 
     def canonical_many(self, thetas: np.ndarray) -> np.ndarray:
@@ -295,27 +281,24 @@ class Model:
         qn: list[list[float]] = []  # [q, previous uniform]
         sines: list[tuple[float, float, float]] = []  # (alpha, beta, phase)
         for c in self.components:
-            p, name = theta[c.slice], c.process.name
-            if name == "WN":
-                sigma2 += p[0]
-            elif name == "RW":
-                gamma2 += p[0]
-            elif name == "DR":
-                omega += p[0]
-            elif name in ("AR1", "GM"):
-                if name == "AR1":
-                    phi, s2 = float(p[0]), float(p[1])
-                else:
-                    a, s2 = c.process._ar1(p, self.freq)
-                    phi = math.exp(-a)
+            # the primitive form (GM: an AR1; WN and RW: one walk-plus-noise stream)
+            kind, *v = c.process.primitive(theta[c.slice], self.freq)
+            if kind == "wn":
+                sigma2 += v[0]
+            elif kind == "rw":
+                gamma2 += v[0]
+            elif kind == "dr":
+                omega += v[0]
+            elif kind == "ar1":
+                phi, _, s2 = v
                 s = math.sqrt(s2)
                 ar1.append([phi, s, s * rng.standard_normal() / math.sqrt(1.0 - phi * phi)])
-            elif name == "QN":
-                qn.append([math.sqrt(12.0 * p[0]), rng.random()])
-            elif name == "SIN":
-                sines.append((float(p[0]), float(p[1]), rng.uniform(0.0, 2 * np.pi)))
+            elif kind == "qn":
+                qn.append([math.sqrt(12.0 * v[0]), rng.random()])
+            elif kind == "sin":
+                sines.append((v[0], v[1], rng.uniform(0.0, 2 * np.pi)))
             else:  # a process added to PROCESSES without a kernel here
-                raise ModelError(f"simulate_fast has no kernel for process {name!r}")
+                raise ModelError(f"simulate_fast has no kernel for process {c.process.name!r}")
         walk = sigma2 > 0 or gamma2 > 0
         if walk:
             c0 = 2 * sigma2 + gamma2

@@ -7,6 +7,14 @@ vector ``p`` (in the order of ``param_names``) to the WV ``nu_j = E[W_{j,t}^2]``
 
 Each process also defines a bijection between its domain and R^k (``to_free``/``from_free``) so
 optimisers work unconstrained; ``dp_deta`` is the (diagonal) derivative of that map.
+
+Everything else the library knows about one process lives on its class, so no other module
+branches on process names: the variable-projection coordinates of the estimator's search
+(:meth:`Process.shape_bounds`, :meth:`Process.unit_wv_columns`, :meth:`Process.from_vp`,
+:meth:`Process.shape_of`), the primitive form the WV covariance and the fast simulator work with
+(:meth:`Process.primitive`), which parameters are positive, and the process's own diagnostics
+(:meth:`Process.fit_warnings`, :meth:`Process.degeneracies`, thresholds in
+:mod:`gmwm.diagnostics`).
 """
 
 from __future__ import annotations
@@ -17,6 +25,8 @@ from typing import Any
 
 import numpy as np
 from scipy.special import expit, logit
+
+from . import diagnostics as dg
 
 # Free-space values are clamped so that wild optimiser steps cannot overflow exp().
 _ETA_MAX = 300.0
@@ -139,6 +149,93 @@ class Process:
         """Key sorting same-type components by the time scale they act on, shortest first."""
         return 0.0
 
+    #: Per parameter: its estimates live in [0, inf) (variances, amplitudes, rates; DR omega
+    #: too: the WV identifies only |omega| and fits report omega >= 0 unless a signal says more).
+    @property
+    def positive(self) -> tuple[bool, ...]:
+        return (True,) * self.n_params
+
+    #: True if the sign of the parameters is not identified by the WV (DR: taken from the signal).
+    signed: bool = False
+
+    def off_params(self, freq: float = 1.0) -> np.ndarray:
+        """Parameters of the component switched off: scale 0, any other parameter at a fixed
+        interior value (the WV is then exactly 0)."""
+        return np.zeros(self.n_params)
+
+    def wv_many(self, P: np.ndarray, tau: np.ndarray, freq: float = 1.0) -> np.ndarray:
+        """WV of many parameter rows at once: P (N, n_params) -> (N, J)."""
+        return np.array([self.wv(p, tau, freq) for p in P])
+
+    def primitive(self, p: np.ndarray, freq: float = 1.0) -> tuple[Any, ...]:
+        """The primitive form of the process: ``("wn", sigma2)``, ``("qn", Q2)``,
+        ``("rw", gamma2)``, ``("dr", omega)``, ``("ar1", phi, a, s2)`` (``a = -ln|phi|``, ``s2``
+        the innovation variance) or ``("sin", alpha, beta)``: what the WV covariance
+        (:mod:`gmwm.wvcov`) and the fast simulator (:meth:`gmwm.model.Model.simulate_fast`)
+        are written for."""
+        raise NotImplementedError
+
+    def load_kernels(self) -> None:
+        """Load any compiled kernel the process's WV needs (nothing by default)."""
+
+    # -- variable-projection coordinates (gmwm.search) --------------------------------------
+    # The WV is linear in the scale parameter once the shape (AR1 phi, GM beta, SIN beta) is
+    # fixed. Shapes are searched in a coordinate u where a uniform grid resolves both ends of
+    # the domain; processes without a shape (QN, WN, RW, DR) have none (u = 0).
+
+    #: True if the WV oscillates in the shape (SIN: nulls at beta tau / 4 = k pi), so that the
+    #: search needs a phase-resolving fine scan and joint scans with the other shapes.
+    oscillating: bool = False
+
+    def shape_bounds(self, tau: np.ndarray) -> tuple[float, float] | None:
+        """Search range of the shape coordinate for scales ``tau`` (None: no shape)."""
+        return None
+
+    def unit_wv_columns(self, u: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """WV at unit scale for shape coordinates u (G,): (J, G)."""
+        u = np.atleast_1d(np.asarray(u, dtype=float))
+        col = self.wv(np.ones(1), tau)
+        return np.repeat(col[:, None], u.size, axis=1)
+
+    def scan_wv_columns(self, u: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """The columns a coarse grid scan uses (default: :meth:`unit_wv_columns`)."""
+        return self.unit_wv_columns(u, tau)
+
+    def from_vp(self, u: float, s: float, freq: float, sign: float = 1.0) -> list[float]:
+        """Parameters from shape coordinate ``u`` and the (non-negative) coefficient ``s`` of
+        the unit-scale WV column; ``sign`` of a signed parameter."""
+        return [s]
+
+    def shape_of(self, p: np.ndarray, freq: float) -> float:
+        """Shape coordinate of parameters ``p`` (0 without a shape)."""
+        return 0.0
+
+    def random_shape(self, p: np.ndarray, rng: np.random.Generator, tau_max: float,
+                     freq: float) -> np.ndarray:
+        """``p`` with its shape drawn at random over the observed scales (``tau_max`` the
+        longest, in samples); unchanged, and no draw, without a shape."""
+        return p
+
+    # -- diagnostics (thresholds: gmwm.diagnostics) ------------------------------------------
+    #: Relative difference of :meth:`pair_key` below which two components of this process are
+    #: identified only through their sum (None: at most one per model, or no rule).
+    pair_rel: float | None = None
+    #: What :meth:`pair_key` measures, for the message.
+    pair_what: str = ""
+    #: How two components of this process exchange their parts between near-equal optima.
+    swap_verb: str = ""
+
+    def pair_key(self, p: np.ndarray, freq: float) -> float:
+        return np.nan
+
+    def fit_warnings(self, label: str, p: np.ndarray, tau_max: float, freq: float) -> list[str]:
+        """Warnings of a fit with this component at ``p`` (``tau_max`` the longest scale)."""
+        return []
+
+    def degeneracies(self, label: str, p: np.ndarray, tau_max: float, model: Any) -> list[str]:
+        """Non-identifiable configurations of this component at ``p`` within ``model``."""
+        return []
+
 
 class WhiteNoise(Process):
     """WN(sigma2): iid N(0, sigma2). nu_j = sigma2 / tau."""
@@ -157,6 +254,12 @@ class WhiteNoise(Process):
         z = rng.standard_normal(n)
         z *= np.sqrt(p[0])  # in place: one 8n-byte array per component at 1e7 samples
         return z
+
+    def primitive(self, p, freq=1.0):
+        return ("wn", p[0])
+
+    def wv_many(self, P, tau, freq=1.0):
+        return P[:, :1] * self.wv(np.ones(1), tau, freq)
 
 
 class QuantizationNoise(Process):
@@ -177,6 +280,12 @@ class QuantizationNoise(Process):
         v *= np.sqrt(12.0 * p[0])
         return np.diff(v)
 
+    def primitive(self, p, freq=1.0):
+        return ("qn", p[0])
+
+    def wv_many(self, P, tau, freq=1.0):
+        return P[:, :1] * self.wv(np.ones(1), tau, freq)
+
 
 class RandomWalk(Process):
     """RW(gamma2): X_t = X_{t-1} + N(0, gamma2). nu_j = gamma2 (tau^2 + 2) / (12 tau)."""
@@ -196,6 +305,12 @@ class RandomWalk(Process):
         z *= np.sqrt(p[0])
         return np.cumsum(z, out=z)
 
+    def primitive(self, p, freq=1.0):
+        return ("rw", p[0])
+
+    def wv_many(self, P, tau, freq=1.0):
+        return P[:, :1] * self.wv(np.ones(1), tau, freq)
+
 
 class Drift(Process):
     """DR(omega): X_t = omega t. nu_j = omega^2 tau^2 / 16 (the sign of omega is not identified
@@ -204,6 +319,7 @@ class Drift(Process):
     name = "DR"
     param_names = ("omega",)
     linear = True
+    signed = True
 
     def wv(self, p, tau, freq=1.0):
         return p[0] ** 2 * tau**2 / 16.0
@@ -218,6 +334,16 @@ class Drift(Process):
 
     def to_free(self, p):
         return np.log(np.abs(np.asarray(p, dtype=float)))
+
+    def primitive(self, p, freq=1.0):
+        return ("dr", p[0])
+
+    def wv_many(self, P, tau, freq=1.0):
+        # nu = omega^2 * column
+        return P[:, :1] ** 2 * self.wv(np.ones(1), tau, freq)
+
+    def from_vp(self, u, s, freq, sign=1.0):
+        return [sign * np.sqrt(s)]
 
     def check(self, p):
         if not np.all(np.isfinite(p)) or p[0] == 0:
@@ -292,14 +418,53 @@ def _simulate_ar1(phi: float, s2: float, n: int, rng: np.random.Generator) -> np
     return lfilter([1.0], [1.0, -phi], e)
 
 
-class AR1(Process):
+# shape coordinate of the AR1 at phi = -1 + 2e-6 (xi = 2 atanh(phi))
+_XI_NEG = -np.log(2 / 2e-6)
+
+
+class _AR1Like(Process):
+    """What AR1 and GM share: an AR1 in disguise (GM: phi = exp(-beta / freq)), searched by its
+    decay rate, diagnosed by its correlation time against the scales and the white noise."""
+
+    scale_index = 1
+    pair_rel = dg.PAIR_REL_AR
+    pair_what = "correlation time"
+    swap_verb = "trade variance"
+
+    def load_kernels(self) -> None:
+        # Numba's start-up (~0.3 s once per process), so that a timed fit does not include it
+        ar1_unit_wv_many(np.array([0.5]), np.array([2.0]))
+
+    def rate(self, p: np.ndarray, freq: float) -> float:
+        """Decay rate a = -ln(phi) per sample (inf for phi <= 0)."""
+        raise NotImplementedError
+
+    def pair_key(self, p, freq):
+        return self.rate(p, freq)
+
+    def _rate_from_draw(self, rng: np.random.Generator, tau_max: float) -> float:
+        # correlation times from 1/3 sample to 5 longest scales
+        return np.exp(rng.uniform(np.log(0.2 / tau_max), np.log(3.0)))
+
+    def _rate_notes(self, label: str, a: float, tau_max: float, model: Any) -> list[str]:
+        if a > dg.COLLAPSE_RATE and model.count(WhiteNoise.name):
+            return [(f"{label} collapses into white noise (phi = {np.exp(-a):.3g}, correlation "
+                    "time below one sample): its split with WN[1] is not identified")]
+        if a * tau_max * dg.RW_LIKE < 1:
+            return [(f"{label} behaves like a random walk over the observed scales (correlation "
+                    f"time {1 / a:.3g} samples > {dg.RW_LIKE:g} x the longest scale "
+                    f"{tau_max:g}): phi is not identified")]
+        return []
+
+
+class AR1(_AR1Like):
     """AR1(phi, sigma2): X_t = phi X_{t-1} + N(0, sigma2), sigma2 the innovation variance,
     |phi| < 1, stationary start. Free parameters: scaled logit of phi on (-1, 1), log sigma2."""
 
     name = "AR1"
     param_names = ("phi", "sigma2")
     free_kinds = ("phi", "log")
-    scale_index = 1
+    positive = (False, True)
 
     def free_limits(self):
         # 2 expit(eta) - 1 rounds to 1 from eta ~ 37 on: phi = 1 is a random walk, not an AR1
@@ -315,6 +480,57 @@ class AR1(Process):
     def simulate(self, p, n, rng, freq=1.0):
         return _simulate_ar1(p[0], p[1], n, rng)
 
+    def wv_many(self, P, tau, freq=1.0):
+        return P[:, 1:2] * ar1_unit_wv_many(P[:, 0], tau)
+
+    def primitive(self, p, freq=1.0):
+        phi, s2 = float(p[0]), float(p[1])
+        return ("ar1", phi, -np.log(abs(phi)) if phi != 0 else np.inf, s2)
+
+    def off_params(self, freq=1.0):
+        return np.array([0.5, 0.0])
+
+    # shape coordinate xi = 2 atanh(phi) over the whole domain phi in (-1, 1)
+    def shape_bounds(self, tau):
+        # up to a correlation time ~5x the longest scale
+        return _XI_NEG, float(np.log(2 * 5 * tau[-1]))
+
+    def unit_wv_columns(self, u, tau):
+        u = np.atleast_1d(np.asarray(u, dtype=float))
+        return ar1_unit_wv_many(np.tanh(u / 2), tau).T
+
+    def from_vp(self, u, s, freq, sign=1.0):
+        return [np.tanh(u / 2), s]
+
+    def shape_of(self, p, freq):
+        return 2 * np.arctanh(np.clip(p[0], -1 + 1e-15, 1 - 1e-15))
+
+    def random_shape(self, p, rng, tau_max, freq):
+        p = np.array(p, dtype=float)
+        p[0] = np.exp(-self._rate_from_draw(rng, tau_max))
+        return p
+
+    def rate(self, p, freq):
+        return float(-np.log(p[0])) if p[0] > 0 else np.inf
+
+    def fit_warnings(self, label, p, tau_max, freq):
+        if abs(p[0]) > 1 - dg.PHI_EDGE:
+            return [(f"{label}.phi = {p[0]:.8g} is at the edge of the stationary domain "
+                    f"(|phi| -> 1): {'a random walk' if p[0] > 0 else 'an alternating process'}"
+                    " over the observed scales, not an AR1")]
+        return []
+
+    def degeneracies(self, label, p, tau_max, model):
+        if p[0] > 0:
+            return self._rate_notes(label, self.rate(p, model.freq), tau_max, model)
+        if p[0] < -dg.PHI_NEG_EDGE:
+            return [(f"{label} is at the edge phi -> -1 (phi = {p[0]:.7g}): an alternating "
+                    "process whose WV is concentrated at the first scale; its phi and variance "
+                    "are not separately identified")]
+        if p[0] > -dg.PHI_ZERO and model.count(WhiteNoise.name):
+            return [(f"{label} collapses into white noise (phi = {p[0]:.3g} ~ 0): its split with "
+                    "WN[1] is not identified")]
+        return []
 
     def check(self, p):
         if not np.all(np.isfinite(p)):
@@ -329,14 +545,13 @@ class AR1(Process):
         return float(p[0])
 
 
-class GaussMarkov(Process):
+class GaussMarkov(_AR1Like):
     """GM(beta, sigma2): exactly sampled Gauss-Markov process = AR1 with phi = exp(-beta/freq),
     innovation variance sigma2 (1 - phi^2). beta in 1/s (inverse correlation time), sigma2 the
     stationary variance."""
 
     name = "GM"
     param_names = ("beta", "sigma2")
-    scale_index = 1
 
     def _ar1(self, p, freq):
         a = p[0] / freq
@@ -358,6 +573,42 @@ class GaussMarkov(Process):
         a, s2 = self._ar1(p, freq)
         return _simulate_ar1(np.exp(-a), s2, n, rng)
 
+    def wv_many(self, P, tau, freq=1.0):
+        a = P[:, 0] / freq
+        return (P[:, 1] * -np.expm1(-2 * a))[:, None] * ar1_unit_wv_many(np.exp(-a), tau)
+
+    def primitive(self, p, freq=1.0):
+        a = float(p[0]) / freq
+        return ("ar1", float(np.exp(-a)), a, float(p[1] * -np.expm1(-2 * a)))
+
+    def off_params(self, freq=1.0):
+        return np.array([freq * 0.1, 0.0])
+
+    # shape coordinate log(a), a = beta / freq (phi = e^-a in (0, 1))
+    def shape_bounds(self, tau):
+        return float(np.log(0.2 / tau[-1])), float(np.log(7.0))
+
+    def unit_wv_columns(self, u, tau):
+        a = np.exp(np.atleast_1d(np.asarray(u, dtype=float)))
+        return (-np.expm1(-2 * a)[:, None] * ar1_unit_wv_many(np.exp(-a), tau)).T
+
+    def from_vp(self, u, s, freq, sign=1.0):
+        return [np.exp(u) * freq, s]
+
+    def shape_of(self, p, freq):
+        return np.log(max(p[0] / freq, 1e-300))
+
+    def random_shape(self, p, rng, tau_max, freq):
+        p = np.array(p, dtype=float)
+        p[0] = self._rate_from_draw(rng, tau_max) * freq
+        return p
+
+    def rate(self, p, freq):
+        return float(p[0] / freq)
+
+    def degeneracies(self, label, p, tau_max, model):
+        return self._rate_notes(label, self.rate(p, model.freq), tau_max, model)
+
     def order_key(self, p, freq=1.0):
         return float(1.0 / p[0])
 
@@ -369,6 +620,13 @@ class Sinusoid(Process):
     name = "SIN"
     param_names = ("alpha", "beta")
     free_kinds = ("log", "pi")
+    positive = (True, False)
+    oscillating = True
+    pair_rel = dg.PAIR_REL_SIN
+    pair_what = "beta"
+    swap_verb = "swap roles"
+    #: x = beta tau / 4 at the WV's peak: the root of tan x = 2 x (sin^4 x / x^2 is largest)
+    PEAK_X = 1.1656
 
     def wv(self, p, tau, freq=1.0):
         return p[0] ** 2 * sin_unit_wv(p[1], tau)
@@ -389,6 +647,73 @@ class Sinusoid(Process):
         u = rng.uniform(0.0, 2 * np.pi)
         return p[0] * np.sin(p[1] * np.arange(1, n + 1, dtype=float) + u)
 
+    def wv_many(self, P, tau, freq=1.0):
+        return P[:, :1] ** 2 * sin_unit_wv(P[:, 1:2], tau)
+
+    def primitive(self, p, freq=1.0):
+        return ("sin", float(p[0]), float(p[1]))
+
+    def off_params(self, freq=1.0):
+        return np.array([0.0, 1.0])
+
+    # shape coordinate log(beta)
+    def shape_bounds(self, tau):
+        return float(np.log(1.0 / tau[-1])), float(np.log(0.999 * np.pi))
+
+    def unit_wv_columns(self, u, tau):
+        u = np.atleast_1d(np.asarray(u, dtype=float))
+        return sin_unit_wv(np.exp(u)[None, :], tau[:, None])
+
+    def scan_wv_columns(self, u, tau):
+        """Smooth stand-in for the WV used to locate the bump on a coarse grid: past the first
+        peak, sin^4(beta tau / 4) is replaced by its mean 3/8, removing the oscillation in beta
+        that makes a coarse grid land on arbitrary phases."""
+        b = np.exp(np.asarray(u))[None, :]
+        t = tau[:, None]
+        x = b * t / 4
+        s2 = np.sin(np.minimum(x, self.PEAK_X))
+        s2 *= s2
+        s4 = np.where(x < self.PEAK_X, s2 * s2, 0.375)
+        d = np.sin(b / 2)
+        return 2 * s4 / (t**2 * (d * d))
+
+    def from_vp(self, u, s, freq, sign=1.0):
+        return [np.sqrt(s), np.exp(u)]
+
+    def shape_of(self, p, freq):
+        return np.log(max(p[1], 1e-300))
+
+    def random_shape(self, p, rng, tau_max, freq):
+        p = np.array(p, dtype=float)
+        p[1] = np.exp(rng.uniform(np.log(1.0 / tau_max), np.log(0.999 * np.pi)))
+        return p
+
+    def pair_key(self, p, freq):
+        return p[1]
+
+    def is_slow(self, p: np.ndarray, tau_max: float) -> bool:
+        """True if the WV peaks beyond the longest scale ``tau_max`` (the slow-SIN rule of
+        :mod:`gmwm.diagnostics`): alpha and beta are then confounded with a drift."""
+        return bool(p[1] * tau_max < 4 * self.PEAK_X)
+
+    def _slow_note(self, label: str, p: np.ndarray, tau_max: float) -> list[str]:
+        if not self.is_slow(p, tau_max):
+            return []
+        with np.errstate(divide="ignore"):
+            period = 2 * np.pi / np.float64(p[1])
+        return [(f"{label} has a period of {period:.3g} samples: its WV peaks beyond the longest "
+                f"scale ({tau_max:.0f} samples) and rises like a drift's over the observed scales "
+                f"(slope alpha * beta = {p[0] * p[1]:.3g}), so alpha and beta are not identified "
+                "separately: confounded with a drift (DR)")]
+
+    def fit_warnings(self, label, p, tau_max, freq):
+        out = []
+        if p[1] > np.pi * (1 - dg.SIN_NYQUIST_EDGE):
+            out.append(f"{label}.beta = {p[1]:.6g} is at the Nyquist bound pi")
+        return out + self._slow_note(label, p, tau_max)
+
+    def degeneracies(self, label, p, tau_max, model):
+        return self._slow_note(label, p, tau_max)
 
     def check(self, p):
         if not np.all(np.isfinite(p)):

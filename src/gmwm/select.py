@@ -60,7 +60,9 @@ import numpy as np
 
 from .errors import GMWMError, InputError, ModelError
 from .model import Model, as_model, parse_model, spec_of
-from .wv import WaveletVariance, wvar
+from .processes import PROCESSES, SINGLETONS
+from .settings import prepare_wv
+from .wv import WaveletVariance
 
 __all__ = ["CRITERIA", "RankedModel", "Ranking", "auto_candidates", "optimism", "rank_models",
            "rerank", "select_model"]
@@ -70,7 +72,7 @@ _LOG10E = np.log10(np.e)
 # caps of the automatic candidate set (issue 11): up to 3 AR1/GM and 2 SIN components
 MAX_AR = 3
 MAX_SIN = 2
-_SINGLE = ("QN", "WN", "RW", "DR")
+_SINGLE = tuple(n for n in PROCESSES if n in SINGLETONS)  # QN, WN, RW, DR
 
 
 @dataclass(frozen=True)
@@ -108,6 +110,8 @@ class Ranking:
     criterion: str
     factor: float
     wv: WaveletVariance
+    #: sign of the signal's mean slope (None when a WV was ranked): the fits' drift sign
+    drift_sign: float | None = None
 
     @property
     def best(self) -> RankedModel:
@@ -202,7 +206,7 @@ def auto_candidates(base: str | Model, *, max_ar: int = MAX_AR, max_sin: int = M
     if counts.get("AR1", 0) + counts.get("GM", 0) > max_ar or counts.get("SIN", 0) > max_sin:
         raise ModelError(f"base model {spec!r} exceeds the automatic caps ({max_ar} AR1/GM, "
                          f"{max_sin} SIN)")
-    order = ["QN", "WN", "AR1", "GM", "SIN", "RW", "DR"]
+    order = list(PROCESSES)
     base_c = {k: counts.get(k, 0) for k in order}
     out: list[str] = [_spec(base_c)]
 
@@ -235,44 +239,17 @@ def auto_candidates(base: str | Model, *, max_ar: int = MAX_AR, max_sin: int = M
 
 
 # -- ranking --------------------------------------------------------------------------------------
-def _prepare_wv(data: Any, levels: int | None, freq: float | None, alpha: float, robust: bool,
-                eff: float) -> tuple[WaveletVariance, float | None]:
-    """The WV to rank on and, for a signal, the sign of its mean slope (for DR)."""
-    if isinstance(data, WaveletVariance):
-        if robust:
-            raise InputError("robust=True needs the signal, not a precomputed wavelet variance")
-        wv = data if levels is None else data.subset(np.arange(1, levels + 1))
-        if freq is not None and freq != wv.freq:
-            wv = dataclasses.replace(wv, freq=float(freq))
-        return wv, None
-    x = np.asarray(data, dtype=float)
-    wv = wvar(x, levels=levels, alpha=alpha, freq=1.0 if freq is None else freq, robust=robust,
-              eff=eff)
-    drift = (x[-1] - x[0]) / max(x.size - 1, 1)
-    return wv, (1.0 if drift >= 0 else -1.0)
-
-
 def _fix_drift_sign(res: Any, sign: float | None) -> Any:
     """The WV does not see the sign of a drift; take it from the signal (as ``fit`` does)."""
-    if sign is None or not res.model.count("DR"):
+    signed = [c for c in res.model.components if c.process.signed]
+    if sign is None or not signed:
         return res
     params = np.array(res.params, dtype=float)
-    for c in res.model.components:
-        if c.process.name == "DR":
-            params[c.slice] = sign * np.abs(params[c.slice])
+    for c in signed:
+        params[c.slice] = sign * np.abs(params[c.slice])
     warnings = [w for w in res.diagnostics.get("warnings", []) if "drift sign" not in w]
     return dataclasses.replace(res, params=params,
                                diagnostics=dict(res.diagnostics, warnings=warnings))
-
-
-def _default_fit_kwargs(fit: Callable[..., Any]) -> dict[str, Any]:
-    import inspect
-
-    try:
-        params = inspect.signature(fit).parameters
-    except (TypeError, ValueError):
-        return {}
-    return {"se_cov": "gaussian"} if "se_cov" in params else {}
 
 
 def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = "wic-log",
@@ -298,14 +275,15 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = "w
         for every candidate, cheap) or ``"model"`` (the fit's own ``wv_cov``, the covariance of
         the WV estimate under each fitted candidate with the between-scale correlation; it
         penalises extra components less). Ignored when ``weights`` is a covariance matrix.
-    fit_kwargs : further keywords for :func:`gmwm.fit` (default: with ``cov="gaussian"``, skip
-        the fit's own model-based WV covariance when it offers ``se_cov``).
+    fit_kwargs : further keywords for :func:`gmwm.fit` (default: with ``cov="gaussian"``,
+        ``se_cov="gaussian"``, skipping the fit's own model-based WV covariance).
 
     Candidates that cannot be fitted (e.g. more parameters than scales) are listed as skipped.
     """
     from . import fit  # the public estimator function (its module may move)
 
-    wv, drift_sign = _prepare_wv(data, levels, freq, alpha, robust, eff)
+    wv, drift_sign, _ = prepare_wv(data, levels=levels, alpha=alpha, robust=robust, eff=eff,
+                                   freq=freq)
     factor = _factor(criterion, wv.n_samples)
     specs: list[str] = []
     for m in models:
@@ -320,7 +298,7 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = "w
     if fit_kwargs is not None:
         options = dict(fit_kwargs)
     else:
-        options = _default_fit_kwargs(fit) if cov == "gaussian" else {}
+        options = {"se_cov": "gaussian"} if cov == "gaussian" else {}
     if n_starts is not None:
         options["n_starts"] = n_starts
     entries: list[RankedModel] = []
@@ -349,7 +327,8 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = "w
     if len(bad) == len(entries):
         raise GMWMError("no candidate model could be fitted: " + "; ".join(
             f"{e.model}: {e.error}" for e in bad))
-    return Ranking(_order([e for e in entries if e.error is None]) + bad, criterion, factor, wv)
+    return Ranking(_order([e for e in entries if e.error is None]) + bad, criterion, factor, wv,
+                   drift_sign)
 
 
 def _order(entries: list[RankedModel]) -> list[RankedModel]:
@@ -374,7 +353,8 @@ def rerank(ranking: Ranking, criterion: str) -> Ranking:
     factor = _factor(criterion, ranking.wv.n_samples)
     entries = [dataclasses.replace(e, criterion=e.objective + factor * e.penalty)
                for e in ranking.ranked]
-    return Ranking(_order(entries) + ranking.skipped, criterion, factor, ranking.wv)
+    return Ranking(_order(entries) + ranking.skipped, criterion, factor, ranking.wv,
+                   ranking.drift_sign)
 
 
 def select_model(data: Any, models: Sequence[str | Model] | str | Model, **kwargs: Any) -> Any:
@@ -389,12 +369,7 @@ def select_model(data: Any, models: Sequence[str | Model] | str | Model, **kwarg
         models = auto_candidates(models)
     ranking = rank_models(data, models, **kwargs)
     best = ranking.best.result
-    if kwargs.get("fit_kwargs") is None and kwargs.get("cov", "gaussian") == "gaussian" \
-            and _default_fit_kwargs(fit):
+    if kwargs.get("fit_kwargs") is None and kwargs.get("cov", "gaussian") == "gaussian":
         options = {k: kwargs[k] for k in ("weights", "seed", "n_starts") if kwargs.get(k) is not None}
-        sign = None
-        if not isinstance(data, WaveletVariance):
-            x = np.asarray(data, dtype=float)
-            sign = 1.0 if x[-1] >= x[0] else -1.0
-        best = _fix_drift_sign(fit(ranking.wv, best.model, **options), sign)
+        best = _fix_drift_sign(fit(ranking.wv, best.model, **options), ranking.drift_sign)
     return best

@@ -47,6 +47,7 @@ from numba import njit
 
 from .errors import InputError, ModelError
 from .model import Model, as_model
+from .processes import Process, Sinusoid
 
 __all__ = ["wv_correlation", "wv_covariance"]
 
@@ -502,7 +503,7 @@ def _spectrum(wn: float, rw: float, qn: float, phi: np.ndarray, s2: np.ndarray,
 
 
 def wv_covariance(model: str | Model, theta: np.ndarray, scales: Iterable[float], n_samples: int,
-                  *, exclude: Iterable[str] = ("SIN",), sin_interaction: bool = True
+                  *, exclude: Iterable[str] = (Sinusoid.name,), sin_interaction: bool = True
                   ) -> np.ndarray:
     """Finite-sample ``Cov(nu_hat_j, nu_hat_k)`` (J x J, signal unit^4) of the boundary-free Haar
     WV estimator for ``n_samples`` samples of ``model`` at ``theta``; ``scales`` are filter lengths
@@ -520,44 +521,39 @@ def wv_covariance(model: str | Model, theta: np.ndarray, scales: Iterable[float]
     model.check(theta)
     tau, T = _check_scales(scales, n_samples)
     excl = {str(e).upper() for e in exclude}
-    sins: list[tuple[float, float]] = []
+    sins: list[tuple[Process, float, float]] = []
     wn = rw = qn = omega = 0.0
     ar_phi: list[float] = []
     ar_a: list[float] = []
     ar_s2: list[float] = []
     for c in model.components:
-        name = c.process.name
-        p = theta[c.slice]
-        if name == "SIN":
-            sins.append((float(p[0]), float(p[1])))
-        if name in excl:
+        # the primitive form of each process (GM: an AR1)
+        kind, *v = c.process.primitive(theta[c.slice], model.freq)
+        if kind == "sin":
+            sins.append((c.process, v[0], v[1]))
+        if c.process.name in excl:
             continue
-        if name == "WN":
-            wn += p[0]
-        elif name == "RW":
-            rw += p[0]
-        elif name == "QN":
-            qn += p[0]
-        elif name == "DR":
-            omega += p[0]
-        elif name in ("AR1", "GM"):
-            if name == "AR1":
-                phi, s2 = float(p[0]), float(p[1])
-                a = -np.log(abs(phi)) if phi != 0 else np.inf
-            else:
-                a = float(p[0]) / model.freq
-                phi, s2 = float(np.exp(-a)), float(p[1] * -np.expm1(-2 * a))
+        if kind == "wn":
+            wn += v[0]
+        elif kind == "rw":
+            rw += v[0]
+        elif kind == "qn":
+            qn += v[0]
+        elif kind == "dr":
+            omega += v[0]
+        elif kind == "ar1":
+            phi, a, s2 = v
             if phi == 0.0:
                 wn += s2
                 continue
             ar_phi.append(phi)
             ar_a.append(a)
             ar_s2.append(s2)
-        elif name == "SIN":
-            raise ModelError("the own term of a SIN component is not implemented (it is "
-                             "O(T^-2)); keep SIN in exclude")
+        elif kind == "sin":
+            raise ModelError(f"the own term of a {c.process.name} component is not implemented "
+                             f"(it is O(T^-2)); keep {c.process.name} in exclude")
         else:
-            raise ModelError(f"wv_covariance does not support process {name}")
+            raise ModelError(f"wv_covariance does not support process {c.process.name}")
     phi = np.array(ar_phi)
     a = np.array(ar_a)
     s2 = np.array(ar_s2)
@@ -577,10 +573,9 @@ def wv_covariance(model: str | Model, theta: np.ndarray, scales: Iterable[float]
         c = omega * tau / 4.0
         V += 4.0 * np.outer(c, c) * S1 / MM
     if sin_interaction and sins:
-        sin_proc = next(c.process for c in model.components if c.process.name == "SIN")
         ftau = tau.astype(np.float64)
-        for alpha, beta in sins:
-            nu = sin_proc.wv(np.array([alpha, beta]), ftau)
+        for proc, alpha, beta in sins:
+            nu = proc.wv(np.array([alpha, beta]), ftau)
             spec = _spectrum(wn, rw, qn, phi, s2, beta)
             V += 8.0 / alpha**2 * spec * np.outer(nu, nu) * np.minimum.outer(M, M) / MM
     return V

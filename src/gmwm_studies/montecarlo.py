@@ -24,6 +24,7 @@ import xarray as xr
 
 from gmwm.atomic import write_text_atomic
 from gmwm.errors import GMWMError, InputError, ModelError
+from gmwm.settings import FitSettings
 from gmwm_studies.seeds import replicate_rng, replicate_seed
 from gmwm_studies.store import WVChunk
 
@@ -34,9 +35,8 @@ __all__ = [
     "check_truth",
     "chunk_bounds",
     "chunk_replicates",
+    "estimator_settings",
     "fit_chunk",
-    "fit_kwargs",
-    "fit_settings_kwargs",
     "format_markdown_table",
     "gather",
     "replicate_fit",
@@ -49,7 +49,6 @@ __all__ = [
 ]
 
 Progress = Callable[[str], None]
-FIT_KEYS = ("weights", "n_starts", "reweight", "method", "nested")
 
 
 def _noop(_: str) -> None:
@@ -186,21 +185,17 @@ def simulate_wv_chunk(
     )
 
 
-def fit_settings_kwargs(fit_settings: Mapping[str, Any]) -> dict[str, Any]:
-    """Keyword arguments of ``gmwm.fit`` from a study's fit settings (unknown keys rejected)."""
-    unknown = sorted(set(fit_settings) - set(FIT_KEYS))
-    if unknown:
-        raise InputError(f"unknown fit setting(s) {unknown}; allowed: {list(FIT_KEYS)}")
-    return dict(fit_settings)
-
-
-def fit_kwargs(settings: Mapping[str, Any] | None) -> dict[str, Any]:
-    """The ``gmwm.fit`` keywords among an estimator's settings (others, e.g. AVSM's, dropped)."""
-    return {k: v for k, v in (settings or {}).items() if k in (*FIT_KEYS, "max_nfev")}
+def estimator_settings(settings: FitSettings | Mapping[str, Any] | None) -> FitSettings:
+    """The :class:`gmwm.settings.FitSettings` of an estimator named in a study's config (a
+    mapping of :func:`gmwm.fit` options, validated there; None: the defaults)."""
+    if isinstance(settings, FitSettings):
+        return settings
+    return FitSettings.of(**dict(settings or {}))
 
 
 def replicate_fit(model_spec: str, truth: Mapping[str, float], n_samples: int, replicate: int, *,
-                  study: str, base_seed: int, settings: Mapping[str, Any] | None = None,
+                  study: str, base_seed: int,
+                  settings: FitSettings | Mapping[str, Any] | None = None,
                   levels: int | None = None, freq: float = 1.0,
                   simulator: str = "fast") -> GMWMResult:
     """GMWM fit of replicate ``replicate`` of a study, equal to :func:`fit_chunk`'s fit of it.
@@ -221,7 +216,7 @@ def replicate_fit(model_spec: str, truth: Mapping[str, float], n_samples: int, r
     del x
     wv = WaveletVariance.from_table(wv.scales, wv.variance, n_samples=int(n_samples), freq=freq)
     seed = replicate_seed(study, n_samples, replicate, base_seed, stream=1)
-    return fit(wv, model, seed=seed, **fit_kwargs(settings))
+    return fit(wv, model, settings=estimator_settings(settings), seed=seed)
 
 
 FitOne = Callable[[Any, Any, int], tuple[np.ndarray, np.ndarray, bool, float, str]]
@@ -250,7 +245,7 @@ def fit_chunk(
 
     progress = progress or _noop
     if fit_one is None:
-        fit_one = _gmwm_fit_one(fit_settings_kwargs(fit_settings))
+        fit_one = _gmwm_fit_one(estimator_settings(fit_settings))
     model = Model(chunk.model, freq=freq)
     theta0 = check_truth(chunk.model, chunk.truth)
     names = list(model.param_names)
@@ -314,11 +309,11 @@ def fit_chunk(
     )
 
 
-def _gmwm_fit_one(kwargs: Mapping[str, Any]) -> FitOne:
+def _gmwm_fit_one(settings: FitSettings) -> FitOne:
     from gmwm.estimator import fit
 
     def fit_one(wv: Any, model: Any, seed: int):
-        res = fit(wv, model, seed=seed, **kwargs)
+        res = fit(wv, model, settings=settings, seed=seed)
         return res.params, res.se, bool(res.converged), float(res.objective), str(res.message)
 
     return fit_one

@@ -162,12 +162,12 @@ def run_replicate(
     """
     from gmwm import fit
     from gmwm.model import Model
-    from gmwm_studies.montecarlo import check_truth, fit_settings_kwargs
+    from gmwm_studies.montecarlo import check_truth, estimator_settings
 
     model = Model(model_spec)
     theta = check_truth(model_spec, truth)
     beta = _check_model(model, truth)
-    gmwm_kwargs = fit_settings_kwargs(gmwm_settings)
+    gmwm_fit = estimator_settings(gmwm_settings)
     settings = None if mle_settings is None else _mle_settings(mle_settings)
     names = list(model.param_names)
     x = model.simulate(theta, int(n_samples), replicate_rng(study, n_samples, replicate, base_seed))
@@ -176,7 +176,7 @@ def run_replicate(
     seed = replicate_seed(study, n_samples, replicate, base_seed, stream=1)
     t0 = time.perf_counter()
     try:
-        res = fit(x, model, seed=seed, **gmwm_kwargs)
+        res = fit(x, model, settings=gmwm_fit, seed=seed)
         gmwm_theta = model.canonical(np.asarray(res.params, dtype=float))
         g.update(estimate=gmwm_theta, converged=bool(res.converged), message=str(res.message))
     except _FAILURES as exc:
@@ -449,14 +449,12 @@ def study_tables(datasets: Sequence[xr.Dataset]) -> tuple[pd.DataFrame, pd.DataF
 def gmwm_text(gmwm_settings: Mapping[str, Any]) -> str:
     """One sentence naming the GMWM's search settings (single model or nested, starts, weights);
     a setting not given is ``gmwm.fit``'s default."""
-    from inspect import signature
+    from gmwm_studies.montecarlo import estimator_settings
 
-    from gmwm import fit
-
-    s = {**{k: p.default for k, p in signature(fit).parameters.items()}, **gmwm_settings}
-    search = ("nested search: the model and each of its submodels" if s["nested"] else
+    s = estimator_settings(gmwm_settings)
+    search = ("nested search: the model and each of its submodels" if s.nested else
               "single-model search, as in the paper (no nested submodel search)")
-    return f"GMWM: {search}, {int(s['n_starts'])} starts, {s['weights']} weights."
+    return f"GMWM: {search}, {s.n_starts} starts, {s.weights_kind} weights."
 
 
 def counts_text(comp: pd.DataFrame, mle_settings: Mapping[str, Any],

@@ -29,8 +29,9 @@ import pandas as pd
 import xarray as xr
 
 from gmwm.errors import InputError
+from gmwm.settings import METHODS
 from gmwm_studies import sensors as units  # Table I and its units (formerly in gmwm.units)
-from gmwm_studies.montecarlo import check_truth, gather, summarize
+from gmwm_studies.montecarlo import check_truth, estimator_settings, gather, summarize
 from gmwm_studies.store import WVChunk
 
 __all__ = [
@@ -52,11 +53,10 @@ __all__ = [
 ]
 
 Progress = Callable[[str], None]
-ESTIMATOR_METHODS = ("gmwm", "armav", "avsm")
+#: the estimators, in display order (those of :func:`gmwm.fit`)
+ESTIMATOR_METHODS = METHODS
 #: Display names of the estimator methods (figures, tables).
 LABELS = {"gmwm": "GMWM", "armav": "ARMAV", "avsm": "AVSM"}
-_GMWM_KEYS = ("method", "weights", "n_starts", "reweight")
-_AVSM_KEYS = ("method", "min_edof", "slope_tol")
 
 
 #: covariance behind the stored (unreported) SEs of the study's fits, see :func:`fit_wv`
@@ -70,10 +70,10 @@ def _noop(_: str) -> None:
 def estimator_label(settings: Mapping[str, Any]) -> str:
     """Display name of an estimator from its settings: GMWM, AVSM, and for ARMAV its weighting,
     "ARMAV (OLS)" (``weights: identity``) or "ARMAV (weighted)" (delta-method weights)."""
-    method = _method(settings)
-    if method == "armav":
-        return "ARMAV (OLS)" if settings.get("weights") == "identity" else "ARMAV (weighted)"
-    return LABELS[method]
+    s = estimator_settings(settings)
+    if s.method == "armav":
+        return "ARMAV (OLS)" if s.weights_kind == "identity" else "ARMAV (weighted)"
+    return LABELS[s.method]
 
 
 def _label(ds: xr.Dataset) -> str:
@@ -81,18 +81,6 @@ def _label(ds: xr.Dataset) -> str:
     if "label" in ds.attrs:
         return str(ds.attrs["label"])
     return LABELS.get(str(ds.attrs.get("method", "")), str(ds.attrs.get("estimator", "")))
-
-
-def _method(settings: Mapping[str, Any]) -> str:
-    method = str(settings.get("method", "gmwm"))
-    if method not in ESTIMATOR_METHODS:
-        raise InputError(f"unknown estimator method {method!r}; use one of {ESTIMATOR_METHODS}")
-    allowed = _AVSM_KEYS if method == "avsm" else _GMWM_KEYS
-    unknown = sorted(set(settings) - set(allowed))
-    if unknown:
-        raise InputError(f"setting(s) {unknown} do not apply to method {method!r}; "
-                         f"allowed: {list(allowed)}")
-    return method
 
 
 def fit_wv(wv: Any, model: Any, settings: Mapping[str, Any], seed: int = 0
@@ -106,16 +94,13 @@ def fit_wv(wv: Any, model: Any, settings: Mapping[str, Any], seed: int = 0
     2026-11-23: 6.6 ms gyroscope, 12.6 ms accelerometer; timings.csv of its archive).
     """
     from gmwm import fit
-    from gmwm.avsm import fit_avsm
 
-    method = _method(settings)
-    if method == "avsm":
-        kw = {k: float(v) for k, v in settings.items() if k != "method"}
-        res = fit_avsm(wv, model, **kw)
-        nan = np.full(len(res.params), np.nan)
-        return np.asarray(res.params, float), nan, bool(res.converged), np.nan, res.message
-    kw = {k: v for k, v in settings.items() if k != "method"}
-    res = fit(wv, model, method=method, seed=seed, se_cov=SE_COV, **kw)
+    s = estimator_settings(settings)
+    if s.method == "avsm":
+        res = fit(wv, model, settings=s)
+        return (np.asarray(res.params, float), np.asarray(res.se, float), bool(res.converged),
+                np.nan, res.message)
+    res = fit(wv, model, settings=s, seed=seed, se_cov=SE_COV)
     return (np.asarray(res.params, float), np.asarray(res.se, float), bool(res.converged),
             float(res.objective), str(res.message))
 
@@ -131,7 +116,7 @@ def fit_chunk(chunk: WVChunk, settings: Mapping[str, Any], estimator: str, freq:
     """
     from gmwm_studies.montecarlo import fit_chunk as fit_study_chunk
 
-    method = _method(settings)
+    method = estimator_settings(settings).method
     ds = fit_study_chunk(chunk, settings, estimator, progress, freq=freq,
                          fit_one=lambda wv, model, seed: fit_wv(wv, model, settings, seed))
     ds.attrs.update(method=method, freq=float(freq), label=estimator_label(settings), se_cov=SE_COV)

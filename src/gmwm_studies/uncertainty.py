@@ -23,7 +23,8 @@ from gmwm.errors import GMWMError, InputError
 from gmwm.estimator import GMWMResult, fit
 from gmwm.identify import IdentifiabilityReport
 from gmwm.model import Model
-from gmwm_studies.montecarlo import fit_kwargs, replicate_fit
+from gmwm.settings import FitSettings
+from gmwm_studies.montecarlo import replicate_fit
 
 __all__ = ["CI_KINDS", "bootstrap_from_dataset", "bootstrap_table", "bootstrap_to_dataset",
            "coverage_chunk", "coverage_summary", "navchip_result", "plot_coverage", "summary_row"]
@@ -56,12 +57,13 @@ def navchip_result(data_path: str, fits_path: str, sensor: str, axis: str) -> GM
     res = fit(wv, model, freq=wv.freq, **dict(data.get("fit_settings", {})))
     stored = model.theta(rec["params"], estimate=True)
     differs = not np.allclose(res.params, stored, rtol=1e-6, atol=0)
-    res.diagnostics["navchip_refit_differs"] = bool(differs)
     # the recorded SEs (sandwich in the free log coordinates, delta method) are the reported ones;
     # the library's theta-coordinate sandwich is kept in diagnostics (ill-conditioned for GM beta)
     se = np.array([rec["se"].get(n, np.nan) for n in model.param_names], dtype=float)
-    res.diagnostics["se_library"] = res.se.tolist()
-    res = dataclasses.replace(res, params=stored if differs else res.params, se=se)
+    diagnostics = {**res.diagnostics, "navchip_refit_differs": bool(differs),
+                   "se_library": res.se.tolist()}
+    res = dataclasses.replace(res, params=stored if differs else res.params, se=se,
+                              diagnostics=diagnostics)
     return res
 
 
@@ -84,7 +86,9 @@ def bootstrap_to_dataset(boot: BootstrapResult):
                 "level": np.asarray(est.wv.levels, dtype=np.int64)},
         attrs={"model": est.model.spec, "n_samples": int(est.wv.n_samples),
                "estimate": json.dumps(est.params.tolist()), "seed": repr(boot.seed),
-               "settings": json.dumps(boot.settings, default=str), "seconds": boot.seconds})
+               "settings": json.dumps({"refit": boot.refit, **boot.settings.to_tree()},
+                                      default=np.ndarray.tolist),
+               "seconds": boot.seconds})
 
 
 def bootstrap_from_dataset(ds, estimate: GMWMResult) -> BootstrapResult:
@@ -97,11 +101,14 @@ def bootstrap_from_dataset(ds, estimate: GMWMResult) -> BootstrapResult:
         raise InputError("bootstrap chunk was drawn from a different estimate; rerun its job")
     msgs = {int(b): str(m) for b, m in zip(ds["draw"].values, ds["message"].values, strict=True)
             if str(m)}
+    settings = json.loads(ds.attrs["settings"])
+    refit = bool(settings.pop("refit", True))
     return BootstrapResult(estimate, ds["draw"].values.astype(np.int64),
                            np.asarray(ds["theta"].values, dtype=float),
                            np.asarray(ds["converged"].values, dtype=bool),
                            np.asarray(ds["wv"].values, dtype=float), ds.attrs["seed"],
-                           json.loads(ds.attrs["settings"]), msgs, float(ds.attrs["seconds"]))
+                           FitSettings.from_tree(settings), msgs, float(ds.attrs["seconds"]),
+                           refit)
 
 
 def bootstrap_table(boot: BootstrapResult, label: str, alpha: float = 0.05):
@@ -168,11 +175,10 @@ def coverage_chunk(model_spec: str, truth: dict[str, float], n_samples: int,
         est[i], sand[i] = res.params, res.se
         ci[i, 2] = _wald(res.params, res.se, alpha)
         ss = replicate_seed_sequence(study, n_samples, int(rep), base_seed, stream=2)
-        kw = fit_kwargs(settings)
-        boot = parametric_bootstrap(res, B, seed=ss, n_starts=kw.get("n_starts"))
+        boot = parametric_bootstrap(res, B, seed=ss)  # the refits repeat res.settings
         n_used[i] = boot.n_converged
         if boot.n_converged >= 2:
-            bse[i] = boot.se()
+            bse[i] = boot.se
             ci[i, 0], ci[i, 1] = boot.percentile_ci(alpha), boot.basic_ci(alpha)
         secs[i] = time.perf_counter() - t0
         if progress:

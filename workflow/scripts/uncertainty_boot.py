@@ -16,8 +16,7 @@ entropy, key = snakemake.params.seed
 seed = np.random.SeedSequence(entropy, spawn_key=(key,))
 log.info("%s: draws %d..%d of T = %d, seed %s", snakemake.wildcards.fit, a, b - 1,
          est.wv.n_samples, seed)
-boot = parametric_bootstrap(est, seed=seed, draws=range(a, b),
-                            n_starts=est.diagnostics.get("settings", {}).get("n_starts"),
+boot = parametric_bootstrap(est, seed=seed, draws=range(a, b),  # refits repeat est.settings
                             progress=lambda i, n: log.info("draw %d/%d", i, n))
 write_dataset(bootstrap_to_dataset(boot), snakemake.output[0])
 log.info("wrote %s: %d/%d refits used, %.1f s (%.2f s per draw)", snakemake.output[0],
