@@ -245,9 +245,9 @@ def _wv_cov(result: Any, V: np.ndarray | None) -> np.ndarray:
     if V is not None:
         return np.asarray(V, dtype=float)
     s = result.settings
-    if s.get("weights") == "covariance" and "weights_cov" in s:
-        return np.asarray(s["weights_cov"], dtype=float)
-    if s.get("se_cov", "model") == "model" and result.wv_cov is not None:
+    if s.user_cov is not None:
+        return np.asarray(s.user_cov, dtype=float)
+    if s.se_cov_kind == "model" and result.wv_cov is not None:
         V = np.asarray(result.wv_cov, dtype=float)
     else:
         from .inference import model_wv_cov
