@@ -574,13 +574,9 @@ def ambiguity_study(h: float = 1.0, eps: float = 0.5, dyadic_sigma2: float = 1.0
         "discrete_sim_replicates": int(replicates),
         "discrete_sim_n_samples": int(n_samples),
     }
-    tau_grid = np.geomspace(2.0**-6, 2.0 ** (levels + 2), 121)
     curves = {
         "f_cont": np.geomspace(2.0**-10, 2.0**6, 800),
-        "h": h, "eps": eps, "tau_grid": tau_grid,
-        "av_cont_x": np.array([flicker_av(t, h, eps, 1.0) for t in tau_grid[::6]]),
-        "av_cont_y": np.array([flicker_av(t, h, eps, -1.0) for t in tau_grid[::6]]),
-        "tau_cont": tau_grid[::6],
+        "h": h, "eps": eps,
         "f_disc": f, "spec_disc_x": dyadic_sigma2 + dyadic_eps * phi_d,
         "spec_disc_y": dyadic_sigma2 - dyadic_eps * phi_d,
         "m_all": ms, "av_disc_x": av_x, "av_disc_y": av_y,
@@ -1011,8 +1007,8 @@ def figure_adev(res: AdevResult) -> Any:
             ax.plot(mm, np.sqrt(lines["chapter"]), color=PALETTE[0], lw=1.0,
                     label=r"theory $\sigma/\sqrt{\tau}$ (slope $-1/2$)")
         fit = res.fit
-        ax.plot(m, np.sqrt(2.0 * fit.model.wv(fit.params, 2.0 * m)), color=PALETTE[7], lw=0,
-                marker="x", ms=5, label="GMWM model", zorder=6)
+        ax.plot(m, np.sqrt(2.0 * fit.model.wv(fit.params, 2.0 * m)), color=PALETTE[0], lw=0,
+                marker="s", ms=5, mfc="none", mew=0.8, label="GMWM model", zorder=6)
         ax.set_ylabel("Allan deviation [signal unit]")
         ax.set_xlabel("Cluster time τ [samples]")
         ax.legend(loc="best", fontsize=7)
@@ -1059,15 +1055,24 @@ def figure_ambiguity(res: AmbiguityResult) -> Any:
         ax.set_title(r"(a) chapter: $\Phi(f) = 2\Phi(2f)$")
         ax.legend(fontsize=6.5)
         ax = axes[0, 1]
-        ax.plot(c["tau_cont"], c["av_cont_x"], "o", color=PALETTE[1], ms=4, label="AV of X")
-        ax.plot(c["tau_cont"], c["av_cont_y"], "x", color=PALETTE[2], ms=5, label="AV of Y")
-        ax.axhline(4 * c["h"] * math.log(2), color=PALETTE[0], lw=0.8, ls=":",
-                   label=r"$4h\ln 2$")
+        t = res.table
+        floor = 1e-17  # exact zeros drawn here
+        for name, dy, mk, col, lab in (
+                ("chapter_2phi2f", True, "o", PALETTE[1], r"$\Phi(f)=2\Phi(2f)$, dyadic τ"),
+                ("chapter_2phi2f", False, "s", PALETTE[3], r"$\Phi(f)=2\Phi(2f)$, other τ"),
+                ("control_3phi3f", None, "x", PALETTE[2], r"control $\Phi(f)=3\Phi(3f)$")):
+            d = t[t.construction == name]
+            if dy is not None:
+                d = d[d.dyadic == dy]
+            ax.plot(d.scale, np.maximum(d.rel_diff, floor), mk, color=col, ms=4,
+                    mfc="none" if mk == "s" else col, label=lab)
         ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_ylim(floor / 3, 1.0)
         ax.set_xlabel("Cluster time τ [time unit]")
-        ax.set_ylabel("Allan variance [unit²]")
-        ax.set_title("(b) equal at every τ (Lemma 4.1 quadrature)")
-        ax.legend(fontsize=7)
+        ax.set_ylabel(r"$|\mathrm{AV}_X/\mathrm{AV}_Y - 1|$ (0 drawn at 1e-17)")
+        ax.set_title(r"(b) AVs equal at every τ ($4h\ln 2$), quadrature")
+        ax.legend(fontsize=6.5)
         ax = axes[1, 0]
         ax.plot(c["f_disc"], c["spec_disc_x"], color=PALETTE[1], label="X (MA(4))")
         ax.plot(c["f_disc"], c["spec_disc_y"], color=PALETTE[2], label="Y (MA(4))")
