@@ -483,7 +483,8 @@ def flicker_av(tau: float, h: float, eps: float, sign: float, base: float = 2.0)
     return av_continuous(spec, tau, tail_mean=_flicker_tail(h, eps, sign, tau, base))
 
 
-#: Discrete-time autocovariance difference (lags 0..4) with zero AV at every dyadic cluster:
+#: Discrete-time autocovariance difference (lags 0..4) with zero AV at every dyadic cluster (and,
+#: by the m >= 5 formula, at every cluster but m = 3):
 #: the null space of Lemma 4.2 at m = 1, 2, 4 and of m M0 - 3 M1 (all m >= 5; M0 = sum_h d(h),
 #: M1 = sum_{k>0} k d(k)) contains d = (0, 0, 1, -2, 1), spectrum -8 cos(6 pi f) sin^2(pi f).
 DYADIC_NULL = np.array([0.0, 0.0, 1.0, -2.0, 1.0])
@@ -517,7 +518,8 @@ def ambiguity_study(h: float = 1.0, eps: float = 0.5, dyadic_sigma2: float = 1.0
     at non-dyadic tau; a control pair with period log3 instead (Phi(f) = 3 Phi(3f)) shows the
     AV difference the condition removes. (b) Discrete time: two MA(4) processes with
     autocovariances sigma2 +- eps d, d = :data:`DYADIC_NULL`, AV by Lemma 4.2 at every cluster
-    m = 1..2**(levels-1) (equal exactly at dyadic m, not at m = 3, 6, 7, ...), plus the mean
+    m = 1..2**(levels-1) (equal exactly at every dyadic m and, the support being 4 lags, at every
+    m >= 5: they differ at m = 3 only), plus the mean
     simulated AV of ``replicates`` series of each."""
     rows = []
     pair = {"chapter_2phi2f": 2.0, "control_3phi3f": 3.0}
@@ -1132,7 +1134,7 @@ def figure_ambiguity(res: AmbiguityResult) -> Any:
         ax.set_yscale("log")
         ax.set_xlabel("Cluster length m [samples]")
         ax.set_ylabel("Allan variance [unit²]")
-        ax.set_title("(d) equal at dyadic m only (Lemma 4.2)")
+        ax.set_title("(d) equal at every m but 3 (Lemma 4.2)")
         ax.legend(fontsize=6.5)
     return fig
 
