@@ -170,3 +170,8 @@ rule allan_summary:
         mem_mb=1000,
     script:
         "../scripts/allan_summary.py"
+
+
+rule allan_all:
+    input:
+        allan_targets(),
