@@ -1267,7 +1267,7 @@ def summary_table(numbers: Mapping[str, Any]) -> pd.DataFrame:
         for q, v in numbers[fig].items():
             rows.append((item, f"{q} (MC mean of {v['replicates']})", v["mc_mean"], v["truth"]))
     m = numbers["ma1"]
-    rows += [("Example 4.2", "max |z| simulated mean vs formula", m["max_abs_z"], None),
+    rows += [("Example 4.2", "max abs z, simulated mean vs formula", m["max_abs_z"], None),
              ("Example 4.2", "max rel. diff. Lemma 4.2 vs formula", m["max_rel_lemma42"], 0.0),
              ("Example 4.2", "max rel. diff. QN+WN model vs formula", m["max_rel_project_model"],
               0.0)]
