@@ -19,10 +19,12 @@ KEY_COLUMNS = ["method",  # STIM-300: GMWM / ARMAV / AVSM rows of one table
                # uncertainty: identifiability status per fit; coverage study: coverage, MC SE
                "fit", "status", "interval", "coverage", "wilson_lo", "wilson_hi", "mean_se_ratio",
                # navigation emulation: maximum of the position error ratio, its epoch and CI
-               "window", "time_s", "max_ratio", "ci_lo", "ci_hi"]
+               "window", "time_s", "max_ratio", "ci_lo", "ci_hi",
+               # Allan-variance chapter: one row per checked quantity, with its reference value
+               "item", "quantity", "value", "reference"]
 
 LABELS = {"method", "estimator", "n_samples", "variant", "parameter", "fit", "status", "interval",
-          "window"}
+          "window", "item", "quantity"}
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)
