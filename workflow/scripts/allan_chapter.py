@@ -6,7 +6,7 @@ from pathlib import Path
 import pandas as pd
 from wflog import get_logger
 
-from gmwm.io import save_figure, write_json_atomic
+from gmwm.atomic import save_figure, write_json_atomic
 from gmwm_studies import allan_chapter as ac
 from gmwm_studies.montecarlo import write_table
 

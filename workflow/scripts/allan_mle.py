@@ -5,7 +5,7 @@ from pathlib import Path
 
 from wflog import get_logger
 
-from gmwm.io import write_json_atomic, write_text_atomic
+from gmwm.atomic import write_json_atomic, write_text_atomic
 from gmwm_studies import allan_chapter as ac
 from gmwm_studies.montecarlo import write_table
 

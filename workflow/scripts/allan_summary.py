@@ -5,7 +5,7 @@ import json
 
 from wflog import get_logger
 
-from gmwm.io import write_json_atomic
+from gmwm.atomic import write_json_atomic
 from gmwm_studies import allan_chapter as ac
 from gmwm_studies.montecarlo import write_table
 
