@@ -1353,6 +1353,18 @@ def cmd_report(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     args.progress(f"writing the report to {args.output}")
     per_axis = {c: {"result": f["result"], "units": f["units"], "warnings": f["warnings"],
                     "datasheet": _datasheet(f["result"], f["units"])} for c, f in fits.items()}
+    st = getattr(args, "stationarity", None)
+    if st is not None:  # each flagged axis says so in its own section and in the summary
+        a, b = st.used or (0, st.n)
+        for c, entry in per_axis.items():
+            segs = [s for s in st.segments_in(a, b) if c in s.channels]
+            if segs:
+                unit = "s" if st.freq else "samples"
+                where = ", ".join(f"{s.start_s:.4g}-{s.end_s:.4g} {unit}" for s in segs[:4])
+                entry["warnings"] = [*entry["warnings"], f"not static in {where}"
+                                     + (f" and {len(segs) - 4} more ranges" if len(segs) > 4
+                                        else "") + " (see Stationarity): the coefficients "
+                                     "include that motion"]
     rec, gaps = getattr(args, "recording", None), getattr(args, "gap_decision", None)
     timing = None
     if rec is not None and rec.time is not None:
@@ -1360,7 +1372,6 @@ def cmd_report(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                   + rec.time.summary()]
         if gaps is not None and gaps.message:
             timing.append(gaps.message)
-    st = getattr(args, "stationarity", None)
     files = write_report(args.output, per_axis, source=args.input,
                          title=args.title or f"Calibration report: {Path(args.input).name}",
                          timing=timing, stationarity=st)

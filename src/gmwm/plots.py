@@ -623,7 +623,7 @@ def plot_stationarity(report: Any, *, channels: Sequence[str] | None = None,
     axes = list(axes[:, 0])
     unit_t = "s" if report.freq else "samples"
     used = report.used or (0, report.n)
-    t_end = report._t(report.n)
+    t_end = report.time_at(report.n)
     with style():
         for ax, c in zip(axes, names, strict=False):
             t, mean, lo, hi = report.timeline[c]
@@ -643,12 +643,12 @@ def plot_stationarity(report: Any, *, channels: Sequence[str] | None = None,
             ax.set_ylabel("temp. [°C]")
         for ax in axes:
             if used[0] > 0:
-                ax.axvspan(report._t(0), report._t(used[0]), color=UNUSED_COLOR, alpha=0.5,
+                ax.axvspan(report.time_at(0), report.time_at(used[0]), color=UNUSED_COLOR, alpha=0.5,
                            linewidth=0)
             if used[1] < report.n:
-                ax.axvspan(report._t(used[1]), t_end, color=UNUSED_COLOR, alpha=0.5,
+                ax.axvspan(report.time_at(used[1]), t_end, color=UNUSED_COLOR, alpha=0.5,
                            linewidth=0)
-            ax.set_xlim(report._t(0), t_end)
+            ax.set_xlim(report.time_at(0), t_end)
         axes[-1].set_xlabel(f"Time [{unit_t}]")
         verdict = (f"not static: {len(report.segments)} flagged range(s)" if report.moving
                    else "no range flagged")

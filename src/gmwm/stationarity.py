@@ -9,16 +9,21 @@ variance is computed, so a clean part can be selected (``docs/METHODS.md`` §16)
 * **window means** (every axis, and the accelerometer norm ``|a|``): the difference of the means
   of two adjacent windows of L samples, on a grid of stride L/2, for window lengths L = L0, 2L0,
   4L0, ... Under a static model these differences are identically distributed with variance
-  2 AV(L) (§2.4); each is standardised by a robust scale of all of them (1.4826 x the median
-  absolute deviation, which motion confined to a minority of the windows does not inflate) and
-  flagged beyond a Bonferroni threshold over windows x lengths x channels x tests;
+  2 AV(L) (§2.4); each is standardised by a robust standard deviation of all of them (values
+  beyond 3 scales of the median excluded, so motion confined to a minority of the windows does
+  not inflate it) and flagged beyond a Bonferroni threshold over windows x lengths x channels x
+  tests;
 * **static ceiling** (axes with a known gyroscope or accelerometer unit): the scale is capped by
   sqrt(2 AV(L)) of the noisiest static MEMS sensor (:data:`STATIC_CEILING`), so a recording that
   moves throughout, whose own scale is inflated, is still flagged;
 * **noise bursts**: the mean square of the first differences in windows (the local white-noise
-  level), log-standardised by its median and MAD, flagged upwards (vibration switched on);
+  level), log-standardised by its median and robust scale, flagged upwards (vibration switched
+  on);
 * **temperature** (when the recording carries it): the windowed bias of each axis against the
   windowed temperature, differenced (a warning, not a motion flag).
+
+The fitted model is not used: the part to fit is chosen before any fit, and a model fitted to a
+moving recording absorbs the motion into its own Allan variance.
 
 The result, :class:`StationarityReport`, lists flagged time ranges per channel and overall with
 the statistic and threshold of each, offers :meth:`StationarityReport.clean_segment` (the longest
@@ -50,7 +55,7 @@ MIN_WINDOW_SAMPLES = 8
 #: a window length is tested only when it gives at least this many mean differences (the robust
 #: scale of fewer is too uncertain)
 MIN_DIFFS = 128
-#: threshold inflation for the uncertainty of the MAD scale from K differences:
+#: threshold inflation for the uncertainty of the robust scale from K differences:
 #: z * (1 + SMALL_SAMPLE / sqrt(K)); calibrated on simulated static recordings
 #: (benchmarks/bench_stationarity.py)
 SMALL_SAMPLE = 2.0
@@ -151,8 +156,8 @@ class StationarityReport:
     """What :func:`check_stationarity` found. ``flags`` per channel and test, ``segments`` their
     union; ``notes`` what was not tested and why, ``alerts`` warnings not tied to a time range;
     ``peaks`` per channel, test and window length (channel, test, window samples, number
-    of statistics, largest statistic, its threshold); ``used`` the sample range the estimate uses (set by the caller with :meth:`using`;
-    None: all); ``timeline`` channel -> (t, mean, min, max) per bin for plots;
+    of statistics, largest statistic, its threshold); ``used`` the sample range the estimate
+    uses (set by the caller with :meth:`using`; None: all); ``timeline`` channel -> (t, mean, min, max) per bin for plots;
     ``temperature_timeline`` (t, deg C) or None."""
 
     channels: tuple[str, ...]
@@ -188,7 +193,8 @@ class StationarityReport:
         """Some part of the recording is flagged."""
         return bool(self.segments)
 
-    def _t(self, i: int) -> float:
+    def time_at(self, i: int) -> float:
+        """Time of sample ``i`` (s since the first; samples without a rate); ``n``: the end."""
         if self.time_s is None or self.n == 0:
             return float(i) / (self.freq or 1.0)
         return float(self.time_s[min(max(i, 0), self.n - 1)]) if i < self.n else \
@@ -233,10 +239,10 @@ class StationarityReport:
     def used_text(self) -> str:
         """Which part of the recording the estimate uses, in words."""
         a, b = self.used or (0, self.n)
-        full = f"{self._range(self._t(0), self._t(self.n))}"
+        full = f"{self._range(self.time_at(0), self.time_at(self.n))}"
         if (a, b) == (0, self.n):
             return f"the whole recording ({full}, {self.n} samples)"
-        return (f"{self._range(self._t(a), self._t(b))} ({self.used_how}; samples {a}-{b - 1}, "
+        return (f"{self._range(self.time_at(a), self.time_at(b))} ({self.used_how}; samples {a}-{b - 1}, "
                 f"{b - a} of {self.n}, {100 * (b - a) / max(self.n, 1):.3g} %) of {full}")
 
     def _describe(self, s: Segment) -> str:
@@ -251,6 +257,8 @@ class StationarityReport:
             how = f"by {best.size:.3g}{' ' + unit if unit else ''}"
         beyond = ("beyond any static sensor" if best.test == "ceiling" else
                   f"{best.stat:.3g} robust sd, threshold {best.threshold:.3g}")
+        what = what.replace("window means", f"window means of {best.channel}").replace(
+            "the noise level", f"the noise level of {best.channel}")
         return (f"{self._range(s.start_s, s.end_s)} ({', '.join(s.channels)}): {what} {how} "
                 f"({beyond}; window {best.window_s:.3g} {self._unit_s()} at "
                 f"{best.peak_s:.4g} {self._unit_s()})")
@@ -319,7 +327,7 @@ class StationarityReport:
         return {
             "static": not self.moving, "tested": self.tested,
             "moving_in_used_part": self.moving_in_used,
-            "used": {"i0": a, "i1": b, "start_s": self._t(a), "end_s": self._t(b),
+            "used": {"i0": a, "i1": b, "start_s": self.time_at(a), "end_s": self.time_at(b),
                      "how": self.used_how},
             "clean_segment": dict(zip(("i0", "i1"), self.clean_segment(), strict=True)),
             "n": self.n, "freq": self.freq, "duration_s": self.duration_s,
