@@ -596,8 +596,7 @@ def _free_stretches(st: Any) -> list[tuple[int, int]]:
 def _ranges(st: Any, limit: int = 4) -> str:
     a, b = st.used or (0, st.n)
     segs = st.segments_in(a, b) or list(st.segments)
-    unit = "s" if st.freq else "samples"
-    text = ", ".join(f"{s.start_s:.4g}-{s.end_s:.4g} {unit}" for s in segs[:limit])
+    text = ", ".join(st.span(s.start_s, s.end_s) for s in segs[:limit])
     return text + (f" and {len(segs) - limit} more" if len(segs) > limit else "")
 
 
@@ -1359,8 +1358,7 @@ def cmd_report(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         for c, entry in per_axis.items():
             segs = [s for s in st.segments_in(a, b) if c in s.channels]
             if segs:
-                unit = "s" if st.freq else "samples"
-                where = ", ".join(f"{s.start_s:.4g}-{s.end_s:.4g} {unit}" for s in segs[:4])
+                where = ", ".join(st.span(s.start_s, s.end_s) for s in segs[:4])
                 entry["warnings"] = [*entry["warnings"], f"not static in {where}"
                                      + (f" and {len(segs) - 4} more ranges" if len(segs) > 4
                                         else "") + " (see Stationarity): the coefficients "

@@ -108,7 +108,8 @@ def _stationarity_section(st: Any, out: Path) -> tuple[list[str], list[str], lis
         size = (f"{best.size:.3g}x median noise" if best.test == "noise"
                 else f"{best.size:.3g} {u}".strip())
         a, b = st.used or (0, st.n)
-        rows.append((f"{s.start_s:.4g}-{s.end_s:.4g}", ", ".join(s.channels), ", ".join(s.tests),
+        rows.append((f"{st.fmt_time(s.start_s)}-{st.fmt_time(s.end_s)}", ", ".join(s.channels),
+                     ", ".join(s.tests),
                      size, f"{best.stat:.3g} / {best.threshold:.3g}",
                      f"{best.window_s:.3g}", "yes" if s.i1 > a and s.i0 < b else "no"))
     if rows:

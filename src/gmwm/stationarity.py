@@ -232,9 +232,18 @@ class StationarityReport:
     def _unit_s(self) -> str:
         return "s" if self.freq else "samples"
 
+    def fmt_time(self, v: float) -> str:
+        """A time as text: seconds to 0.01 s, or whole samples without a rate."""
+        if not self.freq:
+            return str(round(v))
+        return f"{v:.2f}".rstrip("0").rstrip(".")
+
+    def span(self, a: float, b: float) -> str:
+        """A time range as text with its unit, e.g. '12.5-15.02 s'."""
+        return f"{self.fmt_time(a)}-{self.fmt_time(b)} {self._unit_s()}"
+
     def _range(self, a: float, b: float) -> str:
-        u = self._unit_s()
-        return f"{a:.4g}-{b:.4g} {u}"
+        return self.span(a, b)
 
     def used_text(self) -> str:
         """Which part of the recording the estimate uses, in words."""
@@ -261,7 +270,7 @@ class StationarityReport:
             "the noise level", f"the noise level of {best.channel}")
         return (f"{self._range(s.start_s, s.end_s)} ({', '.join(s.channels)}): {what} {how} "
                 f"({beyond}; window {best.window_s:.3g} {self._unit_s()} at "
-                f"{best.peak_s:.4g} {self._unit_s()})")
+                f"{self.fmt_time(best.peak_s)} {self._unit_s()})")
 
     def warnings(self, limit: int = 5) -> list[str]:
         """One line per flagged range (the ``limit`` most severe, by time), the temperature
