@@ -150,6 +150,16 @@ def _int_at_least(text: str, low: int, what: str) -> int:
     return v
 
 
+def _nonneg_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
+    if not 0 <= v < float("inf"):  # also refuses NaN
+        raise argparse.ArgumentTypeError(f"expected a number of seconds >= 0, got {text!r}")
+    return v
+
+
 def _positive_int(text: str) -> int:
     return _int_at_least(text, 1, "positive")
 
@@ -203,6 +213,16 @@ def _add_input(p: argparse.ArgumentParser, what: str = "signal") -> None:
                    help="what a gap in the time stamps does to the WV: 'longest' clean segment, "
                         "'combine' the clean segments' coefficients (fit, report), 'error'; "
                         "'auto' = longest when it holds >= 90%% of the samples, else combine")
+    p.add_argument("--start", type=_nonneg_float, default=None, metavar="S",
+                   help="use the recording from S seconds after its first sample on")
+    p.add_argument("--end", type=_nonneg_float, default=None, metavar="S",
+                   help="use the recording up to S seconds after its first sample")
+    p.add_argument("--segment", choices=("all", "longest-static"), default="all",
+                   help="'longest-static': use the longest stretch (within --start/--end) that "
+                        "the stationarity check does not flag")
+    p.add_argument("--strict", action="store_true",
+                   help="a recording whose used part moved, stepped or shook is an error (exit "
+                        "1), not a warning")
 
 
 def _add_units(p: argparse.ArgumentParser, what: str) -> None:
@@ -508,6 +528,8 @@ def _read_input(args: argparse.Namespace, allow_wv: bool = False) -> dict[str, A
         args.freq_hz = rec.time.freq
     for note in rec.notes:
         args.err.write(f"gmwm: warning: {note}\n")
+    rec = _stationarity(args, rec, units)
+    args.recording = rec
     policy = getattr(args, "gaps", "auto")
     if policy == "combine" and not allow_wv:
         raise UsageError("--gaps combine applies to fit and report (use longest here)")
@@ -517,6 +539,65 @@ def _read_input(args: argparse.Namespace, allow_wv: bool = False) -> dict[str, A
     args.gap_decision = decision
     return {c: signal_for_wv(x, decision, args.levels, args.freq_hz)
             for c, x in rec.channels.items()}
+
+
+def _stationarity(args: argparse.Namespace, rec: Any, units: dict[str, str]) -> Any:
+    """Check the recording for motion (docs/METHODS.md §16), choose the part to use
+    (--start/--end, --segment longest-static), print the warnings, and with --strict refuse a
+    used part that moved. Sets ``args.stationarity``; returns the recording part to use."""
+    from gmwm.readers.recording import sample_range, select_samples
+    from gmwm.stationarity import NonStationaryError, check_stationarity
+
+    args.progress("checking stationarity")
+    st = check_stationarity(rec, units={c: (u or None) for c, u in units.items()})
+    start, end = getattr(args, "start", None), getattr(args, "end", None)
+    i0, i1 = (0, rec.n) if start is None and end is None else sample_range(rec, start, end)
+    how = "the whole recording" if (i0, i1) == (0, rec.n) else "--start/--end"
+    if getattr(args, "segment", "all") == "longest-static":
+        free = [(max(a, i0), min(b, i1)) for a, b in _free_stretches(st)]
+        free = [(a, b) for a, b in free if b - a > 0]
+        if not free:
+            raise NonStationaryError(f"--segment longest-static: every part of {args.input} "
+                                     "is flagged as moving (" + _ranges(st) + ")")
+        a, b = max(free, key=lambda e: e[1] - e[0])
+        if b - a < 64:
+            raise NonStationaryError(f"--segment longest-static: the longest static stretch of "
+                                     f"{args.input} has only {b - a} samples")
+        i0, i1 = a, b
+        how = "longest static segment" + ("" if how.startswith("the whole") else
+                                          " within --start/--end")
+    st = st.using(i0, i1, how)
+    args.stationarity = st
+    if getattr(args, "strict", False) and st.moving_in_used:
+        raise NonStationaryError(f"{args.input} is not static in the part used ({_ranges(st)}) "
+                                 "and --strict is set: calibrate a static part with --segment "
+                                 "longest-static or --start/--end")
+    for w in st.warnings():
+        args.err.write(f"gmwm: warning: {w}\n")
+    if (i0, i1) != (0, rec.n):
+        if not st.segments:
+            args.err.write(f"gmwm: note: the estimate uses {st.used_text()}\n")
+        rec = select_samples(rec, i0, i1)
+    return rec
+
+
+def _free_stretches(st: Any) -> list[tuple[int, int]]:
+    """The sample ranges that no flagged segment touches."""
+    out, start = [], 0
+    for s in st.segments:
+        if s.i0 > start:
+            out.append((start, s.i0))
+        start = max(start, s.i1)
+    if start < st.n:
+        out.append((start, st.n))
+    return out
+
+
+def _ranges(st: Any, limit: int = 4) -> str:
+    a, b = st.used or (0, st.n)
+    segs = st.segments_in(a, b) or list(st.segments)
+    text = ", ".join(st.span(s.start_s, s.end_s) for s in segs[:limit])
+    return text + (f" and {len(segs) - limit} more" if len(segs) > limit else "")
 
 
 def _by_column(items: Sequence[str], columns: Sequence[str], what: str, default: str | None
@@ -978,6 +1059,10 @@ def _fit_data(args: argparse.Namespace) -> tuple[dict[str, Any], bool]:
     if not p.exists():
         raise InputError(f"file not found: {p}")
     if is_wv_table(p):
+        if (args.start is not None or args.end is not None or args.segment != "all"
+                or args.strict):
+            raise UsageError("--start/--end/--segment/--strict apply to recordings, not to a WV "
+                             "table")
         channels = table_channels(p)
         if args.columns is None:
             wanted: list[Any] = [None] if args.column is None else [str(args.column)]
@@ -1190,13 +1275,19 @@ def cmd_fit(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
         _plot_channels(fits, lambda f, ax, c: plot_wv(f["result"].wv, result=f["result"], ax=ax,
                                                       units=f["units"]), args.plot)
+    st = getattr(args, "stationarity", None)
     if args.json:
         objs = {c: _fit_json(args, c, f) for c, f in fits.items()}
         if multi:
-            _print_json({"command": "fit", "input": args.input, "fits": objs}, out)
+            obj = {"command": "fit", "input": args.input, "fits": objs}
         else:
-            _print_json(next(iter(objs.values())), out)
+            obj = next(iter(objs.values()))
+        if st is not None:
+            obj["stationarity"] = st.to_json_dict()
+        _print_json(obj, out)
     else:
+        if st is not None and st.used not in (None, (0, st.n)):
+            out.write(f"recording part used: {st.used_text()}\n")
         for i, (c, f) in enumerate(fits.items()):
             if i:
                 out.write("\n")
@@ -1262,6 +1353,17 @@ def cmd_report(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     args.progress(f"writing the report to {args.output}")
     per_axis = {c: {"result": f["result"], "units": f["units"], "warnings": f["warnings"],
                     "datasheet": _datasheet(f["result"], f["units"])} for c, f in fits.items()}
+    st = getattr(args, "stationarity", None)
+    if st is not None:  # each flagged axis says so in its own section and in the summary
+        a, b = st.used or (0, st.n)
+        for c, entry in per_axis.items():
+            segs = [s for s in st.segments_in(a, b) if c in s.channels]
+            if segs:
+                where = ", ".join(st.span(s.start_s, s.end_s) for s in segs[:4])
+                entry["warnings"] = [*entry["warnings"], f"not static in {where}"
+                                     + (f" and {len(segs) - 4} more ranges" if len(segs) > 4
+                                        else "") + " (see Stationarity): the coefficients "
+                                     "include that motion"]
     rec, gaps = getattr(args, "recording", None), getattr(args, "gap_decision", None)
     timing = None
     if rec is not None and rec.time is not None:
@@ -1271,10 +1373,13 @@ def cmd_report(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             timing.append(gaps.message)
     files = write_report(args.output, per_axis, source=args.input,
                          title=args.title or f"Calibration report: {Path(args.input).name}",
-                         timing=timing)
+                         timing=timing, stationarity=st)
     if args.json:
-        _print_json({"command": "report", "input": args.input, "files": [str(p) for p in files],
-                     "fits": {c: _fit_json(args, c, f) for c, f in fits.items()}}, out)
+        obj = {"command": "report", "input": args.input, "files": [str(p) for p in files],
+               "fits": {c: _fit_json(args, c, f) for c, f in fits.items()}}
+        if st is not None:
+            obj["stationarity"] = st.to_json_dict()
+        _print_json(obj, out)
     else:
         out.write(f"report of {len(fits)} axes of {args.input} written to: "
                   + ", ".join(str(p) for p in files if p.suffix in (".md", ".html", ".yaml")) + "\n")

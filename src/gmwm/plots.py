@@ -26,6 +26,7 @@ __all__ = [
     "new_axes",
     "plot_av",
     "plot_model_wv",
+    "plot_stationarity",
     "plot_virtual_wv",
     "plot_wv",
     "style",
@@ -377,3 +378,59 @@ def param_label(name: str, names: Sequence[str] = ()) -> str:
         return f"${sym}$"
     base, sup = (sym[:-2], "^2") if sym.endswith("^2") else (sym, "")
     return f"${base}_{{{','.join(sub)}}}{sup}$"
+
+
+#: shading of the stationarity timeline: flagged by this channel / by another channel / unused
+FLAG_COLOR = PALETTE[2]
+UNUSED_COLOR = "#BBBBBB"
+
+
+def plot_stationarity(report: Any, *, channels: Sequence[str] | None = None,
+                      panel_height: float = 1.05, width: float = 7.0) -> Figure:
+    """Timeline of a :class:`gmwm.stationarity.StationarityReport`: one panel per channel (the
+    per-bin mean as a line, the min-max envelope shaded), ranges flagged by that channel shaded
+    strongly and ranges flagged by others lightly, the part of the recording not used by the
+    estimate greyed; a last panel with the temperature when the recording has one. x: seconds
+    since the first sample (samples without a rate). Returns the Figure."""
+    names = [c for c in (channels or report.channels) if c in report.timeline]
+    temp = report.temperature_timeline
+    rows = len(names) + (temp is not None)
+    if rows == 0:
+        raise ValueError("the report has no timeline to draw")
+    fig, axes = subplots(rows, 1, squeeze=False, sharex=True,
+                         figsize=(width, 0.5 + panel_height * rows))
+    axes = list(axes[:, 0])
+    unit_t = "s" if report.freq else "samples"
+    used = report.used or (0, report.n)
+    t_end = report.time_at(report.n)
+    with style():
+        for ax, c in zip(axes, names, strict=False):
+            t, mean, lo, hi = report.timeline[c]
+            ax.fill_between(t, lo, hi, color=EMPIRICAL_COLOR, alpha=0.25, linewidth=0)
+            ax.plot(t, mean, color=EMPIRICAL_COLOR, linewidth=0.7)
+            for s in report.segments:
+                own = c in s.channels
+                ax.axvspan(s.start_s, s.end_s, color=FLAG_COLOR, alpha=0.35 if own else 0.10,
+                           linewidth=0)
+            unit = report.units.get(c) or ""
+            ax.set_ylabel(f"{c} [{unit}]" if unit else c)
+        if temp is not None:
+            ax = axes[-1]
+            ax.plot(temp[0], temp[1], color=PALETTE[4], linewidth=1.0)
+            for s in report.segments:
+                ax.axvspan(s.start_s, s.end_s, color=FLAG_COLOR, alpha=0.10, linewidth=0)
+            ax.set_ylabel("temp. [°C]")
+        for ax in axes:
+            if used[0] > 0:
+                ax.axvspan(report.time_at(0), report.time_at(used[0]), color=UNUSED_COLOR, alpha=0.5,
+                           linewidth=0)
+            if used[1] < report.n:
+                ax.axvspan(report.time_at(used[1]), t_end, color=UNUSED_COLOR, alpha=0.5,
+                           linewidth=0)
+            ax.set_xlim(report.time_at(0), t_end)
+        axes[-1].set_xlabel(f"Time [{unit_t}]")
+        verdict = (f"not static: {len(report.segments)} flagged range(s)" if report.moving
+                   else "no range flagged")
+        axes[0].set_title(f"Stationarity: {verdict}"
+                          + ("" if used == (0, report.n) else "; grey: not used"))
+    return fig

@@ -1,6 +1,8 @@
 """Calibration report of an IMU: one Markdown page and one HTML page over all its axes.
 
-Per axis: the empirical WV with the fitted model and its components (PNG), the datasheet
+First the stationarity check of the recording (``docs/METHODS.md`` §16): a warning naming the
+time ranges that moved, the part of the recording used and a timeline figure with the flagged
+ranges. Per axis: the empirical WV with the fitted model and its components (PNG), the datasheet
 coefficients with 95 % CIs (:func:`gmwm.datasheet.datasheet`), the IEEE 952 Allan-deviation readings
 of the same data (bias instability included) and the fit's warnings; at the end a
 YAML block of noise densities as Kalibr-style tools expect (:func:`gmwm.datasheet.kalibr_yaml`),
@@ -80,14 +82,73 @@ def _html_table(headers: list[str], rows: list[tuple]) -> str:
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
+def _stationarity_section(st: Any, out: Path) -> tuple[list[str], list[str], list[Path]]:
+    """Markdown lines, HTML parts and files of the stationarity section (timeline figure)."""
+    from gmwm.io import save_figure
+    from gmwm.plots import plot_stationarity
+
+    unit = "s" if st.freq else "samples"
+    intro = (f"Windowed means of every axis (and of the accelerometer norm |a|) at window lengths "
+             f"{', '.join(f'{L / (st.freq or 1.0):.3g}' for L in st.windows)} {unit}, the "
+             "windowed noise level and, for known units, a static ceiling; "
+             f"{st.n_tests} tests at a family-wise false-alarm level of {st.alpha:g}.")
+    verdict = ("**Not static**: the ranges below moved, stepped, drifted or shook beyond what a "
+               "static noise model explains." if st.moving else
+               "No range is flagged: the recording looks static.")
+    used = f"The estimate uses {st.used_text()}."
+    md = ["## Stationarity", "", verdict + " " + used, "", intro, ""]
+    plain = html.escape(verdict.replace("**", ""))
+    body = ["<h2>Stationarity</h2>", f"<p>{plain} {html.escape(used)}</p>",
+            f"<p>{html.escape(intro)}</p>"]
+    rows = []
+    for s in st.segments:
+        fl = [f for f in st.flags if f.i1 > s.i0 and f.i0 < s.i1]
+        best = max(fl, key=lambda f: f.stat / f.threshold)
+        u = st.units.get(best.channel) or ""
+        size = (f"{best.size:.3g}x median noise" if best.test == "noise"
+                else f"{best.size:.3g} {u}".strip())
+        a, b = st.used or (0, st.n)
+        rows.append((f"{st.fmt_time(s.start_s)}-{st.fmt_time(s.end_s)}", ", ".join(s.channels),
+                     ", ".join(s.tests),
+                     size, f"{best.stat:.3g} / {best.threshold:.3g}",
+                     f"{best.window_s:.3g}", "yes" if s.i1 > a and s.i0 < b else "no"))
+    if rows:
+        th = [f"range [{unit}]", "channels", "tests", "largest change", "statistic / threshold",
+              f"window [{unit}]", "in the part used"]
+        md += _md_table(th, rows) + [""]
+        body.append(_html_table(th, rows))
+    t = st.temperature
+    if t is not None:
+        line = (f"Temperature {t.range_c[0]:.3g}-{t.range_c[1]:.3g} °C"
+                + (f" ({t.source})" if t.source else "") + ": the bias follows it in "
+                + (", ".join(t.following) if t.following else "no axis") + ".")
+        md += [line, ""]
+        body.append(f"<p>{html.escape(line)}</p>")
+    for n in (*st.alerts, *st.notes):
+        md += [f"- {n}"]
+        body.append(f"<p>{html.escape(n)}</p>")
+    if st.alerts or st.notes:
+        md.append("")
+    files: list[Path] = []
+    if st.tested and st.timeline:
+        png = out / "stationarity.png"
+        files += save_figure(plot_stationarity(st), png)
+        md += [f"![Timeline of every axis, flagged ranges shaded]({png.name})", ""]
+        body.append(f'<img src="{png.name}" alt="stationarity timeline" width="700">')
+    return md, body, files
+
+
 def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]], *, source: str,
-                 title: str, timing: list[str] | None = None) -> list[Path]:
+                 title: str, timing: list[str] | None = None,
+                 stationarity: Any = None) -> list[Path]:
     """Write ``report.md``, ``report.html``, ``imu.yaml`` and one ``<axis>_wv.png`` per axis to
     ``outdir``; return the paths.
 
     ``axes[name]`` holds ``result`` (a GMWM fit), ``units`` (signal unit; deg/s or rad/s mark a
     gyroscope, m/s^2 or g an accelerometer), ``warnings`` (list of str) and ``datasheet``.
     ``timing``: lines on the recording's time base (rate source, jitter, gaps, gap policy).
+    ``stationarity``: a :class:`gmwm.stationarity.StationarityReport` (its ``used`` range set):
+    a warning at the top when it flags the part used, a section with the timeline figure.
     """
     from gmwm.atomic import save_figure, write_text_atomic
     from gmwm.plots import plot_wv
@@ -107,10 +168,23 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     body: list[str] = [f"<h1>{html.escape(title)}</h1>",
                        (f"<p>Input <code>{html.escape(source)}</code>, sampling frequency {freq:g} "
                         f"Hz, {len(axes)} axes; GMWM fits by gmwm {html.escape(__version__)}.</p>")]
+    st = stationarity
+    if st is not None and (st.moving or st.alerts):
+        lines = st.warnings(limit=10)
+        md += ["> **Warning: the recording is not static.**" if st.moving else
+               "> **Warning.**", *[f"> - {w}" for w in lines], ""]
+        body.append('<div style="border:2px solid #D55E00;padding:.5em 1em"><strong>Warning: '
+                    + ("the recording is not static." if st.moving else "") + "</strong><ul>"
+                    + "".join(f"<li>{html.escape(w)}</li>" for w in lines) + "</ul></div>")
     if timing:
         md += ["## Time base", "", *[f"- {t}" for t in timing], ""]
         body += ["<h2>Time base</h2>",
                  "<ul>" + "".join(f"<li>{html.escape(t)}</li>" for t in timing) + "</ul>"]
+    if st is not None:
+        smd, sbody, sfiles = _stationarity_section(st, out)
+        md += smd
+        body += sbody
+        written += sfiles
     summary = []
     for name, a in axes.items():
         res = a["result"]

@@ -21,6 +21,7 @@ Without stamps the rate is ``freq``; without either, :attr:`Recording.time` is N
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -32,6 +33,7 @@ import numpy as np
 from gmwm.datasheet import parse_unit
 from gmwm.errors import InputError
 from gmwm.readers.timebase import (
+    TIME_UNITS,
     GapDecision,
     TimeBase,
     decide_gaps,
@@ -40,7 +42,7 @@ from gmwm.readers.timebase import (
     time_from_freq,
 )
 
-__all__ = ["FORMATS", "Recording", "read_recording"]
+__all__ = ["FORMATS", "Recording", "read_recording", "sample_range", "select_samples"]
 
 FORMATS = ("ros1", "ros2-sqlite3", "ros2-mcap", "ulog", "euroc", "rostopic", "csv", "npy", "npz",
            "hdf5")
@@ -57,7 +59,10 @@ class Recording:
     :data:`gmwm.datasheet.SIGNAL_UNITS` key, a raw-count ``'K*UNIT'``, or None: unknown);
     ``roles`` name -> 'gyroscope' / 'accelerometer' / None; ``time`` the measured or given time
     base (None: neither stamps nor ``freq``); ``format`` one of :data:`FORMATS`; ``topic`` the
-    bag or ULog topic; ``notes`` what the user should know (shown as warnings)."""
+    bag or ULog topic; ``notes`` what the user should know (shown as warnings); ``time_s`` the
+    time of each sample in seconds since the first (from the stamps, else ``i / freq``; None
+    without time); ``temperature`` deg C per sample when the file carries one (ULog, a CSV
+    column named ``temp*``), from ``temperature_source``."""
 
     channels: dict[str, np.ndarray]
     units: dict[str, str | None]
@@ -67,6 +72,9 @@ class Recording:
     format: str
     topic: str | None = None
     notes: tuple[str, ...] = field(default=())
+    time_s: np.ndarray | None = field(default=None, repr=False)
+    temperature: np.ndarray | None = field(default=None, repr=False)
+    temperature_source: str = ""
 
     @property
     def freq(self) -> float | None:
@@ -175,8 +183,10 @@ def _select(names: list[str], columns: Any, p: Path, default_all: bool) -> list[
 
 def _finish(p: Path, fmt: str, channels: dict[str, np.ndarray], file_units: dict[str, str | None],
             tb: TimeBase | None, freq: float | None, units: Any, notes: list[str],
-            topic: str | None = None) -> Recording:
-    """Check the channels, merge the user's units with the file's, settle the time base."""
+            topic: str | None = None, stamps: Any = None,
+            temperature: tuple[np.ndarray, str] | None = None) -> Recording:
+    """Check the channels, merge the user's units with the file's, settle the time base;
+    ``stamps`` (in ``tb.unit``) give :attr:`Recording.time_s`, ``temperature`` (deg C, source)."""
     from gmwm.readers.tables import _validated
 
     names = list(channels)
@@ -209,8 +219,19 @@ def _finish(p: Path, fmt: str, channels: dict[str, np.ndarray], file_units: dict
             tb = time_from_freq(freq, size)
     if tb is not None and tb.n != size:
         raise InputError(f"{p}: {tb.n} time stamps for {size} samples")
+    time_s = None
+    if tb is not None:
+        if stamps is not None and tb.unit is not None:
+            st = np.asarray(stamps)
+            time_s = (st - st[0]).astype(np.float64) * TIME_UNITS[tb.unit]
+        else:
+            time_s = np.arange(size) / tb.freq
+    temp, temp_src = (None, "") if temperature is None else temperature
+    if temp is not None and temp.size != size:
+        raise InputError(f"{p}: {temp.size} temperature values for {size} samples")
     return Recording(checked, out_units, roles, tb, str(p), fmt, topic,
-                     tuple(notes) + (tb.notes if tb is not None else ()))
+                     tuple(notes) + (tb.notes if tb is not None else ()), time_s,
+                     None if temp is None else np.asarray(temp, dtype=np.float64), temp_src)
 
 
 def _from_table(p: Path, columns: Any, time_unit: str | None, freq: float | None, units: Any
@@ -225,7 +246,9 @@ def _from_table(p: Path, columns: Any, time_unit: str | None, freq: float | None
         tnames.sort(key=lambda n: 0 if n == "field.header.stamp" else 1)
         data = [n for n in ("gx", "gy", "gz", "ax", "ay", "az") if n in t.columns]
     else:
-        data = [n for n in t.columns if n not in t.time and t.columns[n].dtype.kind in "iuf"]
+        temps = {n for n, _ in t.temperature}
+        data = [n for n in t.columns if n not in t.time and t.columns[n].dtype.kind in "iuf"
+                and n not in temps]
         if not data:
             data = [n for n in t.columns if n not in t.time]
     if columns is not None and not (isinstance(columns, str) and columns.lower() == "all"):
@@ -268,7 +291,14 @@ def _from_table(p: Path, columns: Any, time_unit: str | None, freq: float | None
     elif time_unit is not None:
         raise InputError(f"--time-unit given but {p} has no time column")
     fmt = t.kind if t.kind in ("euroc", "rostopic") else "csv"
-    return _finish(p, fmt, chans, {n: t.units.get(n) for n in names}, tb, freq, units, notes)
+    temp, scale = next(((n, u) for n, u in t.temperature if n not in names), (None, "C"))
+    temperature = None
+    if temp is not None:
+        v = numeric(t, temp, str(p)).astype(np.float64)
+        v = v - 273.15 if scale == "K" else (v - 32.0) / 1.8 if scale == "F" else v
+        temperature = (v, f"column '{temp}' of {p.name}")
+    return _finish(p, fmt, chans, {n: t.units.get(n) for n in names}, tb, freq, units, notes,
+                   stamps=stamps if tb is not None else None, temperature=temperature)
 
 
 def _from_npz(p: Path, columns: Any, time_unit: str | None, freq: float | None, units: Any
@@ -307,7 +337,8 @@ def _from_npz(p: Path, columns: Any, time_unit: str | None, freq: float | None, 
                        where=f"array '{name}' of {p}")
     elif rate is not None:
         tb = time_from_freq(rate, arrays[names[0]].size, source=f"the 'freq' array of {p}")
-    return _finish(p, "npz", {n: arrays[n] for n in names}, {}, tb, freq, units, [])
+    return _finish(p, "npz", {n: arrays[n] for n in names}, {}, tb, freq, units, [],
+                   stamps=arrays[tnames[0]] if tnames else None)
 
 
 def _from_io(p: Path, kind: str, columns: Any, dataset: str | None, freq: float | None,
@@ -354,7 +385,7 @@ def read_recording(path: str | os.PathLike, *, topic: str | None = None, columns
         tb = time_base(d.stamp_ns, unit="ns", where=f"{d.stamp_source} of topic {d.topic}",
                        source=f"{d.stamp_source} of topic {d.topic} (ns)")
         return _finish(p, fmt, {n: d.vectors[n] for n in names}, d.units, tb, freq, units,
-                       d.notes, d.topic)
+                       d.notes, d.topic, stamps=d.stamp_ns)
     if kind == "ulog":
         from gmwm.readers.ulog import read_ulog
 
@@ -363,7 +394,9 @@ def read_recording(path: str | os.PathLike, *, topic: str | None = None, columns
         tb = time_base(u.stamp_us, unit="us", where=f"{u.stamp_field} of {u.topic}",
                        source=f"{u.stamp_field} of {u.topic} (us)")
         return _finish(p, "ulog", {n: u.vectors[n] for n in names}, u.units, tb, freq, units,
-                       u.notes, u.topic)
+                       u.notes, u.topic, stamps=u.stamp_us,
+                       temperature=None if u.temperature is None else
+                       (u.temperature, u.temperature_source))
     if kind == "text":
         return _from_table(p, columns, time_unit, freq, units)
     if kind == "npz":
@@ -379,3 +412,45 @@ def with_units(rec: Recording, units: Mapping[str, str | None]) -> Recording:
         out_u[c] = None if parsed is None else (parsed[0] if parsed[1] == 1.0 else u)
         out_r[c] = None if parsed is None else parsed[2]
     return replace(rec, units=out_u, roles=out_r)
+
+
+def sample_range(rec: Recording, start_s: float | None, end_s: float | None) -> tuple[int, int]:
+    """Samples ``(i0, i1)`` whose time (seconds since the first sample) lies in
+    [``start_s``, ``end_s``); None: from the first / to the last sample. An empty or
+    out-of-range request is an :class:`InputError`."""
+    t = rec.time_s
+    if t is None:
+        raise InputError(f"{rec.path} has no time stamps and no sampling rate: --start/--end "
+                         "need --freq (Hz)")
+    last = float(t[-1]) if t.size else 0.0
+    a = 0.0 if start_s is None else float(start_s)
+    b = math.inf if end_s is None else float(end_s)
+    if a < 0 or not b > a:
+        raise InputError(f"--start {a:g} / --end {b:g}: need 0 <= start < end (seconds since "
+                         "the first sample)")
+    if a > last:
+        raise InputError(f"--start {a:g} s is after the end of {rec.path} ({last:.6g} s)")
+    i0, i1 = int(np.searchsorted(t, a, "left")), int(np.searchsorted(t, b, "left"))
+    if i1 - i0 < 2:
+        raise InputError(f"--start/--end select {i1 - i0} sample(s) of {rec.path}")
+    return i0, i1
+
+
+def select_samples(rec: Recording, i0: int, i1: int) -> Recording:
+    """Samples ``i0:i1`` of ``rec`` (channels, times, temperature), its time base measured on
+    them (gaps, jitter, duration) with the rate and its source of the whole recording."""
+    if not 0 <= i0 < i1 <= rec.n:
+        raise InputError(f"sample range {i0}:{i1} outside 0:{rec.n}")
+    if (i0, i1) == (0, rec.n):
+        return rec
+    tb = rec.time
+    if tb is not None and rec.time_s is not None and tb.unit is not None and i1 - i0 >= 2:
+        sub = time_base(rec.time_s[i0:i1] - rec.time_s[i0], unit="s",
+                        where=f"samples {i0}-{i1 - 1} of {rec.path}")
+        tb = replace(sub, freq=tb.freq, source=tb.source, unit=tb.unit,
+                     start_s=(tb.start_s or 0.0) + float(rec.time_s[i0]), notes=())
+    elif tb is not None:
+        tb = replace(time_from_freq(tb.freq, i1 - i0, tb.source), notes=())
+    return replace(rec, channels={c: x[i0:i1] for c, x in rec.channels.items()}, time=tb,
+                   time_s=None if rec.time_s is None else rec.time_s[i0:i1],
+                   temperature=None if rec.temperature is None else rec.temperature[i0:i1])

@@ -29,10 +29,14 @@ from gmwm.datasheet import parse_unit
 from gmwm.errors import InputError
 from gmwm.readers.timebase import time_column
 
-__all__ = ["Table", "read_text_table"]
+__all__ = ["Table", "read_text_table", "temperature_column"]
 
 _SNIFF_LINES = 64
 _UNIT_SUFFIX = re.compile(r"^(?P<name>.*?)\s*[\[(](?P<unit>[^\])]*)[\])]\s*$")
+_TEMPERATURE = re.compile(r"^(imu[_ .]?|sensor[_ .]?|board[_ .]?)?(temp|temperature)"
+                          r"([_ .]?(c|degc|celsius|k|kelvin|f))?$", re.IGNORECASE)
+_TEMP_UNITS = {"c": "C", "degc": "C", "°c": "C", "celsius": "C", "deg c": "C", "k": "K",
+               "kelvin": "K", "f": "F", "degf": "F", "°f": "F"}
 _ROS_IMU = {"field.angular_velocity.x": "gx", "field.angular_velocity.y": "gy",
             "field.angular_velocity.z": "gz", "field.linear_acceleration.x": "ax",
             "field.linear_acceleration.y": "ay", "field.linear_acceleration.z": "az"}
@@ -43,7 +47,8 @@ class Table:
     """Columns of a text recording: ``columns`` name -> array (numbers, or object for text),
     ``units`` name -> signal unit from the header (None when it gives none or an unknown one),
     ``time`` name -> time unit ('s', 'ms', 'us', 'ns' or None: unlabelled) of every time column,
-    ``kind`` 'euroc', 'rostopic' or 'csv', ``notes`` things the user should know."""
+    ``kind`` 'euroc', 'rostopic' or 'csv', ``notes`` things the user should know,
+    ``temperature`` name -> 'C'/'K'/'F' of every temperature column."""
 
     columns: dict[str, np.ndarray]
     units: dict[str, str | None]
@@ -51,6 +56,18 @@ class Table:
     kind: str
     header: bool
     notes: tuple[str, ...] = ()
+    temperature: tuple[tuple[str, str], ...] = ()
+
+
+def temperature_column(name: str, unit: str | None = None) -> tuple[bool, str]:
+    """Whether a column (name without its bracketed unit, and that unit) holds a temperature:
+    ``temp``, ``temperature``, ``imu_temp``, ``temp_c``, ... ; and its scale 'C', 'K' or 'F'
+    (default C)."""
+    m = _TEMPERATURE.match(name.strip())
+    if m is None:
+        return False, "C"
+    u = (unit or m.group(4) or "c").strip().lower()
+    return True, _TEMP_UNITS.get(u, "C")
 
 
 def _open_text(p: Path) -> tuple[bytes, bool]:
@@ -157,6 +174,7 @@ def read_text_table(path: str | Path) -> Table:
     units: dict[str, str | None] = {}
     time: dict[str, str | None] = {}
     notes: list[str] = []
+    temps: list[tuple[str, str]] = []
     rostopic = header is not None and any(n in _ROS_IMU for n in names)
     euroc = header is not None and any(ln.lstrip().startswith("#") and ln.lstrip()[1:2] != "#"
                                        for ln in lines[:start] if ln.strip())
@@ -177,6 +195,9 @@ def read_text_table(path: str | Path) -> Table:
         if is_time:
             time[name] = tunit
             units[name] = None
+        elif temperature_column(name, unit_text)[0]:
+            units[name] = None  # a temperature, not a signal unit (Recording.temperature)
+            temps.append((name, temperature_column(name, unit_text)[1]))
         else:
             try:
                 parsed = parse_unit(unit_text) if unit_text else None
@@ -193,7 +214,7 @@ def read_text_table(path: str | Path) -> Table:
         else:
             columns[name] = col.to_numpy()
     kind = "rostopic" if rostopic else ("euroc" if euroc and time else "csv")
-    return Table(columns, units, time, kind, header is not None, tuple(notes))
+    return Table(columns, units, time, kind, header is not None, tuple(notes), tuple(temps))
 
 
 def numeric(table: Table, name: str, where: str) -> np.ndarray:

@@ -5,6 +5,11 @@ stamped by ``timestamp`` in microseconds since boot; its accelerometer relative 
 checked to be constant), or the raw ``sensor_gyro`` (``x, y, z`` rad/s) / ``sensor_accel``
 (``x, y, z`` m/s^2) topics of one instance (``multi_id``), each with its own ``timestamp_sample``
 when logged (else ``timestamp``). Units, roles and time all come from the ULog message formats.
+
+Temperature (deg C): the ``temperature`` field of ``sensor_gyro`` / ``sensor_accel``; for
+``sensor_combined`` that of ``sensor_accel:0`` (else ``sensor_gyro:0``) interpolated on its stamps
+(PX4 logs those topics at about 1 Hz), else the barometer's ``baro_temp_celcius`` of older logs
+(the board temperature, labelled as such).
 """
 
 from __future__ import annotations
@@ -34,6 +39,8 @@ class UlogData:
     roles: dict[str, str]
     stamp_field: str
     notes: list[str] = field(default_factory=list)
+    temperature: np.ndarray | None = None
+    temperature_source: str = ""
 
 
 def _split_topic(topic: str) -> tuple[str, int | None]:
@@ -107,5 +114,29 @@ def read_ulog(path: str | os.PathLike, topic: str | None = None) -> UlogData:
         lost = sum(getattr(x, "duration", 0) for x in ulog.dropouts)
         notes.append(f"{p}: the logger reports {len(ulog.dropouts)} dropout(s) ({lost} ms in all)")
     label = name if name == "sensor_combined" else f"{name}:{inst}"
-    return UlogData(label, np.asarray(d[stamp_field], dtype=np.int64), vectors, units, roles,
-                    stamp_field, notes)
+    stamps = np.asarray(d[stamp_field], dtype=np.int64)
+    temp, source = _temperature(have, name, d, stamps, label)
+    return UlogData(label, stamps, vectors, units, roles, stamp_field, notes, temp, source)
+
+
+def _temperature(have: dict, name: str, d: dict, stamps: np.ndarray, label: str
+                 ) -> tuple[np.ndarray | None, str]:
+    """Temperature per IMU sample (deg C) and where it comes from (see the module docstring)."""
+    if "temperature" in d and np.any(d["temperature"] != 0):  # all zero: not logged
+        return np.asarray(d["temperature"], dtype=np.float64), f"temperature of {label}"
+    if name != "sensor_combined":
+        return None, ""
+    for other in (("sensor_accel", 0), ("sensor_gyro", 0)):
+        o = have.get(other)
+        if o is not None and "temperature" in o.data and o.data["timestamp"].size >= 2:
+            t = np.asarray(o.data["timestamp"], dtype=np.float64)
+            v = np.asarray(o.data["temperature"], dtype=np.float64)
+            ok = np.isfinite(v) & (v != 0)
+            if ok.sum() >= 2:
+                src = (f"temperature of {other[0]}:{other[1]} ({int(ok.sum())} messages, "
+                       "interpolated)")
+                return np.interp(stamps.astype(np.float64), t[ok], v[ok]), src
+    if "baro_temp_celcius" in d and np.any(d["baro_temp_celcius"] != 0):
+        return (np.asarray(d["baro_temp_celcius"], dtype=np.float64),
+                "barometer temperature of sensor_combined (board temperature)")
+    return None, ""
