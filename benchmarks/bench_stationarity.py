@@ -335,7 +335,7 @@ def main() -> None:
             f"alpha {s.ALPHA:g}, small-sample factor {s.SMALL_SAMPLE:g}; {wall:.0f} s wall, "
             f"1-minute load average {load0:.2f} at the start")
     if args.write:
-        from gmwm.io import write_text_atomic
+        from gmwm.atomic import write_text_atomic
 
         text = "\n\n".join([
             "# Stationarity check: false alarms and detection",

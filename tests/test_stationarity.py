@@ -148,7 +148,7 @@ def test_report_contents_and_json():
 
 
 def test_timeline_figure(tmp_path):
-    from gmwm.io import save_figure
+    from gmwm.atomic import save_figure
     from gmwm.plots import plot_stationarity
 
     x = _imu(seed=10)

@@ -84,7 +84,7 @@ def _html_table(headers: list[str], rows: list[tuple]) -> str:
 
 def _stationarity_section(st: Any, out: Path) -> tuple[list[str], list[str], list[Path]]:
     """Markdown lines, HTML parts and files of the stationarity section (timeline figure)."""
-    from gmwm.io import save_figure
+    from gmwm.atomic import save_figure
     from gmwm.plots import plot_stationarity
 
     unit = "s" if st.freq else "samples"
