@@ -115,6 +115,7 @@ LIBRARY_API = {
     "gmwm.codec.read_result": "lossless result files (docs/API.md)",
     "gmwm.codec.write_result": "lossless result files (docs/API.md)",
     "gmwm.bootstrap.parametric_bootstrap": "the library's bootstrap (docs/API.md)",
+    "gmwm.wv.wvar_many": "the WV of many signals at once (docs/API.md)",
     **{f"gmwm.units.{n}": _CONVERSION for n in (
         "deg_per_hour_to_rad_per_second", "dr_coefficient_from_omega", "dr_from_per_hour2",
         "micro_g_to_si", "qn_coefficient_from_q2", "rw_coefficient_from_gamma2",
