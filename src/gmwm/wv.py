@@ -430,11 +430,18 @@ def wvar(x: Any, levels: int | None = None, alpha: float = 0.05, freq: float = 1
     T = arr.shape[0]
     J = _n_levels(T, levels)
     _check_alpha_freq(alpha, freq)
-    sums = _sums_checked(arr, J, _Workspace(T, J), "signal")
+    return wv_from_sums(_sums_checked(arr, J, _Workspace(T, J), "signal"), T, alpha, freq)
+
+
+def wv_from_sums(sums: np.ndarray, T: int, alpha: float = 0.05, freq: float = 1.0
+                 ) -> WaveletVariance:
+    """The WV and its CI from the kernel's sums ``sum_t (2 W_{j,t})**2``, ``j = 1..J``, of a
+    signal of ``T`` samples (shared by :func:`wvar` and :mod:`gmwm.stream`)."""
+    J = len(sums)
     lev = np.arange(1, J + 1)
     scales = 2.0 ** lev
     n = T - (1 << lev) + 1
-    variance = 0.25 * sums / n
+    variance = 0.25 * np.asarray(sums, dtype=np.float64) / n
     low, high = chi2_ci(variance, np.maximum(n / scales, 1.0), alpha)
     return WaveletVariance(lev, scales, variance, low, high, n, T, freq, alpha)
 
