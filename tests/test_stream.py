@@ -380,7 +380,44 @@ def test_cli_raw_nan_and_robust(tmp_path: Path, gmwm_cli) -> None:
     y[41_234] = np.nan
     np.save(tmp_path / "y.npy", y)
     code, out, err = gmwm_cli("fit", "y.npy", "WN+RW", stream_all=True, cwd=tmp_path)
-    assert code == 1 and "NaN value at sample 41234" in err and err.count("\n") == 1, err
+    errors = [line for line in err.splitlines() if line.startswith("gmwm: error")]
+    assert code == 1 and len(errors) == 1 and "NaN value at sample 41234" in errors[0], err
+    assert "Traceback" not in err
     code, out, err = gmwm_cli("wv", "x.raw", "--dtype", "<f4", "--dataset", "a", stream_all=False,
                            cwd=tmp_path)
     assert code == 2 and "--dataset applies to HDF5" in err
+
+
+# --------------------------------------------------------------------------------------------------
+# kernels compiled at install; a command that compiles anyway says so, once
+
+
+def test_compile_note_is_printed_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    import io
+
+    from numba import njit
+
+    from gmwm import _precompile
+
+    monkeypatch.setattr(_precompile._NoteState, "announced", False)
+    err = io.StringIO()
+    _precompile.announce_compiles(err)
+    _precompile.announce_compiles(err)               # registering twice prints once all the same
+
+    @njit(cache=False)
+    def twice(v: float) -> float:
+        return 2.0 * v
+
+    assert twice(1.5) == 3.0 and twice(2) == 4      # two compilations (float, int)
+    assert err.getvalue().count("\n") == 1 and "compiling numerical kernels" in err.getvalue()
+
+
+def test_warm_up_commands_are_valid_command_lines() -> None:
+    # every warm-up command line parses (a typo would silently leave kernels uncompiled)
+    from gmwm import _precompile
+    from gmwm.cli import build_parser
+
+    parser = build_parser()
+    for cmd in _precompile._COMMANDS:
+        args = parser.parse_args([a.format(x="x.npy", X="X.npy") for a in cmd])
+        assert args.command == cmd[0]

@@ -82,27 +82,36 @@ def warm(log: TextIO = sys.stderr) -> float:
     return time.perf_counter() - t0
 
 
-_ANNOUNCED = False
+class _NoteState:
+    err: TextIO | None = None
+    announced = False
+    registered = False
 
 
 def announce_compiles(err: TextIO) -> None:
     """From now on, the first time Numba compiles a kernel in this process (no valid cached
-    version), write one note to ``err``. Imports Numba: call it only where kernels will run."""
+    version), write one note to ``err`` (the latest stream given). Imports Numba: call it only
+    where kernels will run."""
     from numba.core import event
+
+    _NoteState.err = err
+    if _NoteState.registered:
+        return
 
     class _Note(event.Listener):
         def on_start(self, ev: event.Event) -> None:
-            global _ANNOUNCED
-            if not _ANNOUNCED:
-                _ANNOUNCED = True
-                err.write("gmwm: note: compiling numerical kernels for this machine (once: later "
-                          "runs load them from Numba's cache; an install normally does this)\n")
-                err.flush()
+            if not _NoteState.announced and _NoteState.err is not None:
+                _NoteState.announced = True
+                _NoteState.err.write("gmwm: note: compiling numerical kernels for this machine "
+                                     "(once: later runs load them from Numba's cache; an install "
+                                     "normally does this)\n")
+                _NoteState.err.flush()
 
         def on_end(self, ev: event.Event) -> None:
             pass
 
     event.register("numba:compile", _Note())
+    _NoteState.registered = True
 
 
 def main() -> int:
