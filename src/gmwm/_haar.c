@@ -8,10 +8,13 @@
  * their per-level sums are added to the totals in block (panel) order afterwards, so the result
  * does not depend on the number of threads, nor on how a stream cuts the signal into chunks.
  *
- * Bit-identity with the Numba twin on any IEEE-754 machine: the element-wise values are one
- * subtraction, one addition and an exact halving; every sum of squares is accumulated in 16
- * explicit lanes reduced by a fixed tree (level_step), then the tail in order. No operation's
- * order is left to the compiler, so vector width (SSE2, AVX2, AVX-512) does not change the bits.
+ * Levels are done two per pass (pair_step), which halves the traffic to the cache a pass streams
+ * from; the values are those of one level at a time.
+ *
+ * Bit-identity with the Numba twin on any IEEE-754 machine: the element-wise values are
+ * subtractions, additions and exact halvings; every sum of squares is accumulated in 16 explicit
+ * lanes reduced by a fixed tree (reduce16), then the tail in order. No operation's order is left
+ * to the compiler, so vector width (SSE2, AVX2, AVX-512) does not change the bits.
  * Build with -ffp-contract=off: a fused multiply-add would change them.
  */
 #define PY_SSIZE_T_CLEAN
@@ -20,6 +23,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 #if !defined(_WIN32)
 #include <pthread.h>
 #define HAVE_PTHREADS 1
@@ -47,10 +53,18 @@ HOT static void level_avg(const double *restrict src, double *restrict dst, ssz 
         out[i] = 0.5 * (cur[i] + prev[i]);
 }
 
+/* Sum of 16 lanes, reduced pairwise (l, l + 8), (l, l + 4), (l, l + 2), (0, 1). */
+static inline double reduce16(double *a)
+{
+    for (int w = LANES / 2; w >= 1; w /= 2)
+        for (int l = 0; l < w; l++)
+            a[l] = a[l] + a[l + w];
+    return a[0];
+}
+
 /* One pyramid level on [lo, hi): dst[t] = (src[t] + src[t - lag]) / 2; returns
  * sum (src[t] - src[t - lag])^2: 16 lanes over the first 16*floor(n/16) terms (lane l takes the
- * terms i = l mod 16), reduced pairwise (l, l + 8), (l, l + 4), (l, l + 2), (0, 1); then the
- * remaining terms one at a time. */
+ * terms i = l mod 16), reduce16, then the remaining terms one at a time. */
 HOT static double level_step(const double *restrict src, double *restrict dst, ssz lo, ssz hi,
                              ssz lag)
 {
@@ -65,10 +79,7 @@ HOT static double level_step(const double *restrict src, double *restrict dst, s
             a[l] += d * d;
             out[i + l] = 0.5 * (x + y);
         }
-    for (int w = LANES / 2; w >= 1; w /= 2)
-        for (int l = 0; l < w; l++)
-            a[l] = a[l] + a[l + w];
-    double acc = a[0];
+    double acc = reduce16(a);
     for (; i < n; i++) {
         const double x = cur[i], y = prev[i], d = x - y;
         acc += d * d;
@@ -77,27 +88,117 @@ HOT static double level_step(const double *restrict src, double *restrict dst, s
     return acc;
 }
 
-/* Levels 1..n_levels on a[:n], lags in multiples of `unit`, ping-ponging between a and b; the sum
- * of squared differences at positions >= acc_from of level j is stored in out[j - 1] (0 when
- * the level has no such position). Returns 0 if the last level's averages are in a, 1 if in b. */
+/* sum (src[t] - src[t - lag])^2 over [lo, hi), lanes as level_step; no averages. */
+HOT static double diff_sq(const double *restrict src, ssz lo, ssz hi, ssz lag)
+{
+    const double *cur = src + lo, *prev = src + lo - lag;
+    const ssz n = hi - lo, n16 = n - n % LANES;
+    double a[LANES] = {0.0};
+    ssz i = 0;
+    for (; i < n16; i += LANES)
+        for (int l = 0; l < LANES; l++) {
+            const double d = cur[i + l] - prev[i + l];
+            a[l] += d * d;
+        }
+    double acc = reduce16(a);
+    for (; i < n; i++) {
+        const double d = cur[i] - prev[i];
+        acc += d * d;
+    }
+    return acc;
+}
+
+/* Two levels in one pass (lags m and 2m) on [lo, hi): from V at t, t-m, t-2m, t-3m,
+ * v = (V_t + V_{t-m})/2 and w = (V_{t-2m} + V_{t-3m})/2 (the first level's averages at t and
+ * t - 2m, recomputed rather than stored), dst[t] = (v + w)/2; the two sums of squares of
+ * V_t - V_{t-m} and v - w go to s[0] and s[1], lanes as level_step. The values are those of two
+ * separate levels, with half the memory traffic. */
+HOT static void pair_step(const double *restrict src, double *restrict dst, ssz lo, ssz hi, ssz m,
+                          double *s)
+{
+    const double *p0 = src + lo, *p1 = src + lo - m, *p2 = src + lo - 2 * m,
+                 *p3 = src + lo - 3 * m;
+    double *out = dst + lo;
+    const ssz n = hi - lo, n16 = n - n % LANES;
+    double a[LANES] = {0.0}, b[LANES] = {0.0};
+    ssz i = 0;
+    for (; i < n16; i += LANES)
+        for (int l = 0; l < LANES; l++) {
+            const double x = p0[i + l], y = p1[i + l], u = p2[i + l], z = p3[i + l];
+            const double v = 0.5 * (x + y), w = 0.5 * (u + z), d = x - y, e = v - w;
+            a[l] += d * d;
+            b[l] += e * e;
+            out[i + l] = 0.5 * (v + w);
+        }
+    double s0 = reduce16(a), s1 = reduce16(b);
+    for (; i < n; i++) {
+        const double x = p0[i], y = p1[i], u = p2[i], z = p3[i];
+        const double v = 0.5 * (x + y), w = 0.5 * (u + z), d = x - y, e = v - w;
+        s0 += d * d;
+        s1 += e * e;
+        out[i] = 0.5 * (v + w);
+    }
+    s[0] = s0;
+    s[1] = s1;
+}
+
+/* Averages only of pair_step. */
+HOT static void pair_avg(const double *restrict src, double *restrict dst, ssz lo, ssz hi, ssz m)
+{
+    const double *p0 = src + lo, *p1 = src + lo - m, *p2 = src + lo - 2 * m,
+                 *p3 = src + lo - 3 * m;
+    double *out = dst + lo;
+    for (ssz i = 0; i < hi - lo; i++)
+        out[i] = 0.5 * (0.5 * (p0[i] + p1[i]) + 0.5 * (p2[i] + p3[i]));
+}
+
+/* Levels 1..n_levels on a[:n], lags in multiples of `unit`, ping-ponging between a and b, two
+ * levels per pass (pair_step; a last odd level alone). Level j is defined from position
+ * lo_j = 2 lag_j - unit; the sum of squared differences at positions >= acc_from of level j goes
+ * to out[j - 1] (0 when there are none): for the first level of a pair, the positions below the
+ * second level's lo (which pair_step does not reach) are summed apart (diff_sq) and added first.
+ * Returns 0 if the last computed level's averages are in a, 1 if in b. */
 static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_from,
                    double *out)
 {
     double *src = a, *dst = b, *tmp;
     int which = 0;
-    for (ssz j = 1; j <= n_levels; j++) {
+    for (ssz j = 1; j <= n_levels;) {
+        const ssz m = unit << (j - 1), lo1 = 2 * m - unit;
         out[j - 1] = 0.0;
-        const ssz lag = unit << (j - 1);
-        const ssz lo = 2 * lag - unit;
-        if (lo >= n)
-            continue;  /* and every later level too: lo only grows */
-        const ssz acc_lo = lo > acc_from ? lo : acc_from;
-        if (acc_lo > lo)
-            level_avg(src, dst, lo, acc_lo < n ? acc_lo : n, lag);
-        if (acc_lo < n)
-            out[j - 1] = level_step(src, dst, acc_lo, n, lag);
-        tmp = src; src = dst; dst = tmp;
-        which = 1 - which;
+        if (j < n_levels) {
+            const ssz lo2 = 4 * m - unit;
+            out[j] = 0.0;
+            if (lo1 < n) {
+                const ssz p_lo = lo1 > acc_from ? lo1 : acc_from, p_hi = lo2 < n ? lo2 : n;
+                const double head = p_lo < p_hi ? diff_sq(src, p_lo, p_hi, m) : 0.0;
+                out[j - 1] = head;
+                if (lo2 < n) {
+                    const ssz acc_lo = lo2 > acc_from ? lo2 : acc_from;
+                    double s[2] = {0.0, 0.0};
+                    if (acc_lo > lo2)
+                        pair_avg(src, dst, lo2, acc_lo < n ? acc_lo : n, m);
+                    if (acc_lo < n)
+                        pair_step(src, dst, acc_lo, n, m, s);
+                    out[j - 1] = head + s[0];
+                    out[j] = s[1];
+                    tmp = src; src = dst; dst = tmp;
+                    which = 1 - which;
+                }
+            }
+            j += 2;
+        } else {
+            if (lo1 < n) {
+                const ssz acc_lo = lo1 > acc_from ? lo1 : acc_from;
+                if (acc_lo > lo1)
+                    level_avg(src, dst, lo1, acc_lo < n ? acc_lo : n, m);
+                if (acc_lo < n)
+                    out[j - 1] = level_step(src, dst, acc_lo, n, m);
+                tmp = src; src = dst; dst = tmp;
+                which = 1 - which;
+            }
+            j += 1;
+        }
     }
     return which;
 }
@@ -111,6 +212,7 @@ typedef struct {
     double *blk;          /* per-block sums, n_blocks x L */
     double *store;        /* panel-major V_L (NULL: not kept) */
     ssz k_first, nrows, panel;
+    int stream;           /* non-temporal stores into the store (large stores only) */
     int fail;
 } p1_job;
 
@@ -134,6 +236,18 @@ static void store_vl(const p1_job *jb, const double *src, ssz s0, ssz t_a, ssz t
             hi = hi < cp ? hi : cp;
             const double *in = base + (k << L) + r0;
             double *o = dst + k * cp;
+#ifdef __SSE2__
+            /* whole 16-byte pairs with non-temporal stores: the store is written once and read
+             * much later (phase 2), so skip reading its lines into the cache first */
+            if (jb->stream && ((uintptr_t)(o + lo) & 15) == 0) {
+                ssz ci = lo;
+                for (; ci + 2 <= hi; ci += 2)
+                    _mm_stream_pd(o + ci, _mm_loadu_pd(in + ci));
+                for (; ci < hi; ci++)
+                    o[ci] = in[ci];
+                continue;
+            }
+#endif
             for (ssz ci = lo; ci < hi; ci++)
                 o[ci] = in[ci];
         }
@@ -170,6 +284,10 @@ static void phase1_blocks(p1_job *jb, ssz b_first, ssz b_last)
     }
     free(buf_a);
     free(buf_b);
+#ifdef __SSE2__
+    if (jb->stream)
+        _mm_sfence();  /* the non-temporal stores are visible before the thread ends */
+#endif
 }
 
 /* ---- phase 2 ------------------------------------------------------------------------------- */
@@ -294,8 +412,10 @@ static PyObject *py_phase1(PyObject *self, PyObject *args)
         if (blk == NULL)
             bad = "phase1: out of memory";
         else {
+            /* non-temporal stores only for stores larger than a typical last-level cache */
+            const int nt_stores = store.len > ((ssz)32 << 20);
             p1_job jb = {(const double *)x.buf, t_lo, t_begin, t_end, block, L, x0, blk,
-                         keep ? (double *)store.buf : NULL, k_first, nrows, panel, 0};
+                         keep ? (double *)store.buf : NULL, k_first, nrows, panel, nt_stores, 0};
             double *s = (double *)sums.buf;
             Py_BEGIN_ALLOW_THREADS
             parallel_for(p1_fn, &jb, n_blocks, n_threads);

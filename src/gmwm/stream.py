@@ -40,6 +40,7 @@ from gmwm.errors import InputError
 from gmwm.wv import (
     AllanVariance,
     WaveletVariance,
+    _aligned,
     _check_alpha_freq,
     _kernels,
     _n_levels,
@@ -535,7 +536,7 @@ class _Channel:
                 self.store = ws.store()
             else:
                 self.spill = _PanelFile(ws.rows << L, spill_dir)
-                self.local = np.empty(((chunk >> L) + 2) << L)
+                self.local = _aligned(((chunk >> L) + 2) << L)
 
     def close(self) -> None:
         if self.spill is not None:

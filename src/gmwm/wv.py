@@ -98,6 +98,14 @@ def load_kernel(n: int = 1024) -> str:
     return kernel_name()
 
 
+def _aligned(n: int) -> np.ndarray:
+    """``np.empty(n)`` starting on a 64-byte boundary (whole cache lines for the kernel's
+    panel-major stores)."""
+    raw = np.empty(n + 8)
+    skip = (-raw.ctypes.data % 64) // 8
+    return raw[skip:skip + n]
+
+
 class _Workspace:
     """Geometry and the phase-2 store for one signal length, reused across replicates by
     ``wvar_many``.
@@ -125,7 +133,7 @@ class _Workspace:
     def store(self) -> np.ndarray:
         """The phase-2 store (``rows * 2**L`` values; allocated on first use, then reused)."""
         if self.phase2 and self._store.size == 0:
-            self._store = np.empty(self.rows << self.n_block)
+            self._store = _aligned(self.rows << self.n_block)
         return self._store
 
     def sums(self, x: np.ndarray, n_levels: int, threads: int | None = None) -> np.ndarray:
