@@ -616,6 +616,7 @@ def _spill_rows(ch: _Channel, local: np.ndarray, s_a: int, s_b: int, k_first: in
 
 def _phase2(ch: _Channel, group_values: int, threads: int) -> None:
     ws = ch.ws
+    ch.buf = ch.local = np.empty(0)  # phase 1's buffers are no longer needed
     if not ws.phase2:
         return
     kern = _kernels()
