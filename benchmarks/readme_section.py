@@ -58,18 +58,29 @@ def machine() -> str:
 
 def run_measured(cmd: list[str], env: dict[str, str] | None = None, cwd: str | None = None
                  ) -> dict[str, object]:
-    """Run ``cmd``; its wall seconds, CPU seconds (user + system), peak resident memory [MB]
-    (``wait4``'s rusage of this child alone), exit status, stdout and stderr."""
+    """Run ``cmd``; its wall seconds, CPU seconds (user + system), peak resident memory [MB],
+    exit status, stdout and stderr. The peak RSS is measured by GNU time around the command when
+    /usr/bin/time exists: a child spawned straight from this process would start its high-water
+    mark at this process's own RSS (Linux carries it over the fork), which is not the command's."""
     import tempfile
 
-    with tempfile.TemporaryFile() as fo, tempfile.TemporaryFile() as fe:
+    gnu_time = Path("/usr/bin/time")
+    with tempfile.TemporaryFile() as fo, tempfile.TemporaryFile() as fe, \
+            tempfile.NamedTemporaryFile(suffix=".rss") as fr:
+        full = [str(gnu_time), "-f", "%M", "-o", fr.name, *cmd] if gnu_time.exists() else cmd
         t0 = time.perf_counter()
-        proc = subprocess.Popen(cmd, stdout=fo, stderr=fe, env=env, cwd=cwd)
+        proc = subprocess.Popen(full, stdout=fo, stderr=fe, env=env, cwd=cwd)
         _, status, ru = os.wait4(proc.pid, 0)
         wall = time.perf_counter() - t0
         proc.returncode = os.waitstatus_to_exitcode(status)
+        rss_mb = ru.ru_maxrss / 1024
+        if gnu_time.exists():
+            try:
+                rss_mb = int(Path(fr.name).read_text().split()[-1]) / 1024
+            except (ValueError, IndexError, OSError):
+                pass
         fo.seek(0)
         fe.seek(0)
-        return {"wall": wall, "cpu": ru.ru_utime + ru.ru_stime, "rss_mb": ru.ru_maxrss / 1024,
+        return {"wall": wall, "cpu": ru.ru_utime + ru.ru_stime, "rss_mb": rss_mb,
                 "code": proc.returncode, "out": fo.read().decode(errors="replace"),
                 "err": fe.read().decode(errors="replace")}
