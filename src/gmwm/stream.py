@@ -25,6 +25,7 @@ paths; frequency from an HDF5 attribute such as ``freq`` or from a time dataset)
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import os
 import shutil
 import tempfile
@@ -536,7 +537,18 @@ class _Channel:
                 self.store = ws.store()
             else:
                 self.spill = _PanelFile(ws.rows << L, spill_dir)
-                self.local = _aligned(((chunk >> L) + 2) << L)
+                # two phase-1 outputs: one is written to the file while the next chunk fills
+                # the other
+                self.locals = [_aligned(((chunk >> L) + 2) << L) for _ in range(2)]
+                self.writing: list[cf.Future | None] = [None, None]
+                self.flip = 0
+
+    def wait_writes(self) -> None:
+        """Wait for the pending writes of both phase-1 outputs (errors re-raised here)."""
+        for i, f in enumerate(getattr(self, "writing", ())):
+            if f is not None:
+                self.writing[i] = None
+                f.result()
 
     def close(self) -> None:
         if self.spill is not None:
@@ -556,7 +568,7 @@ def _nonfinite_error(where: str, name: str, col: np.ndarray, t0: int) -> InputEr
 
 
 def _phase1(ch: _Channel, col: np.ndarray, t_a: int, threads: int, where: str,
-            label: str) -> None:
+            label: str, writer: cf.Executor) -> None:
     """Phase 1 of rows ``[t_a, t_a + len(col))`` of one channel (``col`` in any numeric dtype)."""
     ws = ch.ws
     n = col.shape[0]
@@ -576,7 +588,11 @@ def _phase1(ch: _Channel, col: np.ndarray, t_a: int, threads: int, where: str,
             nrows = ((t_b - 1 - halo) >> L) - k_first + 1
         else:
             k_first, nrows = 0, 1
-        store = ch.local[:nrows << L]
+        pending = ch.writing[ch.flip]
+        if pending is not None:  # this buffer's previous chunk is still being written
+            ch.writing[ch.flip] = None
+            pending.result()
+        store = ch.locals[ch.flip][:nrows << L]
     else:
         store = ch.store if ch.store is not None else np.empty(0)
         k_first, nrows = 0, ws.rows
@@ -588,7 +604,9 @@ def _phase1(ch: _Channel, col: np.ndarray, t_a: int, threads: int, where: str,
     if not np.isfinite(ch.sums[0]):
         raise _nonfinite_error(where, label, buf[h:h + n], t_a)
     if ch.spill is not None and t_a + n > halo:
-        _spill_rows(ch, store, max(t_a, halo) - halo, t_b - halo, k_first, nrows)
+        ch.writing[ch.flip] = writer.submit(_spill_rows, ch, store, max(t_a, halo) - halo,
+                                            t_b - halo, k_first, nrows)
+        ch.flip = 1 - ch.flip
     keep = min(halo, h + n)
     buf[:keep] = buf[h + n - keep:h + n]
     ch.n_tail = keep
@@ -616,7 +634,9 @@ def _spill_rows(ch: _Channel, local: np.ndarray, s_a: int, s_b: int, k_first: in
 
 def _phase2(ch: _Channel, group_values: int, threads: int) -> None:
     ws = ch.ws
-    ch.buf = ch.local = np.empty(0)  # phase 1's buffers are no longer needed
+    ch.wait_writes()
+    ch.buf = np.empty(0)  # phase 1's buffers are no longer needed
+    ch.locals = []
     if not ws.phase2:
         return
     kern = _kernels()
@@ -667,8 +687,8 @@ def _stream(source: Source, levels: int | None, alpha: float, freq: float, memor
     ws = _Workspace(T, J)
     L = ws.n_block
     # memory per chunk row: the source rows twice (one read ahead), and per channel its float64
-    # buffer and its panel-major part of V_L
-    per_row = 2 * C * max(source.itemsize, 1) + 16 * C
+    # buffer and two panel-major parts of V_L (one being written to the file)
+    per_row = 2 * C * max(source.itemsize, 1) + 24 * C
     block = ws.block
     chunk = max(block, (max(memory // 2, per_row) // per_row) // block * block)
     chunk = min(chunk, -(-T // block) * block)
@@ -681,7 +701,8 @@ def _stream(source: Source, levels: int | None, alpha: float, freq: float, memor
     label = [nm if C > 1 else "" for nm in names]
     try:
         with cf.ThreadPoolExecutor(max_workers=workers) as pool, \
-                cf.ThreadPoolExecutor(max_workers=1) as reader:
+                cf.ThreadPoolExecutor(max_workers=1) as reader, \
+                cf.ThreadPoolExecutor(max_workers=workers) as writer:
             starts = list(range(0, T, chunk))
             ahead = reader.submit(source.read, 0, min(T, chunk))
             for i, t_a in enumerate(starts):
@@ -693,7 +714,7 @@ def _stream(source: Source, levels: int | None, alpha: float, freq: float, memor
                 if i + 1 < len(starts):
                     ahead = reader.submit(source.read, t_b, min(T, t_b + chunk))
                 jobs = [pool.submit(_phase1, chans[k], rows[:, k], t_a, per_channel,
-                                    source.where, label[k]) for k in range(C)]
+                                    source.where, label[k], writer) for k in range(C)]
                 for f in jobs:
                     f.result()
             group = max(1, (memory // 2) // (8 * workers))
@@ -701,6 +722,8 @@ def _stream(source: Source, levels: int | None, alpha: float, freq: float, memor
                 f.result()
     finally:
         for ch in chans:
+            with contextlib.suppress(Exception):  # an error is already on its way up
+                ch.wait_writes()
             ch.close()
     seconds = time.perf_counter() - t_start
     return {ch.name: ChannelWV(wv_from_sums(ch.sums, T, alpha, freq), ch.first, ch.last,
