@@ -421,3 +421,19 @@ def test_warm_up_commands_are_valid_command_lines() -> None:
     for cmd in _precompile._COMMANDS:
         args = parser.parse_args([a.format(x="x.npy", X="X.npy") for a in cmd])
         assert args.command == cmd[0]
+
+
+def test_compile_note_does_not_import_numba_itself() -> None:
+    # commands that run no Numba kernel must not pay for importing Numba: the note is set up by
+    # an import hook when something else imports it
+    import subprocess
+    import sys
+
+    code = ("import sys\nfrom gmwm._precompile import announce_compiles, _NoteState\n"
+            "announce_compiles(sys.stderr)\nassert 'numba' not in sys.modules\n"
+            "import numba\nassert _NoteState.registered\n"
+            "from numba import njit\nnjit(lambda v: v + 1)(1)\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=False)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.count("compiling numerical kernels") == 1

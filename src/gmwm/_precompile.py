@@ -21,12 +21,14 @@ kernels are compiled for exactly the argument types those paths pass.
 from __future__ import annotations
 
 import contextlib
+import importlib.abc
+import importlib.util
 import io
 import os
 import sys
 import tempfile
 import time
-from typing import TextIO
+from typing import Any, TextIO
 
 #: every kind of component, so that the simulators and all model WV kernels are compiled
 _FULL_MODEL = "WN+QN+RW+DR+AR1+GM+SIN"
@@ -88,15 +90,8 @@ class _NoteState:
     registered = False
 
 
-def announce_compiles(err: TextIO) -> None:
-    """From now on, the first time Numba compiles a kernel in this process (no valid cached
-    version), write one note to ``err`` (the latest stream given). Imports Numba: call it only
-    where kernels will run."""
+def _register() -> None:
     from numba.core import event
-
-    _NoteState.err = err
-    if _NoteState.registered:
-        return
 
     class _Note(event.Listener):
         def on_start(self, ev: event.Event) -> None:
@@ -112,6 +107,51 @@ def announce_compiles(err: TextIO) -> None:
 
     event.register("numba:compile", _Note())
     _NoteState.registered = True
+
+
+class _AfterImport(importlib.abc.MetaPathFinder):
+    """Registers the compile note right after Numba is first imported, so that commands which
+    never run a Numba kernel do not pay for importing it."""
+
+    def find_spec(self, name: str, path: Any = None, target: Any = None) -> Any:
+        if name != "numba":
+            return None
+        sys.meta_path.remove(self)
+        spec = importlib.util.find_spec(name)
+        if spec is not None and spec.loader is not None:
+            spec.loader = _NotingLoader(spec.loader)
+        return spec
+
+
+class _NotingLoader(importlib.abc.Loader):
+    """Numba's own loader, plus the registration once the package has been executed."""
+
+    def __init__(self, inner: Any) -> None:
+        self._inner = inner
+
+    def create_module(self, spec: Any) -> Any:
+        return self._inner.create_module(spec)
+
+    def exec_module(self, module: Any) -> None:
+        self._inner.exec_module(module)
+        if not _NoteState.registered:
+            _register()
+
+    def __getattr__(self, name: str) -> Any:  # resource readers etc.: the real loader's
+        return getattr(self._inner, name)
+
+
+def announce_compiles(err: TextIO) -> None:
+    """From now on, the first time Numba compiles a kernel in this process (no valid cached
+    version), write one note to ``err`` (the latest stream given). Does not import Numba: the
+    note is set up when something else does."""
+    _NoteState.err = err
+    if _NoteState.registered:
+        return
+    if "numba" in sys.modules:
+        _register()
+    elif not any(isinstance(f, _AfterImport) for f in sys.meta_path):
+        sys.meta_path.insert(0, _AfterImport())
 
 
 def main() -> int:

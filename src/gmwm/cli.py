@@ -1604,18 +1604,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             _python_warnings(caught, err, args.debug)
 
 
-#: subcommands that run Numba kernels (the others only with --robust or without the C WV kernel)
-_NUMBA_COMMANDS = frozenset({"simulate", "fit", "report", "select", "svo", "model-wv"})
-
-
 def _announce_compiles(args: argparse.Namespace, err: TextIO) -> None:
     """A note on stderr if this command has to compile kernels (no valid cache: they are
-    normally compiled at install time, see gmwm._precompile)."""
-    if args.command not in _NUMBA_COMMANDS and not getattr(args, "robust", False):
-        from gmwm.wv import kernel_name
-
-        if kernel_name() == "c":
-            return
+    normally compiled at install time, see gmwm._precompile); does not import Numba."""
     from gmwm._precompile import announce_compiles
 
     announce_compiles(err)
