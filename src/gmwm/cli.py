@@ -1040,7 +1040,7 @@ def _fit_data(args: argparse.Namespace) -> tuple[dict[str, Any], bool]:
     p = Path(args.input)
     if not p.exists():
         raise InputError(f"file not found: {p}")
-    if is_wv_table(p):
+    if args.dtype is None and is_wv_table(p):  # --dtype: raw binary, whatever the name
         channels = table_channels(p)
         if args.columns is None:
             wanted: list[Any] = [None] if args.column is None else [str(args.column)]
