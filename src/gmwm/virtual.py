@@ -119,8 +119,9 @@ def _wccv_sums(x: np.ndarray, n_levels: int, n_block: int, sums: np.ndarray, buf
                buf_b: np.ndarray, v_l: np.ndarray, pan_a: np.ndarray, pan_b: np.ndarray,
                dbuf: np.ndarray) -> None:
     """Add ``sum_t (2 W_{i,j,t})(2 W_{k,j,t})`` (packed ``i <= k``) to ``sums[j-1]``: the two-phase
-    layout of the WV kernel (``gmwm._wvkernels.phase1``; time blocks with a recomputed halo for levels ``1..L``, then
-    interleaved sub-series of ``V_L`` for the levels above), every row holding the p signals."""
+    layout of the WV kernel (``gmwm._wvkernels.phase1/phase2``: time blocks with a recomputed halo
+    for levels ``1..L``, then interleaved sub-series of ``V_L`` for the levels above), every row
+    holding the p signals."""
     T = x.shape[0]
     p = x.shape[1]
     L = n_block
