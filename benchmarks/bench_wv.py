@@ -1,12 +1,21 @@
-"""Benchmark gmwm.wv.wvar against a straightforward NumPy cumulative-sum implementation.
+"""Benchmark the Haar WV kernel (gmwm.wv) against one memory pass and a NumPy cumulative sum.
 
-Usage: python benchmarks/bench_wv.py [--big] [--repeat 3] [--tune]
-Prints, per signal length T: best-of-N wall and CPU time of ``wvar`` (all default levels, CI included) after a
-warm-up call, the same for the NumPy baseline, the wall-time ratio, the agreement between the two, and the
-peak extra memory of each (tracemalloc, in units of the signal's size), and the CPU time of the WV
-sums alone with the C kernel (gmwm._haar) and with its Numba twin (gmwm._wvkernels). Then, in
-separate processes, the import of gmwm.wv, the first wvar call (the C kernel's load) and the Numba
-kernel's first call with a cold and with a warm on-disk cache (fresh NUMBA_CACHE_DIR).
+Usage: python benchmarks/bench_wv.py [--big] [--repeat 5] [--tune] [--readme]
+
+Per signal length T (1e6, 1e7; 1e8 with --big), RW(1) + WN(1e-4) on a 1e3 offset, all default
+levels: best-of-N wall and CPU seconds (after a warm-up call) of
+
+* ``wvar`` (CI included, the default thread count) and of the WV sums alone with the C kernel on
+  1 thread and on all usable threads, and with its Numba twin (one thread);
+* one read pass over the signal (``x.sum()``) and ``np.cumsum`` (a read and a write pass): the
+  kernel's cost is reported as a multiple of the read pass;
+* a NumPy global-cumulative-sum WV (the numerically poor textbook method) and its relative
+  difference from ``wvar`` (its own rounding error);
+
+then, in separate processes, the import of gmwm.wv, the first wvar call and the Numba kernel's
+first call with a cold and with a warm on-disk cache. The C and Numba sums are checked to be
+identical to the bit. --tune times kernel layouts (L, block, panel) at T = 1e7; --readme writes the
+table into benchmarks/README.md.
 """
 
 from __future__ import annotations
@@ -17,13 +26,12 @@ import subprocess
 import sys
 import tempfile
 import time
-import tracemalloc
 from collections.abc import Callable
 from functools import partial
 
 import numpy as np
 
-from gmwm.wv import _layout, _Workspace, kernel_name, wvar
+from gmwm.wv import _layout, _Workspace, kernel_name, n_threads, wvar
 
 
 def numpy_cumsum_wv(x: np.ndarray, levels: int) -> np.ndarray:
@@ -51,15 +59,6 @@ def best_time(fn: Callable[[], object], repeat: int) -> tuple[float, float]:
     return min(wall), min(cpu)
 
 
-def peak_extra_bytes(fn: Callable[[], object]) -> int:
-    tracemalloc.start()
-    try:
-        fn()
-        return tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
-
-
 _COMPILE_SNIPPET = """
 import time, numpy as np
 t0 = time.perf_counter()
@@ -68,9 +67,11 @@ t1 = time.perf_counter()
 x = np.random.default_rng(0).standard_normal(5000)
 wvar(x)
 t2 = time.perf_counter()
-from gmwm._wvkernels import wv_sums
+from gmwm import _wvkernels
 ws = _Workspace(5000, 11)
-wv_sums(x, 11, ws.n_block, np.zeros(11), ws.buf_a, ws.buf_b, ws.v_l, ws.pan_a, ws.pan_b)
+s = np.zeros(11)
+st = ws.store()
+_wvkernels.phase1(x, 0, 0, 5000, x[0], ws.n_block, ws.block, s, st, 0, ws.rows, ws.panel)
 t3 = time.perf_counter()
 print(f"{t1 - t0:.3f} {t2 - t1:.3f} {t3 - t2:.3f}")
 """
@@ -89,44 +90,54 @@ def first_call_times() -> tuple[float, float, float, float]:
     return runs[1][0], runs[1][1], runs[0][2], runs[1][2]
 
 
-def kernel_cpu(x: np.ndarray, J: int, repeat: int) -> tuple[float, float]:
-    """Best CPU seconds of the WV sums alone: (C kernel, Numba kernel), same workspace; nan for
-    the C kernel when it is not built."""
+def _sums(kern: object, ws: _Workspace, x: np.ndarray, J: int, threads: int | None
+          ) -> np.ndarray:
+    out = np.zeros(J)
+    st = ws.store()
+    extra = () if threads is None else (threads,)
+    kern.phase1(x, 0, 0, ws.T, float(x[0]), ws.n_block, ws.block, out, st, 0, ws.rows,
+                ws.panel, *extra)
+    if ws.phase2:
+        kern.phase2(st, ws.rows, ws.n_out, ws.n_block, ws.panel, 0, ws.n_panels, J - ws.n_block,
+                    out, *extra)
+    return out
+
+
+def bench_row(T: int, rng: np.random.Generator, repeat: int) -> dict[str, float]:
+    """Timings for a RW(1) + WN(1e-4) + offset signal of T samples (the numerically hard case)."""
     from gmwm import _wvkernels
 
     try:
-        from gmwm._haar import wv_sums as c_sums
+        from gmwm import _haar
     except ImportError:
-        c_sums = None
-    ws = _Workspace(x.size, J)
-    out = []
-    for kern in (c_sums, _wvkernels.wv_sums):
-        if kern is None:
-            out.append(float("nan"))
-            continue
-        call = partial(kern, x, J, ws.n_block, np.zeros(J), ws.buf_a, ws.buf_b, ws.v_l, ws.pan_a,
-                       ws.pan_b)
-        out.append(best_time(call, repeat)[1])
-    return out[0], out[1]
-
-
-def bench_row(T: int, rng: np.random.Generator, repeat: int) -> str:
-    """One table row for a RW(1) + WN(1e-4) + offset signal of T samples (the numerically hard case)."""
+        _haar = None
     x = 1e3 + np.cumsum(rng.standard_normal(T)) + 1e-2 * rng.standard_normal(T)
     J = int(np.floor(np.log2(T))) - 1
-    ours = partial(wvar, x)
+    ws = _Workspace(T, J)
+    nt = n_threads(T)
+    row = {"T": T, "J": J, "threads": nt}
+    row["wvar"] = best_time(partial(wvar, x), repeat)
+    row["read"] = best_time(x.sum, repeat)
+    buf = np.empty_like(x)
+    row["cumsum"] = best_time(partial(np.cumsum, x, out=buf), repeat)
+    if _haar is not None:
+        row["c1"] = best_time(partial(_sums, _haar, ws, x, J, 1), repeat)
+        row["cN"] = best_time(partial(_sums, _haar, ws, x, J, nt), repeat)
+        same = np.array_equal(_sums(_haar, ws, x, J, nt), _sums(_wvkernels, ws, x, J, None))
+    else:
+        row["c1"] = row["cN"] = (float("nan"), float("nan"))
+        same = True
+    row["numba"] = best_time(partial(_sums, _wvkernels, ws, x, J, None), max(1, repeat // 2))
+    row["identical"] = same
     base = partial(numpy_cumsum_wv, x, J)
-    t_ours, t_np = best_time(ours, repeat), best_time(base, repeat)
-    diff = np.max(np.abs(ours().variance / base() - 1.0))
-    mem_ours, mem_np = peak_extra_bytes(ours) / x.nbytes, peak_extra_bytes(base) / x.nbytes
-    c_cpu, nb_cpu = kernel_cpu(x, J, repeat)
-    return (f"{T:>9.0e} {J:>3} {t_ours[0]:>7.3f} / {t_ours[1]:>6.3f} {t_np[0]:>8.3f} / "
-            f"{t_np[1]:>6.3f} {t_np[0] / t_ours[0]:>6.1f} {diff:>12.1e} {mem_ours:>8.2f}x "
-            f"{mem_np:>8.2f}x {c_cpu:>8.3f} {nb_cpu:>8.3f}")
+    row["numpy"] = best_time(base, max(1, repeat // 2))
+    row["diff"] = float(np.max(np.abs(wvar(x).variance / base() - 1.0)))
+    return row
 
 
 def tune(T: int, repeat: int) -> None:
-    """CPU seconds of the kernel alone for a grid of (L, block/2**L, panel) layouts around the default."""
+    """CPU seconds of the kernel alone (one thread) for a grid of (L, block/2**L, panel) layouts
+    around the default."""
     x = np.cumsum(np.random.default_rng(1).standard_normal(T))
     J = int(np.floor(np.log2(T))) - 1
     L0, _, p0 = _layout(T, J)
@@ -135,30 +146,54 @@ def tune(T: int, repeat: int) -> None:
         for factor in (4, 8, 16):
             for panel in (4, 8, 16):
                 ws = _Workspace(T, J, L, factor << L, panel)
-                cpu = best_time(partial(ws.sums, x, J), repeat)[1]
+                cpu = best_time(partial(ws.sums, x, J, 1), repeat)[1]
                 print(f"  L={L:>2} block={factor:>2}*2**L panel={panel:>2}: {cpu:.4f} s cpu")
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--big", action="store_true", help="also T = 1e8 (needs ~6 GB, ~1 min)")
-    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--big", action="store_true", help="also T = 1e8 (needs ~3 GB)")
+    parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--tune", action="store_true", help="time kernel layouts at T = 1e7 only")
+    parser.add_argument("--readme", action="store_true", help="write the table into README.md")
     args = parser.parse_args(argv)
     if args.tune:
         tune(10**7, args.repeat)
         return 0
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from readme_section import load, machine, update_section
+
+    load_before = load()
     sizes = [10**6, 10**7] + ([10**8] if args.big else [])
     rng = np.random.default_rng(12345)
-    print(f"{'T':>9} {'J':>3} {'wvar wall/cpu s':>16} {'numpy wall/cpu s':>17} {'ratio':>6} "
-          f"{'max rel diff':>12} {'mem wvar':>9} {'mem numpy':>9} {'C cpu':>8} {'numba cpu':>8}")
-    print(f"# wvar uses the {kernel_name()} kernel; C / numba cpu = the WV sums alone")
+    rows = []
     for T in sizes:
-        print(bench_row(T, rng, args.repeat), flush=True)
+        rows.append(bench_row(T, rng, args.repeat))
+        print(f"T = {T:.0e} done", flush=True)
     t_imp, first, cold, warm = first_call_times()
-    print(f"import gmwm.wv: {t_imp:.3f} s; first wvar call ({kernel_name()} kernel): {first:.3f} s; "
-          f"Numba kernel's first call: {cold:.2f} s with a cold cache (compile), {warm:.2f} s "
-          "with a warm cache")
+    load_after = load()
+    head = ("| T | J | `wvar` wall / CPU [s] | C kernel, 1 thread: wall [s] | C kernel, "
+            "threads: wall [s] | Numba twin (1 thread) wall [s] | one read pass (`x.sum()`) "
+            "wall [s] | `np.cumsum` wall [s] | C kernel (threads) / read pass, wall | "
+            "C == Numba bits | NumPy cumsum WV wall [s] (rel. diff) |")
+    lines = [head, "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(
+            f"| {r['T']:.0e} | {r['J']} | {r['wvar'][0]:.4f} / {r['wvar'][1]:.4f} | "
+            f"{r['c1'][0]:.4f} | {r['cN'][0]:.4f} ({r['threads']}) | {r['numba'][0]:.4f} | "
+            f"{r['read'][0]:.4f} | {r['cumsum'][0]:.4f} | {r['cN'][0] / r['read'][0]:.1f} | "
+            f"{'yes' if r['identical'] else 'NO'} | {r['numpy'][0]:.3f} ({r['diff']:.1e}) |")
+    text = (f"`python benchmarks/bench_wv.py{' --big' if args.big else ''} --repeat "
+            f"{args.repeat}`: best of {args.repeat} after a warm-up call; {machine()}; "
+            f"`wvar` uses the {kernel_name()} kernel; load average {load_before} before, "
+            f"{load_after} after.\n\n" + "\n".join(lines) + "\n\n"
+            f"* Start-up (separate processes): `import gmwm.wv` {t_imp:.3f} s; first `wvar` call "
+            f"{first:.3f} s (mostly the import of scipy.special for the CI); the Numba twin's "
+            f"first call {cold:.2f} s with a cold cache (compilation), {warm:.2f} s with a warm "
+            "one.\n")
+    print(text)
+    if args.readme:
+        update_section("bench_wv", text)
     return 0
 
 

@@ -386,15 +386,7 @@ def test_bad_inputs() -> None:
     assert wvar(np.arange(8), 3).variance[0] == pytest.approx(0.25)   # ints are fine
 
 
-# ---- the C kernel and its Numba twin (issue 11 part 6) -----------------------------------------
-
-
-def _llvm_picks_512_bit_vectors() -> bool:
-    """True on hosts where Numba's LLVM vectorises with 512-bit registers (AMD Zen 4/5, the
-    machine the reports are made on): there the C kernel reproduces its reduction order."""
-    import llvmlite.binding as llvm
-
-    return llvm.get_host_cpu_name() in ("znver4", "znver5")
+# ---- the C kernel and its Numba twin -------------------------------------------------------------
 
 
 @needs_c_kernel
@@ -410,7 +402,8 @@ def _kernel_cases():
     cases = [(T, J, None) for T in (4, 5, 7, 31, 32, 33, 35, 63, 64, 65, 100, 129, 255, 1000)
              for J in sorted({1, T.bit_length() - 2 or 1, T.bit_length() - 1})]
     cases += [(4097, 11, None), (100_003, 15, None), (300_007, 18, None), (5000, 12, (3, 40, 2)),
-              (70_000, 15, (5, 1000, 1)), (123_457, 16, (2, 64, 2))]
+              (70_000, 15, (5, 1000, 1)), (123_457, 16, (2, 64, 2)), (20_011, 14, (4, 48, 3)),
+              (300_007, 18, (9, 8 << 9, 16))]
     for i, (T, J, layout) in enumerate(cases):
         x = rng.standard_normal(T)
         if i % 3 == 1:
@@ -420,23 +413,30 @@ def _kernel_cases():
         yield T, J, layout, x
 
 
-@needs_c_kernel
-def test_c_kernel_matches_numba_kernel() -> None:
-    from gmwm import _haar, _wvkernels
+def _numba_sums(x: np.ndarray, J: int, ws: _Workspace) -> np.ndarray:
+    from gmwm import _wvkernels
 
-    exact = _llvm_picks_512_bit_vectors()
+    out = np.zeros(J)
+    store = ws.store()
+    _wvkernels.phase1(x, 0, 0, ws.T, float(x[0]), ws.n_block, ws.block, out, store, 0, ws.rows,
+                      ws.panel)
+    if ws.phase2:
+        _wvkernels.phase2(store, ws.rows, ws.n_out, ws.n_block, ws.panel, 0, ws.n_panels,
+                          J - ws.n_block, out)
+    return out
+
+
+@needs_c_kernel
+def test_c_kernel_matches_numba_kernel_bit_for_bit() -> None:
+    # same operations in the same order (explicit 16-lane sums, blocks and panels added in order):
+    # identical bits on any IEEE-754 host, for any number of threads
     n_cases = 0
     for T, J, layout, x in _kernel_cases():
         ws = _Workspace(T, J, *(layout or ()))
-        got = {}
-        for name, kern in (("c", _haar.wv_sums), ("numba", _wvkernels.wv_sums)):
-            s = np.zeros(J)
-            kern(x, J, ws.n_block, s, ws.buf_a, ws.buf_b, ws.v_l, ws.pan_a, ws.pan_b)
-            got[name] = s
-        if exact:   # same operations in the same order: identical bits
-            assert np.array_equal(got["c"], got["numba"]), (T, J, layout)
-        else:       # the same values; only the order of the additions differs
-            assert rel_err(got["c"], got["numba"]) < 1e-13, (T, J, layout)
+        ref = _numba_sums(x, J, ws)
+        for threads in (1, 2, 3):
+            got = ws.sums(x, J, threads=threads)
+            assert np.array_equal(got, ref), (T, J, layout, threads)
         n_cases += 1
     assert n_cases > 40
 
@@ -446,10 +446,57 @@ def test_c_kernel_rejects_work_arrays_that_do_not_fit() -> None:
     from gmwm import _haar
 
     x = np.zeros(1000)
-    ws = _Workspace(1000, 8)
+    ws = _Workspace(1000, 8, 4)
+    store = np.empty(ws.rows << ws.n_block)
     with pytest.raises(ValueError, match="sums is shorter"):
-        _haar.wv_sums(x, 8, ws.n_block, np.zeros(3), ws.buf_a, ws.buf_b, ws.v_l, ws.pan_a,
-                      ws.pan_b)
-    with pytest.raises(ValueError, match="level counts"):
-        _haar.wv_sums(x, 12, ws.n_block, np.zeros(12), ws.buf_a, ws.buf_b, ws.v_l, ws.pan_a,
-                      ws.pan_b)
+        _haar.phase1(x, 0, 0, 1000, 0.0, ws.n_block, ws.block, np.zeros(3), store, 0, ws.rows,
+                     ws.panel, 1)
+    with pytest.raises(ValueError, match="do not cover"):
+        _haar.phase1(x[:500], 0, 0, 1000, 0.0, ws.n_block, ws.block, np.zeros(8), store, 0,
+                     ws.rows, ws.panel, 1)
+    with pytest.raises(ValueError, match="multiple of the block"):
+        _haar.phase1(x, 0, 3, 1000, 0.0, ws.n_block, ws.block, np.zeros(8), store, 0, ws.rows,
+                     ws.panel, 1)
+    with pytest.raises(ValueError, match="store does not hold"):
+        _haar.phase1(x, 0, 0, 1000, 0.0, ws.n_block, ws.block, np.zeros(8), store[:10], 0,
+                     ws.rows, ws.panel, 1)
+    with pytest.raises(ValueError, match="panel range"):
+        _haar.phase2(store, ws.rows, ws.n_out, ws.n_block, ws.panel, 0, 99, 4, np.zeros(8), 1)
+    with pytest.raises(ValueError, match="shorter than its panels"):
+        _haar.phase2(store[:10], ws.rows, ws.n_out, ws.n_block, ws.panel, 0, ws.n_panels, 4,
+                     np.zeros(8), 1)
+
+
+def test_exact_under_large_offset_long_signal() -> None:
+    # a 1e8 offset on a random walk with tiny white noise: the pyramid subtracts sample 0 first,
+    # so every level matches the extended-precision reference (a global cumulative sum would
+    # lose ~8 digits here)
+    rng = np.random.default_rng(17)
+    T = 2**18 + 123
+    x = 1e8 + np.cumsum(1e-3 * rng.standard_normal(T)) + 1e-6 * rng.standard_normal(T)
+    J = 17
+    assert rel_err(wvar(x, J).variance, longdouble_pyramid(x, J)) < 1e-12
+    assert rel_err(naive_cumsum_wv(x, J), longdouble_pyramid(x, J)) > 1e-9
+
+
+def test_numba_fallback_gives_the_c_bits(monkeypatch: pytest.MonkeyPatch) -> None:
+    # without the C extension wvar uses the Numba twins; the WV is the same to the bit
+    import gmwm.wv as wv_mod
+    from gmwm import _wvkernels
+
+    x = 3e5 + np.cumsum(np.random.default_rng(5).standard_normal(200_003))
+    ref = wvar(x).variance
+    monkeypatch.setattr(wv_mod, "_kernels", lambda: _wvkernels)
+    assert wv_mod.kernel_name() == "numba"
+    np.testing.assert_array_equal(wvar(x).variance, ref)
+
+
+def test_thread_count_does_not_change_the_bits(monkeypatch: pytest.MonkeyPatch) -> None:
+    x = np.cumsum(np.random.default_rng(6).standard_normal(400_001))
+    monkeypatch.setenv("GMWM_NUM_THREADS", "1")
+    one = wvar(x).variance
+    monkeypatch.setenv("GMWM_NUM_THREADS", "3")
+    np.testing.assert_array_equal(wvar(x).variance, one)
+    monkeypatch.setenv("GMWM_NUM_THREADS", "many")
+    with pytest.raises(InputError, match="GMWM_NUM_THREADS"):
+        wvar(x)

@@ -1,79 +1,85 @@
-/* Classical Haar (MODWT) wavelet-variance sums: the C twin of the Numba kernel
- * gmwm._wvkernels.wv_sums, loaded without Numba's runtime so that `gmwm wv` does not pay Numba's
- * start-up (~0.6 s) for a 0.15 s computation.
+/* Classical Haar (MODWT) wavelet-variance sums: the C twin of the Numba kernels in
+ * gmwm/_wvkernels.py, loaded without Numba's runtime (no JIT start-up for `gmwm wv`).
  *
- * Same algorithm and the same floating-point operations in the same order as the Numba kernel
- * compiled for a host where LLVM vectorises with 512-bit registers (AMD Zen 4/5, the machine the
- * reports are made on; LLVM keeps 256-bit vectors on most Intel AVX-512 parts): the element-wise
- * values are one add, one subtraction and an exact halving; the sum of squares follows the lane
- * layout LLVM chose for the `reassoc` reduction, written out here as explicit partial sums. On
- * such a host both kernels give identical bits (tests/test_wv.py checks it); the order below is
- * fixed, so this kernel gives those bits on any IEEE-754 machine. Build with -ffp-contract=off:
- * a fused multiply-add would change the bits.
+ * Algorithm (module docstring of gmwm.wv): phase 1 runs levels 1..L on time blocks with a
+ * recomputed halo of 2^L - 1 samples and stores V_L "panel-major" (the interleaved sub-series of
+ * V_L, a panel of c of them at a time, each panel contiguous); phase 2 runs levels L+1..J on each
+ * panel. Blocks (phase 1) and panels (phase 2) are independent: they are shared among threads and
+ * their per-level sums are added to the totals in block (panel) order afterwards, so the result
+ * does not depend on the number of threads, nor on how a stream cuts the signal into chunks.
+ *
+ * Levels are done two per pass (pair_step), which halves the traffic to the cache a pass streams
+ * from; the values are those of one level at a time.
+ *
+ * Bit-identity with the Numba twin on any IEEE-754 machine: the element-wise values are
+ * subtractions, additions and exact halvings; every sum of squares is accumulated in 16 explicit
+ * lanes reduced by a fixed tree (reduce16), then the tail in order. No operation's order is left
+ * to the compiler, so vector width (SSE2, AVX2, AVX-512) does not change the bits.
+ * Build with -ffp-contract=off: a fused multiply-add would change them.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
+#if !defined(_WIN32)
+#include <pthread.h>
+#define HAVE_PTHREADS 1
+#endif
+
+/* GCC on x86-64 Linux: an AVX2 clone of the hot loops, chosen at load time when the CPU has it
+ * (the same operations in the same order as the baseline clone: the same bits). */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define HOT __attribute__((target_clones("avx2", "default")))
+#else
+#define HOT
+#endif
+
+typedef Py_ssize_t ssz;
+
+#define LANES 16
 
 /* Averages only: dst[t] = (src[t] + src[t - lag]) / 2 for t in [lo, hi). */
-static void level_avg(const double *src, double *dst, Py_ssize_t lo, Py_ssize_t hi,
-                      Py_ssize_t lag)
+HOT static void level_avg(const double *restrict src, double *restrict dst, ssz lo, ssz hi,
+                          ssz lag)
 {
     const double *cur = src + lo, *prev = src + lo - lag;
     double *out = dst + lo;
-    for (Py_ssize_t i = 0; i < hi - lo; i++)
+    for (ssz i = 0; i < hi - lo; i++)
         out[i] = 0.5 * (cur[i] + prev[i]);
 }
 
+/* Sum of 16 lanes, reduced pairwise (l, l + 8), (l, l + 4), (l, l + 2), (0, 1). */
+static inline double reduce16(double *a)
+{
+    for (int w = LANES / 2; w >= 1; w /= 2)
+        for (int l = 0; l < w; l++)
+            a[l] = a[l] + a[l + w];
+    return a[0];
+}
+
 /* One pyramid level on [lo, hi): dst[t] = (src[t] + src[t - lag]) / 2; returns
- * sum (src[t] - src[t - lag])^2. The partial sums reproduce the vectorised loop: 32-element
- * strips into 4 x 8 lanes, combined (((A0 + A1) + A2) + A3) then halved 8 -> 4 -> 2 -> 1; a
- * 4-lane strip loop seeded with that sum in lane 0 while >= 4 elements remain (reduced
- * (b0 + b2) + (b1 + b3)); then one element at a time. Fewer than 4 elements, or an output that
- * starts less than 256 bytes after either input, take the plain sequential sum (LLVM's
- * short-trip and alias guards). */
-static double level_step(const double *src, double *dst, Py_ssize_t lo, Py_ssize_t hi,
-                         Py_ssize_t lag)
+ * sum (src[t] - src[t - lag])^2: 16 lanes over the first 16*floor(n/16) terms (lane l takes the
+ * terms i = l mod 16), reduce16, then the remaining terms one at a time. */
+HOT static double level_step(const double *restrict src, double *restrict dst, ssz lo, ssz hi,
+                             ssz lag)
 {
     const double *cur = src + lo, *prev = src + lo - lag;
     double *out = dst + lo;
-    const Py_ssize_t n = hi - lo;
-    double acc = 0.0;
-    Py_ssize_t i = 0;
-    if (n <= 0)
-        return 0.0;
-    const uintptr_t po = (uintptr_t)out;
-    const int vector = n >= 4 && po - (uintptr_t)prev >= 256 && po - (uintptr_t)cur >= 256;
-    if (vector) {
-        const Py_ssize_t n32 = n & ~(Py_ssize_t)31, n4 = n & ~(Py_ssize_t)3;
-        if (n32 > 0) {
-            double a[4][8] = {{0.0}};
-            for (; i < n32; i += 32)
-                for (int k = 0; k < 4; k++)
-                    for (int l = 0; l < 8; l++) {
-                        const Py_ssize_t e = i + 8 * k + l;
-                        const double x = cur[e], y = prev[e], d = x - y;
-                        a[k][l] += d * d;
-                        out[e] = 0.5 * (x + y);
-                    }
-            double s[8], h[4];
-            for (int l = 0; l < 8; l++)
-                s[l] = a[3][l] + (a[2][l] + (a[1][l] + a[0][l]));
-            for (int l = 0; l < 4; l++)
-                h[l] = s[l] + s[l + 4];
-            acc = (h[0] + h[2]) + (h[1] + h[3]);
+    const ssz n = hi - lo, n16 = n - n % LANES;
+    double a[LANES] = {0.0};
+    ssz i = 0;
+    for (; i < n16; i += LANES)
+        for (int l = 0; l < LANES; l++) {
+            const double x = cur[i + l], y = prev[i + l], d = x - y;
+            a[l] += d * d;
+            out[i + l] = 0.5 * (x + y);
         }
-        if (n4 > i) {
-            double b[4] = {acc, 0.0, 0.0, 0.0};
-            for (; i < n4; i += 4)
-                for (int l = 0; l < 4; l++) {
-                    const double x = cur[i + l], y = prev[i + l], d = x - y;
-                    b[l] += d * d;
-                    out[i + l] = 0.5 * (x + y);
-                }
-            acc = (b[0] + b[2]) + (b[1] + b[3]);
-        }
-    }
+    double acc = reduce16(a);
     for (; i < n; i++) {
         const double x = cur[i], y = prev[i], d = x - y;
         acc += d * d;
@@ -82,121 +88,415 @@ static double level_step(const double *src, double *dst, Py_ssize_t lo, Py_ssize
     return acc;
 }
 
-/* Levels 1..n_levels on a[:n], lags in multiples of `unit`, ping-ponging between a and b; squared
- * differences at positions >= acc_from are added to sums[first + j - 1]. Returns 0 if the last
- * level's averages are in a, 1 if in b. */
-static int pyramid(double *a, double *b, Py_ssize_t n, Py_ssize_t n_levels, Py_ssize_t unit,
-                   Py_ssize_t acc_from, double *sums, Py_ssize_t first)
+/* sum (src[t] - src[t - lag])^2 over [lo, hi), lanes as level_step; no averages. */
+HOT static double diff_sq(const double *restrict src, ssz lo, ssz hi, ssz lag)
+{
+    const double *cur = src + lo, *prev = src + lo - lag;
+    const ssz n = hi - lo, n16 = n - n % LANES;
+    double a[LANES] = {0.0};
+    ssz i = 0;
+    for (; i < n16; i += LANES)
+        for (int l = 0; l < LANES; l++) {
+            const double d = cur[i + l] - prev[i + l];
+            a[l] += d * d;
+        }
+    double acc = reduce16(a);
+    for (; i < n; i++) {
+        const double d = cur[i] - prev[i];
+        acc += d * d;
+    }
+    return acc;
+}
+
+/* Two levels in one pass (lags m and 2m) on [lo, hi): from V at t, t-m, t-2m, t-3m,
+ * v = (V_t + V_{t-m})/2 and w = (V_{t-2m} + V_{t-3m})/2 (the first level's averages at t and
+ * t - 2m, recomputed rather than stored), dst[t] = (v + w)/2; the two sums of squares of
+ * V_t - V_{t-m} and v - w go to s[0] and s[1], lanes as level_step. The values are those of two
+ * separate levels, with half the memory traffic. */
+HOT static void pair_step(const double *restrict src, double *restrict dst, ssz lo, ssz hi, ssz m,
+                          double *s)
+{
+    const double *p0 = src + lo, *p1 = src + lo - m, *p2 = src + lo - 2 * m,
+                 *p3 = src + lo - 3 * m;
+    double *out = dst + lo;
+    const ssz n = hi - lo, n16 = n - n % LANES;
+    double a[LANES] = {0.0}, b[LANES] = {0.0};
+    ssz i = 0;
+    for (; i < n16; i += LANES)
+        for (int l = 0; l < LANES; l++) {
+            const double x = p0[i + l], y = p1[i + l], u = p2[i + l], z = p3[i + l];
+            const double v = 0.5 * (x + y), w = 0.5 * (u + z), d = x - y, e = v - w;
+            a[l] += d * d;
+            b[l] += e * e;
+            out[i + l] = 0.5 * (v + w);
+        }
+    double s0 = reduce16(a), s1 = reduce16(b);
+    for (; i < n; i++) {
+        const double x = p0[i], y = p1[i], u = p2[i], z = p3[i];
+        const double v = 0.5 * (x + y), w = 0.5 * (u + z), d = x - y, e = v - w;
+        s0 += d * d;
+        s1 += e * e;
+        out[i] = 0.5 * (v + w);
+    }
+    s[0] = s0;
+    s[1] = s1;
+}
+
+/* Averages only of pair_step. */
+HOT static void pair_avg(const double *restrict src, double *restrict dst, ssz lo, ssz hi, ssz m)
+{
+    const double *p0 = src + lo, *p1 = src + lo - m, *p2 = src + lo - 2 * m,
+                 *p3 = src + lo - 3 * m;
+    double *out = dst + lo;
+    for (ssz i = 0; i < hi - lo; i++)
+        out[i] = 0.5 * (0.5 * (p0[i] + p1[i]) + 0.5 * (p2[i] + p3[i]));
+}
+
+/* Levels 1..n_levels on a[:n], lags in multiples of `unit`, ping-ponging between a and b, two
+ * levels per pass (pair_step; a last odd level alone). Level j is defined from position
+ * lo_j = 2 lag_j - unit; the sum of squared differences at positions >= acc_from of level j goes
+ * to out[j - 1] (0 when there are none): for the first level of a pair, the positions below the
+ * second level's lo (which pair_step does not reach) are summed apart (diff_sq) and added first.
+ * Returns 0 if the last computed level's averages are in a, 1 if in b. */
+static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_from,
+                   double *out)
 {
     double *src = a, *dst = b, *tmp;
     int which = 0;
-    for (Py_ssize_t j = 1; j <= n_levels; j++) {
-        const Py_ssize_t lag = unit << (j - 1);
-        const Py_ssize_t lo = 2 * lag - unit;
-        if (lo >= n)
-            break;
-        const Py_ssize_t acc_lo = lo > acc_from ? lo : acc_from;
-        if (acc_lo > lo)
-            level_avg(src, dst, lo, acc_lo < n ? acc_lo : n, lag);
-        if (acc_lo < n)
-            sums[first + j - 1] += level_step(src, dst, acc_lo, n, lag);
-        tmp = src; src = dst; dst = tmp;
-        which = 1 - which;
+    for (ssz j = 1; j <= n_levels;) {
+        const ssz m = unit << (j - 1), lo1 = 2 * m - unit;
+        out[j - 1] = 0.0;
+        if (j < n_levels) {
+            const ssz lo2 = 4 * m - unit;
+            out[j] = 0.0;
+            if (lo1 < n) {
+                const ssz p_lo = lo1 > acc_from ? lo1 : acc_from, p_hi = lo2 < n ? lo2 : n;
+                const double head = p_lo < p_hi ? diff_sq(src, p_lo, p_hi, m) : 0.0;
+                out[j - 1] = head;
+                if (lo2 < n) {
+                    const ssz acc_lo = lo2 > acc_from ? lo2 : acc_from;
+                    double s[2] = {0.0, 0.0};
+                    if (acc_lo > lo2)
+                        pair_avg(src, dst, lo2, acc_lo < n ? acc_lo : n, m);
+                    if (acc_lo < n)
+                        pair_step(src, dst, acc_lo, n, m, s);
+                    out[j - 1] = head + s[0];
+                    out[j] = s[1];
+                    tmp = src; src = dst; dst = tmp;
+                    which = 1 - which;
+                }
+            }
+            j += 2;
+        } else {
+            if (lo1 < n) {
+                const ssz acc_lo = lo1 > acc_from ? lo1 : acc_from;
+                if (acc_lo > lo1)
+                    level_avg(src, dst, lo1, acc_lo < n ? acc_lo : n, m);
+                if (acc_lo < n)
+                    out[j - 1] = level_step(src, dst, acc_lo, n, m);
+                tmp = src; src = dst; dst = tmp;
+                which = 1 - which;
+            }
+            j += 1;
+        }
     }
     return which;
 }
 
-/* Phase 1 on time blocks with a recomputed halo, phase 2 on interleaved sub-series of V_L (see
- * gmwm.wv's module docstring); the work arrays come from gmwm.wv._Workspace. */
-static void wv_sums(const double *x, Py_ssize_t T, Py_ssize_t n_levels, Py_ssize_t L,
-                    double *sums, double *buf_a, double *buf_b, Py_ssize_t buf_len, double *v_l,
-                    double *pan_a, double *pan_b, Py_ssize_t pan_len)
+/* ---- phase 1 ------------------------------------------------------------------------------- */
+
+typedef struct {
+    const double *x;      /* x[t - t_lo] is sample t */
+    ssz t_lo, t_begin, t_end, block, L;
+    double x0;
+    double *blk;          /* per-block sums, n_blocks x L */
+    double *store;        /* panel-major V_L (NULL: not kept) */
+    ssz k_first, nrows, panel;
+    int stream;           /* non-temporal stores into the store (large stores only) */
+    int fail;
+} p1_job;
+
+/* Store V_L of positions t in [t_a, t_b) (values src[t - s0]) panel-major: s = t - (P - 1),
+ * row k = s / P, residue r = s % P in panel p = r / c at (k - k_first) * c_p + (r - p c) of the
+ * panel's region, which starts at nrows * p * c. Panel by panel, so that each panel's part is
+ * written in one contiguous run. */
+static void store_vl(const p1_job *jb, const double *src, ssz s0, ssz t_a, ssz t_b)
 {
-    const Py_ssize_t halo = ((Py_ssize_t)1 << L) - 1;
-    const Py_ssize_t block = buf_len - halo;
-    const double x0 = x[0];
-    for (Py_ssize_t b0 = 0; b0 < T;) {
-        const Py_ssize_t b1 = b0 + block < T ? b0 + block : T;
-        const Py_ssize_t s0 = b0 - halo > 0 ? b0 - halo : 0;
-        const Py_ssize_t n = b1 - s0;
-        for (Py_ssize_t i = 0; i < n; i++)
-            buf_a[i] = x[s0 + i] - x0;
-        const int which = pyramid(buf_a, buf_b, n, L, 1, b0 - s0, sums, 0);
-        if (n_levels > L) {
-            const double *src = which == 0 ? buf_a : buf_b;
-            for (Py_ssize_t t = b0 > halo ? b0 : halo; t < b1; t++)
-                v_l[t - halo] = src[t - s0];
+    const ssz L = jb->L, P = (ssz)1 << L, halo = P - 1, c = jb->panel;
+    const ssz s_a = t_a - halo, s_b = t_b - halo;            /* s in [s_a, s_b) */
+    const ssz k_a = s_a >> L, r_a = s_a & (P - 1);
+    const ssz k_b = (s_b - 1) >> L, r_b = ((s_b - 1) & (P - 1)) + 1;  /* last row: r < r_b */
+    const double *base = src + (halo - s0);                  /* base[s] = V_L at s */
+    for (ssz r0 = 0; r0 < P; r0 += c) {
+        const ssz cp = r0 + c < P ? c : P - r0;
+        double *dst = jb->store + jb->nrows * r0 - jb->k_first * cp;   /* dst[k cp + ci] */
+        for (ssz k = k_a; k <= k_b; k++) {
+            ssz lo = k == k_a ? r_a - r0 : 0, hi = k == k_b ? r_b - r0 : cp;
+            lo = lo > 0 ? lo : 0;
+            hi = hi < cp ? hi : cp;
+            const double *in = base + (k << L) + r0;
+            double *o = dst + k * cp;
+#ifdef __SSE2__
+            /* whole 16-byte pairs with non-temporal stores: the store is written once and read
+             * much later (phase 2), so skip reading its lines into the cache first */
+            if (jb->stream && ((uintptr_t)(o + lo) & 15) == 0) {
+                ssz ci = lo;
+                for (; ci + 2 <= hi; ci += 2)
+                    _mm_stream_pd(o + ci, _mm_loadu_pd(in + ci));
+                for (; ci < hi; ci++)
+                    o[ci] = in[ci];
+                continue;
+            }
+#endif
+            for (ssz ci = lo; ci < hi; ci++)
+                o[ci] = in[ci];
         }
-        b0 = b1;
-    }
-    if (n_levels <= L)
-        return;
-    const Py_ssize_t P = halo + 1, n_out = T - halo;
-    const Py_ssize_t rows = (n_out + P - 1) / P;
-    const Py_ssize_t width = pan_len / rows < P ? pan_len / rows : P;
-    for (Py_ssize_t r0 = 0; r0 < P;) {
-        const Py_ssize_t c = width < P - r0 ? width : P - r0;
-        Py_ssize_t last = n_out - (rows - 1) * P - r0;
-        last = last > 0 ? last : 0;
-        last = last < c ? last : c;
-        for (Py_ssize_t k = 0; k < rows - 1; k++)
-            for (Py_ssize_t ci = 0; ci < c; ci++)
-                pan_a[k * c + ci] = v_l[k * P + r0 + ci];
-        for (Py_ssize_t ci = 0; ci < last; ci++)
-            pan_a[(rows - 1) * c + ci] = v_l[(rows - 1) * P + r0 + ci];
-        pyramid(pan_a, pan_b, (rows - 1) * c + last, n_levels - L, c, 0, sums, L);
-        r0 += c;
     }
 }
 
-static PyObject *py_wv_sums(PyObject *self, PyObject *args)
+/* Blocks [b_first, b_last) of the job (block b covers [t_begin + b block, ...)). */
+static void phase1_blocks(p1_job *jb, ssz b_first, ssz b_last)
 {
-    Py_buffer x, sums, buf_a, buf_b, v_l, pan_a, pan_b;
-    Py_ssize_t n_levels, L;
+    const ssz L = jb->L, halo = ((ssz)1 << L) - 1, len = jb->block + halo;
+    double *buf_a = malloc((size_t)len * sizeof(double));
+    double *buf_b = malloc((size_t)len * sizeof(double));
+    if (buf_a == NULL || buf_b == NULL) {
+        free(buf_a);
+        free(buf_b);
+        jb->fail = 1;
+        return;
+    }
+    for (ssz b = b_first; b < b_last; b++) {
+        const ssz b0 = jb->t_begin + b * jb->block;
+        const ssz b1 = b0 + jb->block < jb->t_end ? b0 + jb->block : jb->t_end;
+        const ssz s0 = b0 - halo > 0 ? b0 - halo : 0;
+        const ssz n = b1 - s0;
+        const double *xs = jb->x + (s0 - jb->t_lo);
+        const double x0 = jb->x0;
+        for (ssz i = 0; i < n; i++)
+            buf_a[i] = xs[i] - x0;
+        const int which = pyramid(buf_a, buf_b, n, L, 1, b0 - s0, jb->blk + b * L);
+        if (jb->store != NULL) {
+            const ssz t_a = b0 > halo ? b0 : halo;
+            if (t_a < b1)
+                store_vl(jb, which == 0 ? buf_a : buf_b, s0, t_a, b1);
+        }
+    }
+    free(buf_a);
+    free(buf_b);
+#ifdef __SSE2__
+    if (jb->stream)
+        _mm_sfence();  /* the non-temporal stores are visible before the thread ends */
+#endif
+}
+
+/* ---- phase 2 ------------------------------------------------------------------------------- */
+
+typedef struct {
+    double *store;        /* panels p_begin.. contiguous */
+    ssz rows, n_out, L, panel, p_begin, n_levels2;
+    double *psum;         /* per-panel sums, n_panels x n_levels2 */
+    int fail;
+} p2_job;
+
+static void phase2_panels(p2_job *jb, ssz q_first, ssz q_last)
+{
+    const ssz P = (ssz)1 << jb->L, c = jb->panel;
+    const ssz cw = c < P ? c : P;
+    double *pan_b = malloc((size_t)(jb->rows * cw) * sizeof(double));
+    if (pan_b == NULL) {
+        jb->fail = 1;
+        return;
+    }
+    for (ssz q = q_first; q < q_last; q++) {
+        const ssz p = jb->p_begin + q, r0 = p * c;
+        const ssz cp = r0 + c < P ? c : P - r0;
+        ssz last = jb->n_out - (jb->rows - 1) * P - r0;
+        last = last > 0 ? last : 0;
+        last = last < cp ? last : cp;
+        double *pan = jb->store + jb->rows * q * c;
+        pyramid(pan, pan_b, (jb->rows - 1) * cp + last, jb->n_levels2, cp, 0,
+                jb->psum + q * jb->n_levels2);
+    }
+    free(pan_b);
+}
+
+/* ---- threads: items [0, n) in contiguous shares -------------------------------------------- */
+
+typedef struct {
+    void (*fn)(void *, ssz, ssz);
+    void *job;
+    ssz lo, hi;
+} share;
+
+static void *run_share(void *arg)
+{
+    share *s = (share *)arg;
+    s->fn(s->job, s->lo, s->hi);
+    return NULL;
+}
+
+static void parallel_for(void (*fn)(void *, ssz, ssz), void *job, ssz n, int n_threads)
+{
+    if (n_threads > n)
+        n_threads = (int)n;
+#ifdef HAVE_PTHREADS
+    if (n_threads > 1) {
+        share shares[64];
+        pthread_t tid[64];
+        int started[64] = {0};
+        if (n_threads > 64)
+            n_threads = 64;
+        for (int i = 0; i < n_threads; i++) {
+            shares[i].fn = fn;
+            shares[i].job = job;
+            shares[i].lo = n * i / n_threads;
+            shares[i].hi = n * (i + 1) / n_threads;
+        }
+        for (int i = 1; i < n_threads; i++)
+            started[i] = pthread_create(&tid[i], NULL, run_share, &shares[i]) == 0;
+        run_share(&shares[0]);
+        for (int i = 1; i < n_threads; i++) {
+            if (started[i])
+                pthread_join(tid[i], NULL);
+            else
+                run_share(&shares[i]);  /* no thread: do its share here */
+        }
+        return;
+    }
+#endif
+    (void)n_threads;
+    if (n > 0)
+        fn(job, 0, n);
+}
+
+static void p1_fn(void *job, ssz lo, ssz hi) { phase1_blocks((p1_job *)job, lo, hi); }
+static void p2_fn(void *job, ssz lo, ssz hi) { phase2_panels((p2_job *)job, lo, hi); }
+
+/* ---- Python bindings ----------------------------------------------------------------------- */
+
+static PyObject *py_phase1(PyObject *self, PyObject *args)
+{
+    Py_buffer x, sums, store;
+    ssz t_lo, t_begin, t_end, L, block, k_first, nrows, panel;
+    double x0;
+    int n_threads;
     (void)self;
-    if (!PyArg_ParseTuple(args, "y*nnw*w*w*w*w*w*", &x, &n_levels, &L, &sums, &buf_a, &buf_b,
-                          &v_l, &pan_a, &pan_b))
+    if (!PyArg_ParseTuple(args, "y*nnndnnw*w*nnni", &x, &t_lo, &t_begin, &t_end, &x0, &L, &block,
+                          &sums, &store, &k_first, &nrows, &panel, &n_threads))
         return NULL;
-    const Py_ssize_t T = x.len / (Py_ssize_t)sizeof(double);
-    const Py_ssize_t halo = ((Py_ssize_t)1 << L) - 1;
-    const Py_ssize_t buf_len = buf_a.len / (Py_ssize_t)sizeof(double);
-    const Py_ssize_t pan_len = pan_a.len / (Py_ssize_t)sizeof(double);
+    const ssz n_x = x.len / (ssz)sizeof(double);
+    const ssz halo = L >= 1 && L <= 40 ? ((ssz)1 << L) - 1 : 0, P = halo + 1;
+    const int keep = store.len > 0;
     const char *bad = NULL;
-    if (T < 2 || L < 1 || n_levels < L || n_levels > 62 || ((Py_ssize_t)1 << n_levels) > T)
-        bad = "wv_sums: bad signal length or level counts";
-    else if (sums.len < n_levels * (Py_ssize_t)sizeof(double))
-        bad = "wv_sums: sums is shorter than n_levels";
-    else if (buf_len <= halo || buf_b.len != buf_a.len)
-        bad = "wv_sums: block buffers are too short or of different lengths";
-    else if (n_levels > L && (v_l.len < (T - halo) * (Py_ssize_t)sizeof(double)
-                              || pan_b.len != pan_a.len || pan_len < T / (halo + 1)))  /* rows */
-        bad = "wv_sums: phase-2 work arrays are too short";
+    if (L < 1 || L > 40 || block < 1 || panel < 1)
+        bad = "phase1: bad level count, block or panel width";
+    else if (t_begin < 0 || t_end <= t_begin || t_begin % block != 0)
+        bad = "phase1: bad position range (t_begin must be a multiple of the block)";
+    else if (t_lo < 0 || t_lo > (t_begin > halo ? t_begin - halo : 0) || t_end - t_lo > n_x)
+        bad = "phase1: the samples do not cover the range and its halo";
+    else if (sums.len < L * (ssz)sizeof(double))
+        bad = "phase1: sums is shorter than the level count";
+    else if (keep) {
+        const ssz t_a = t_begin > halo ? t_begin : halo;
+        if (t_a < t_end) {
+            const ssz k_lo = (t_a - halo) / P, k_hi = (t_end - 1 - halo) / P;
+            if (k_lo < k_first || k_hi >= k_first + nrows
+                || store.len < nrows * P * (ssz)sizeof(double))
+                bad = "phase1: the store does not hold the rows of this range";
+        }
+    }
     if (bad == NULL) {
-        Py_BEGIN_ALLOW_THREADS
-        wv_sums((const double *)x.buf, T, n_levels, L, (double *)sums.buf, (double *)buf_a.buf,
-                (double *)buf_b.buf, buf_len, (double *)v_l.buf, (double *)pan_a.buf,
-                (double *)pan_b.buf, pan_len);
-        Py_END_ALLOW_THREADS
+        const ssz n_blocks = (t_end - t_begin + block - 1) / block;
+        double *blk = calloc((size_t)(n_blocks * L), sizeof(double));
+        if (blk == NULL)
+            bad = "phase1: out of memory";
+        else {
+            /* non-temporal stores only for stores larger than a typical last-level cache */
+            const int nt_stores = store.len > ((ssz)32 << 20);
+            p1_job jb = {(const double *)x.buf, t_lo, t_begin, t_end, block, L, x0, blk,
+                         keep ? (double *)store.buf : NULL, k_first, nrows, panel, nt_stores, 0};
+            double *s = (double *)sums.buf;
+            Py_BEGIN_ALLOW_THREADS
+            parallel_for(p1_fn, &jb, n_blocks, n_threads);
+            for (ssz b = 0; b < n_blocks; b++)   /* in block order: thread-count independent */
+                for (ssz j = 0; j < L; j++)
+                    s[j] += blk[b * L + j];
+            Py_END_ALLOW_THREADS
+            free(blk);
+            if (jb.fail)
+                bad = "phase1: out of memory";
+        }
     }
     PyBuffer_Release(&x);
     PyBuffer_Release(&sums);
-    PyBuffer_Release(&buf_a);
-    PyBuffer_Release(&buf_b);
-    PyBuffer_Release(&v_l);
-    PyBuffer_Release(&pan_a);
-    PyBuffer_Release(&pan_b);
+    PyBuffer_Release(&store);
     if (bad != NULL) {
-        PyErr_SetString(PyExc_ValueError, bad);
+        PyErr_SetString(strstr(bad, "memory") ? PyExc_MemoryError : PyExc_ValueError, bad);
+        return NULL;
+    }
+    Py_RETURN_NONE;
+}
+
+static PyObject *py_phase2(PyObject *self, PyObject *args)
+{
+    Py_buffer store, sums;
+    ssz rows, n_out, L, panel, p_begin, p_end, n_levels2;
+    int n_threads;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "w*nnnnnnnw*i", &store, &rows, &n_out, &L, &panel, &p_begin,
+                          &p_end, &n_levels2, &sums, &n_threads))
+        return NULL;
+    const ssz P = L >= 1 && L <= 40 ? (ssz)1 << L : 0;
+    const ssz n_panels = panel >= 1 && P ? (P + panel - 1) / panel : 0;
+    const char *bad = NULL;
+    if (P == 0 || panel < 1 || rows < 1 || n_out < 1 || n_out > rows * P || n_levels2 < 1)
+        bad = "phase2: bad level count, panel width or row count";
+    else if (p_begin < 0 || p_end <= p_begin || p_end > n_panels)
+        bad = "phase2: bad panel range";
+    else if (store.len < (rows * (p_end * panel < P ? p_end * panel : P) - rows * p_begin * panel)
+                         * (ssz)sizeof(double))
+        bad = "phase2: the store is shorter than its panels";
+    else if (sums.len < (L + n_levels2) * (ssz)sizeof(double))
+        bad = "phase2: sums is shorter than the level count";
+    if (bad == NULL) {
+        const ssz n = p_end - p_begin;
+        double *psum = calloc((size_t)(n * n_levels2), sizeof(double));
+        if (psum == NULL)
+            bad = "phase2: out of memory";
+        else {
+            p2_job jb = {(double *)store.buf, rows, n_out, L, panel, p_begin, n_levels2, psum, 0};
+            double *s = (double *)sums.buf + L;
+            Py_BEGIN_ALLOW_THREADS
+            parallel_for(p2_fn, &jb, n, n_threads);
+            for (ssz q = 0; q < n; q++)          /* in panel order */
+                for (ssz j = 0; j < n_levels2; j++)
+                    s[j] += psum[q * n_levels2 + j];
+            Py_END_ALLOW_THREADS
+            free(psum);
+            if (jb.fail)
+                bad = "phase2: out of memory";
+        }
+    }
+    PyBuffer_Release(&store);
+    PyBuffer_Release(&sums);
+    if (bad != NULL) {
+        PyErr_SetString(strstr(bad, "memory") ? PyExc_MemoryError : PyExc_ValueError, bad);
         return NULL;
     }
     Py_RETURN_NONE;
 }
 
 static PyMethodDef methods[] = {
-    {"wv_sums", py_wv_sums, METH_VARARGS,
-     "wv_sums(x, n_levels, n_block, sums, buf_a, buf_b, v_l, pan_a, pan_b): add "
-     "sum_t (2 W_jt)^2 over the boundary-free Haar coefficients of the float64 signal x to "
-     "sums[j-1] (work arrays: gmwm.wv._Workspace). Releases the GIL."},
+    {"phase1", py_phase1, METH_VARARGS,
+     "phase1(x, t_lo, t_begin, t_end, x0, L, block, sums, store, k_first, nrows, panel, "
+     "n_threads): levels 1..L of positions [t_begin, t_end) (x[t - t_lo] = sample t, x0 = sample "
+     "0) added to sums[:L] in block order; V_L stored panel-major in store (empty: not kept). "
+     "Releases the GIL."},
+    {"phase2", py_phase2, METH_VARARGS,
+     "phase2(store, rows, n_out, L, panel, p_begin, p_end, n_levels2, sums, n_threads): levels "
+     "L+1..L+n_levels2 of panels [p_begin, p_end) (contiguous in store, which is overwritten) "
+     "added to sums[L:] in panel order. Releases the GIL."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -78,8 +78,9 @@ def wccv_sums(x: np.ndarray, n_levels: int, n_block: int, sums: np.ndarray, buf_
                buf_b: np.ndarray, v_l: np.ndarray, pan_a: np.ndarray, pan_b: np.ndarray,
                dbuf: np.ndarray) -> None:
     """Add ``sum_t (2 W_{i,j,t})(2 W_{k,j,t})`` (packed ``i <= k``) to ``sums[j-1]``: the two-phase
-    layout of ``gmwm._wvkernels.wv_sums`` (time blocks with a recomputed halo for levels ``1..L``, then
-    interleaved sub-series of ``V_L`` for the levels above), every row holding the p signals."""
+    layout of the WV kernel (``gmwm._wvkernels.phase1/phase2``: time blocks with a recomputed halo
+    for levels ``1..L``, then interleaved sub-series of ``V_L`` for the levels above), every row
+    holding the p signals."""
     T = x.shape[0]
     p = x.shape[1]
     L = n_block

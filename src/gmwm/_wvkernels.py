@@ -1,7 +1,8 @@
 """Numba kernels of :mod:`gmwm.wv`: the classical WV sums (the fallback when the C twin
-``gmwm._haar`` is not built; same operations in the same order, see ``_haar.c``) and the robust
-WV's per-level passes. Imported lazily, so that ``gmwm wv`` never loads Numba's runtime
-(~0.6 s) when the C kernel is there. Algorithm and conventions: the docstring of :mod:`gmwm.wv`.
+``gmwm._haar`` is not built; the same operations in the same order, hence the same bits, see
+``_haar.c``) and the robust WV's per-level passes. Imported lazily, so that ``gmwm wv`` never
+loads Numba's runtime when the C kernel is there. Algorithm and conventions: the docstring of
+:mod:`gmwm.wv`.
 """
 
 from __future__ import annotations
@@ -10,31 +11,204 @@ import numpy as np
 from numba import njit
 
 # --------------------------------------------------------------------------------------------------
-# classical WV
+# classical WV (the same operations in the same order as gmwm/_haar.c, which documents them)
 
 
-@njit(cache=True, fastmath={"reassoc"})
+@njit(cache=True, inline="always")
+def _lane(cur: np.ndarray, prev: np.ndarray, out: np.ndarray, k: int) -> float:
+    """``out[k] = (cur[k] + prev[k]) / 2``; returns ``(cur[k] - prev[k])**2``."""
+    x = cur[k]
+    y = prev[k]
+    out[k] = 0.5 * (x + y)
+    d = x - y
+    return d * d
+
+
+@njit(cache=True, inline="always")
+def _sq(cur: np.ndarray, prev: np.ndarray, k: int) -> float:
+    d = cur[k] - prev[k]
+    return d * d
+
+
+@njit(cache=True, inline="always")
+def _pair_lane(p0: np.ndarray, p1: np.ndarray, p2: np.ndarray, p3: np.ndarray, out: np.ndarray,
+               k: int) -> tuple[float, float]:
+    """Two levels at one position (see ``_pair_step``): the two squared differences."""
+    x = p0[k]
+    y = p1[k]
+    u = p2[k]
+    z = p3[k]
+    v = 0.5 * (x + y)
+    w = 0.5 * (u + z)
+    d = x - y
+    e = v - w
+    out[k] = 0.5 * (v + w)
+    return d * d, e * e
+
+
+@njit(cache=True, inline="always")
+def _reduce16(a0: float, a1: float, a2: float, a3: float, a4: float, a5: float, a6: float,
+              a7: float, a8: float, a9: float, a10: float, a11: float, a12: float, a13: float,
+              a14: float, a15: float) -> float:
+    """The 16 lanes reduced pairwise ``(l, l + 8)``, ``(l, l + 4)``, ``(l, l + 2)``, ``(0, 1)``."""
+    b0, b1, b2, b3 = a0 + a8, a1 + a9, a2 + a10, a3 + a11
+    b4, b5, b6, b7 = a4 + a12, a5 + a13, a6 + a14, a7 + a15
+    c0, c1, c2, c3 = b0 + b4, b1 + b5, b2 + b6, b3 + b7
+    d0, d1 = c0 + c2, c1 + c3
+    return d0 + d1
+
+
+@njit(cache=True, nogil=True)
 def _level_step(src: np.ndarray, dst: np.ndarray, lo: int, hi: int, lag: int) -> float:
-    """One pyramid level on ``t in [lo, hi)``: ``dst[t] = (src[t] + src[t-lag]) / 2`` and return
-    ``sum (src[t] - src[t-lag])**2`` (= 4 * sum W**2).
-
-    ``reassoc`` only lets LLVM split the sum of squares into vector lanes (4x faster); the
-    element-wise values are unaffected (the only other operations are one add and an exact halving).
-    """
+    """One pyramid level on ``t in [lo, hi)``: ``dst[t] = (src[t] + src[t-lag]) / 2``; returns
+    ``sum (src[t] - src[t-lag])**2`` (= 4 * sum W**2) accumulated in 16 lanes (lane ``l`` takes the
+    terms ``i = l mod 16`` of the first ``16 * floor(n / 16)``), reduced by ``_reduce16``, then
+    the remaining terms in order."""
     cur = src[lo:hi]
     prev = src[lo - lag:hi - lag]
     out = dst[lo:hi]
-    acc = 0.0
-    for i in range(hi - lo):
-        a = cur[i]
-        b = prev[i]
-        d = a - b
-        acc += d * d
-        out[i] = 0.5 * (a + b)
+    n = hi - lo
+    n16 = n - n % 16
+    a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 0.0
+    a8 = a9 = a10 = a11 = a12 = a13 = a14 = a15 = 0.0
+    for i in range(0, n16, 16):
+        a0 += _lane(cur, prev, out, i)
+        a1 += _lane(cur, prev, out, i + 1)
+        a2 += _lane(cur, prev, out, i + 2)
+        a3 += _lane(cur, prev, out, i + 3)
+        a4 += _lane(cur, prev, out, i + 4)
+        a5 += _lane(cur, prev, out, i + 5)
+        a6 += _lane(cur, prev, out, i + 6)
+        a7 += _lane(cur, prev, out, i + 7)
+        a8 += _lane(cur, prev, out, i + 8)
+        a9 += _lane(cur, prev, out, i + 9)
+        a10 += _lane(cur, prev, out, i + 10)
+        a11 += _lane(cur, prev, out, i + 11)
+        a12 += _lane(cur, prev, out, i + 12)
+        a13 += _lane(cur, prev, out, i + 13)
+        a14 += _lane(cur, prev, out, i + 14)
+        a15 += _lane(cur, prev, out, i + 15)
+    acc = _reduce16(a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15)
+    for i in range(n16, n):
+        acc += _lane(cur, prev, out, i)
     return acc
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
+def _diff_sq(src: np.ndarray, lo: int, hi: int, lag: int) -> float:
+    """``sum (src[t] - src[t-lag])**2`` over ``[lo, hi)``, lanes as ``_level_step``."""
+    cur = src[lo:hi]
+    prev = src[lo - lag:hi - lag]
+    n = hi - lo
+    n16 = n - n % 16
+    a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 0.0
+    a8 = a9 = a10 = a11 = a12 = a13 = a14 = a15 = 0.0
+    for i in range(0, n16, 16):
+        a0 += _sq(cur, prev, i)
+        a1 += _sq(cur, prev, i + 1)
+        a2 += _sq(cur, prev, i + 2)
+        a3 += _sq(cur, prev, i + 3)
+        a4 += _sq(cur, prev, i + 4)
+        a5 += _sq(cur, prev, i + 5)
+        a6 += _sq(cur, prev, i + 6)
+        a7 += _sq(cur, prev, i + 7)
+        a8 += _sq(cur, prev, i + 8)
+        a9 += _sq(cur, prev, i + 9)
+        a10 += _sq(cur, prev, i + 10)
+        a11 += _sq(cur, prev, i + 11)
+        a12 += _sq(cur, prev, i + 12)
+        a13 += _sq(cur, prev, i + 13)
+        a14 += _sq(cur, prev, i + 14)
+        a15 += _sq(cur, prev, i + 15)
+    acc = _reduce16(a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15)
+    for i in range(n16, n):
+        acc += _sq(cur, prev, i)
+    return acc
+
+
+@njit(cache=True, nogil=True)
+def _pair_step(src: np.ndarray, dst: np.ndarray, lo: int, hi: int, m: int) -> tuple[float, float]:
+    """Two levels in one pass (lags ``m`` and ``2m``) on ``[lo, hi)``: from ``V`` at ``t, t-m,
+    t-2m, t-3m``, ``v = (V_t + V_(t-m))/2``, ``w = (V_(t-2m) + V_(t-3m))/2`` and
+    ``dst[t] = (v + w)/2``; returns the sums of squares of ``V_t - V_(t-m)`` and ``v - w``, lanes
+    as ``_level_step``."""
+    p0 = src[lo:hi]
+    p1 = src[lo - m:hi - m]
+    p2 = src[lo - 2 * m:hi - 2 * m]
+    p3 = src[lo - 3 * m:hi - 3 * m]
+    out = dst[lo:hi]
+    n = hi - lo
+    n16 = n - n % 16
+    a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 0.0
+    a8 = a9 = a10 = a11 = a12 = a13 = a14 = a15 = 0.0
+    b0 = b1 = b2 = b3 = b4 = b5 = b6 = b7 = 0.0
+    b8 = b9 = b10 = b11 = b12 = b13 = b14 = b15 = 0.0
+    for i in range(0, n16, 16):
+        d, e = _pair_lane(p0, p1, p2, p3, out, i)
+        a0 += d
+        b0 += e
+        d, e = _pair_lane(p0, p1, p2, p3, out, i + 1)
+        a1 += d
+        b1 += e
+        d, e = _pair_lane(p0, p1, p2, p3, out, i + 2)
+        a2 += d
+        b2 += e
+        d, e = _pair_lane(p0, p1, p2, p3, out, i + 3)
+        a3 += d
+        b3 += e
+        d, e = _pair_lane(p0, p1, p2, p3, out, i + 4)
+        a4 += d
+        b4 += e
+        d, e = _pair_lane(p0, p1, p2, p3, out, i + 5)
+        a5 += d
+        b5 += e
+        d, e = _pair_lane(p0, p1, p2, p3, out, i + 6)
+        a6 += d
+        b6 += e
+        d, e = _pair_lane(p0, p1, p2, p3, out, i + 7)
+        a7 += d
+        b7 += e
+        d, e = _pair_lane(p0, p1, p2, p3, out, i + 8)
+        a8 += d
+        b8 += e
+        d, e = _pair_lane(p0, p1, p2, p3, out, i + 9)
+        a9 += d
+        b9 += e
+        d, e = _pair_lane(p0, p1, p2, p3, out, i + 10)
+        a10 += d
+        b10 += e
+        d, e = _pair_lane(p0, p1, p2, p3, out, i + 11)
+        a11 += d
+        b11 += e
+        d, e = _pair_lane(p0, p1, p2, p3, out, i + 12)
+        a12 += d
+        b12 += e
+        d, e = _pair_lane(p0, p1, p2, p3, out, i + 13)
+        a13 += d
+        b13 += e
+        d, e = _pair_lane(p0, p1, p2, p3, out, i + 14)
+        a14 += d
+        b14 += e
+        d, e = _pair_lane(p0, p1, p2, p3, out, i + 15)
+        a15 += d
+        b15 += e
+    s0 = _reduce16(a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15)
+    s1 = _reduce16(b0, b1, b2, b3, b4, b5, b6, b7, b8, b9, b10, b11, b12, b13, b14, b15)
+    for i in range(n16, n):
+        d, e = _pair_lane(p0, p1, p2, p3, out, i)
+        s0 += d
+        s1 += e
+    return s0, s1
+
+
+@njit(cache=True, nogil=True)
+def _pair_avg(src: np.ndarray, dst: np.ndarray, lo: int, hi: int, m: int) -> None:
+    """Averages only of ``_pair_step``."""
+    for t in range(lo, hi):
+        dst[t] = 0.5 * (0.5 * (src[t] + src[t - m]) + 0.5 * (src[t - 2 * m] + src[t - 3 * m]))
+
+
+@njit(cache=True, nogil=True)
 def _level_avg(src: np.ndarray, dst: np.ndarray, lo: int, hi: int, lag: int) -> None:
     """Averages only (halo positions whose coefficients belong to the previous block)."""
     cur = src[lo:hi]
@@ -44,75 +218,107 @@ def _level_avg(src: np.ndarray, dst: np.ndarray, lo: int, hi: int, lag: int) -> 
         out[i] = 0.5 * (cur[i] + prev[i])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _pyramid(a: np.ndarray, b: np.ndarray, n: int, n_levels: int, unit: int, acc_from: int,
-             sums: np.ndarray, first: int) -> int:
+             out: np.ndarray) -> int:
     """Pyramid levels ``1..n_levels`` on ``a[:n]`` with lags in multiples of ``unit`` elements,
-    ping-ponging between ``a`` and ``b``. Squared differences at positions ``>= acc_from`` are added
-    to ``sums[first + j - 1]``. Returns 0 if the last level's averages are in ``a``, 1 if in ``b``."""
+    ping-ponging between ``a`` and ``b``, two levels per pass (a last odd level alone). Level ``j``
+    is defined from ``lo_j = 2 lag_j - unit``; its sum of squared differences at positions
+    ``>= acc_from`` goes to ``out[j - 1]`` (0 if none): for the first level of a pair the positions
+    below the second level's ``lo`` are summed apart and added first. Returns 0 if the last
+    computed level's averages are in ``a``, 1 if in ``b``."""
     src, dst = a, b
     which = 0
-    for j in range(1, n_levels + 1):
-        lag = unit << (j - 1)
-        lo = (2 * lag) - unit          # first position where level j is defined
-        if lo >= n:
-            break
-        acc_lo = max(lo, acc_from)
-        if acc_lo > lo:
-            _level_avg(src, dst, lo, min(acc_lo, n), lag)
-        if acc_lo < n:
-            sums[first + j - 1] += _level_step(src, dst, acc_lo, n, lag)
-        src, dst = dst, src
-        which = 1 - which
+    j = 1
+    while j <= n_levels:
+        m = unit << (j - 1)
+        lo1 = 2 * m - unit
+        out[j - 1] = 0.0
+        if j < n_levels:
+            lo2 = 4 * m - unit
+            out[j] = 0.0
+            if lo1 < n:
+                p_lo = max(lo1, acc_from)
+                p_hi = min(lo2, n)
+                head = _diff_sq(src, p_lo, p_hi, m) if p_lo < p_hi else 0.0
+                out[j - 1] = head
+                if lo2 < n:
+                    acc_lo = max(lo2, acc_from)
+                    s0 = 0.0
+                    s1 = 0.0
+                    if acc_lo > lo2:
+                        _pair_avg(src, dst, lo2, min(acc_lo, n), m)
+                    if acc_lo < n:
+                        s0, s1 = _pair_step(src, dst, acc_lo, n, m)
+                    out[j - 1] = head + s0
+                    out[j] = s1
+                    src, dst = dst, src
+                    which = 1 - which
+            j += 2
+        else:
+            if lo1 < n:
+                acc_lo = max(lo1, acc_from)
+                if acc_lo > lo1:
+                    _level_avg(src, dst, lo1, min(acc_lo, n), m)
+                if acc_lo < n:
+                    out[j - 1] = _level_step(src, dst, acc_lo, n, m)
+                src, dst = dst, src
+                which = 1 - which
+            j += 1
     return which
 
 
-@njit(cache=True)
-def wv_sums(x: np.ndarray, n_levels: int, n_block: int, sums: np.ndarray, buf_a: np.ndarray,
-             buf_b: np.ndarray, v_l: np.ndarray, pan_a: np.ndarray, pan_b: np.ndarray) -> None:
-    """Add ``sum_t (2 W_{j,t})**2`` over the boundary-free coefficients of ``x`` to ``sums[j-1]``.
-
-    Work arrays (see ``_Workspace``): ``buf_a/buf_b`` hold ``block + 2**L - 1`` values,
-    ``v_l`` holds ``T - 2**L + 1`` and ``pan_a/pan_b`` a panel of sub-series.
-    """
-    T = x.shape[0]
-    L = n_block
+@njit(cache=True, nogil=True)
+def phase1(x: np.ndarray, t_lo: int, t_begin: int, t_end: int, x0: float, L: int, block: int,
+           sums: np.ndarray, store: np.ndarray, k_first: int, nrows: int, panel: int) -> None:
+    """Levels ``1..L`` of the positions ``[t_begin, t_end)`` (``x[t - t_lo]`` is sample ``t``, its
+    block's halo included; ``x0`` is sample 0), added to ``sums[:L]`` block by block in order;
+    ``V_L`` is stored panel-major in ``store`` unless it is empty (layout: ``gmwm/_haar.c``)."""
     halo = (1 << L) - 1
-    block = buf_a.shape[0] - halo
-    x0 = x[0]
-    b0 = 0
-    while b0 < T:
-        b1 = min(T, b0 + block)
+    P = halo + 1
+    buf_a = np.empty(block + halo)
+    buf_b = np.empty(block + halo)
+    out = np.empty(L)
+    keep = store.shape[0] > 0
+    b0 = t_begin
+    while b0 < t_end:
+        b1 = min(t_end, b0 + block)
         s0 = max(0, b0 - halo)
         n = b1 - s0
         for i in range(n):
-            buf_a[i] = x[s0 + i] - x0
-        which = _pyramid(buf_a, buf_b, n, L, 1, b0 - s0, sums, 0)
-        if n_levels > L:
+            buf_a[i] = x[s0 - t_lo + i] - x0
+        which = _pyramid(buf_a, buf_b, n, L, 1, b0 - s0, out)
+        for j in range(L):
+            sums[j] += out[j]
+        if keep:
             src = buf_a if which == 0 else buf_b
             for t in range(max(b0, halo), b1):
-                v_l[t - halo] = src[t - s0]
+                s = t - halo
+                k = s >> L
+                r = s & (P - 1)
+                p = r // panel
+                cp = min(panel, P - p * panel)
+                store[nrows * p * panel + (k - k_first) * cp + (r - p * panel)] = src[t - s0]
         b0 = b1
-    if n_levels <= L:
-        return
-    # phase 2: interleaved sub-series of V_L (index s = t - halo, residue s % P, row s // P)
-    P = halo + 1
-    n_out = T - halo
-    rows = (n_out + P - 1) // P
-    width = min(pan_a.shape[0] // rows, P)
-    r0 = 0
-    while r0 < P:
-        c = min(width, P - r0)
-        last = min(max(n_out - (rows - 1) * P - r0, 0), c)  # valid entries of the last row
-        for k in range(rows - 1):
-            base = k * P + r0
-            for ci in range(c):
-                pan_a[k * c + ci] = v_l[base + ci]
-        base = (rows - 1) * P + r0
-        for ci in range(last):
-            pan_a[(rows - 1) * c + ci] = v_l[base + ci]
-        _pyramid(pan_a, pan_b, (rows - 1) * c + last, n_levels - L, c, 0, sums, L)
-        r0 += c
+
+
+@njit(cache=True, nogil=True)
+def phase2(store: np.ndarray, rows: int, n_out: int, L: int, panel: int, p_begin: int, p_end: int,
+           n_levels2: int, sums: np.ndarray) -> None:
+    """Levels ``L+1..L+n_levels2`` of the panels ``[p_begin, p_end)`` (contiguous in ``store``,
+    overwritten), added to ``sums[L:]`` panel by panel in order."""
+    P = 1 << L
+    pan_b = np.empty(rows * min(panel, P))
+    out = np.empty(n_levels2)
+    for p in range(p_begin, p_end):
+        r0 = p * panel
+        cp = min(panel, P - r0)
+        last = min(max(n_out - (rows - 1) * P - r0, 0), cp)
+        base = rows * (p - p_begin) * panel
+        _pyramid(store[base:base + rows * cp], pan_b, (rows - 1) * cp + last, n_levels2, cp, 0,
+                 out)
+        for j in range(n_levels2):
+            sums[L + j] += out[j]
 
 
 # --------------------------------------------------------------------------------------------------

@@ -48,6 +48,8 @@ _NEGATIVE_COUNT = re.compile(r"^-\d+(\.\d*)?\s*\*\s*[A-Za-z]")
 MAX_MODEL_LEVELS = 60
 #: samples of the warm-up call that loads the compiled WV kernel (reported as the first-call cost)
 _WARMUP_SAMPLES = 1024
+#: .npy / HDF5 inputs of at least this many bytes are streamed (gmwm.stream); raw binary always
+_STREAM_MIN_BYTES = 64 << 20
 
 
 class _LazyNumpy:
@@ -194,7 +196,9 @@ def _add_input(p: argparse.ArgumentParser, what: str = "signal") -> None:
     p.add_argument("input", metavar="FILE",
                    help=f"{what}: ROS 1/2 bag (.bag, .db3, .mcap or a bag folder), PX4 ULog, "
                         "CSV/TSV/text (EuRoC, rostopic echo -p, ';' and decimal commas, .gz), "
-                        ".npy, .npz or HDF5 (.h5/.hdf5)")
+                        ".npy, .npz, HDF5 (.h5/.hdf5) or raw binary (--dtype); .npy, HDF5 and raw "
+                        f"files of {_STREAM_MIN_BYTES >> 20} MiB or more are streamed (bounded "
+                        "memory, the same numbers)")
     p.add_argument("--column", type=_column, default=None,
                    help="CSV column (header name or 0-based index); needed when the file has several "
                         "data columns (a time column aside)")
@@ -223,6 +227,13 @@ def _add_input(p: argparse.ArgumentParser, what: str = "signal") -> None:
     p.add_argument("--strict", action="store_true",
                    help="a recording whose used part moved, stepped or shook is an error (exit "
                         "1), not a warning")
+    p.add_argument("--dtype", default=None, metavar="DTYPE",
+                   help="read FILE as raw binary samples of this NumPy dtype (float32, <i2, "
+                        ">f8, ...); channels are named 0, 1, ... (the file's name if only one)")
+    p.add_argument("--raw-channels", type=_positive_int, default=1, metavar="N",
+                   help="raw binary: channels interleaved per sample row")
+    p.add_argument("--raw-offset", type=_nonneg_int, default=0, metavar="BYTES",
+                   help="raw binary: header bytes to skip")
 
 
 def _add_units(p: argparse.ArgumentParser, what: str) -> None:
@@ -501,6 +512,98 @@ def _model_theta(spec: str, params: Sequence[tuple[str, float]], freq: float):
     return model, model.theta(values)
 
 
+def _resolve_freq(args: argparse.Namespace, found: float | None, source: str | None,
+                  names: Sequence[str]) -> float:
+    """--freq, else the file's frequency; both given and different (> 1 %) is an error. Without
+    either, per-sample scales (1 Hz) only for a plain signal: a unit or a report needs a time
+    base, so that is an error asking for --freq, never a silent 1 Hz."""
+    given, where = args.freq, args.input
+    if found is None:
+        if given is not None:
+            return float(given)
+        units = _units_by_column(args, list(names))
+        with_unit = [c for c, u in units.items() if u]
+        if args.command == "report" or with_unit:
+            why = "a calibration report" if args.command == "report" else \
+                f"coefficients in {units[with_unit[0]]}"
+            raise InputError(f"{where} has no time stamps and no sampling frequency: {why} needs "
+                             "one; give --freq HZ")
+        return 1.0
+    if given is None:
+        return float(found)
+    if abs(given / found - 1.0) > 0.01:
+        raise InputError(f"--freq {given:g} contradicts the sampling frequency {found:g} Hz given by "
+                         f"the {source} of {where}; drop --freq or fix the file")
+    return float(given)
+
+
+def _wanted_columns(args: argparse.Namespace) -> Any:
+    if args.columns is not None and args.column is not None:
+        raise UsageError("give --column (one signal) or --columns (several), not both")
+    return args.columns if args.columns is not None else (None if args.column is None
+                                                          else [args.column])
+
+
+def _raw_source(args: argparse.Namespace) -> Any:
+    from gmwm.stream import RawSource
+
+    if args.dataset is not None:
+        raise UsageError("--dataset applies to HDF5 files, not to raw binary (--dtype)")
+    return RawSource(args.input, args.dtype, args.raw_channels, args.raw_offset,
+                     _wanted_columns(args))
+
+
+def _stream_min_bytes() -> int:
+    """The size from which .npy / HDF5 inputs are streamed (``GMWM_STREAM_MIN_BYTES`` overrides)."""
+    env = os.environ.get("GMWM_STREAM_MIN_BYTES", "").strip()
+    if not env:
+        return _STREAM_MIN_BYTES
+    try:
+        return max(0, int(float(env)))
+    except ValueError:
+        raise UsageError(f"GMWM_STREAM_MIN_BYTES must be a number of bytes, got {env!r}") from None
+
+
+def _open_stream(args: argparse.Namespace) -> Any:
+    """A :class:`gmwm.stream.Source` when the input is streamed (raw binary; .npy / HDF5 from
+    :func:`_stream_min_bytes` on, in a layout the stream reads), else None. Sets ``args.freq_hz``.
+    The robust WV needs the whole signal: never streamed."""
+    if getattr(args, "robust", False):
+        return None
+    if getattr(args, "dtype", None) is not None:
+        src = _raw_source(args)
+    else:
+        p = Path(args.input)
+        if p.suffix.lower() not in (".npy", ".h5", ".hdf5") or not p.is_file() \
+                or p.stat().st_size < _stream_min_bytes():
+            return None
+        from gmwm.stream import open_source
+
+        try:
+            src = open_source(p, _wanted_columns(args), args.dataset)
+        except InputError as exc:  # a layout only the in-memory reader handles (or a bad file:
+            # the reader then reports it in its own words)
+            args.err.write(f"gmwm: note: {args.input} is read into memory, not streamed "
+                           f"({_one_line(exc)})\n")
+            return None
+    args.freq_hz = _resolve_freq(args, src.freq, src.freq_source, src.names)
+    for note in src.notes:
+        args.err.write(f"gmwm: warning: {note}\n")
+    return src
+
+
+def _stream_wvs(args: argparse.Namespace, src: Any) -> dict[str, Any]:
+    """Streamed WV per channel (:class:`gmwm.stream.ChannelWV`) with the command's options."""
+    from gmwm.stream import wvar_stream
+
+    with src:
+        _check_levels(src.n_samples, args.levels)
+        args.progress(f"streaming {args.input} ({src.n_samples} samples x {len(src.names)} "
+                      "channels)")
+        return wvar_stream(src, levels=args.levels, alpha=getattr(args, "alpha", 0.05),
+                           freq=args.freq_hz)
+
+
 def _read_input(args: argparse.Namespace, allow_wv: bool = False) -> dict[str, Any]:
     """The requested signals (name -> array; with ``allow_wv`` a pooled WaveletVariance where the
     gap policy combines clean segments); sets ``args.freq_hz`` and ``args.recording``. A unit or
@@ -508,10 +611,20 @@ def _read_input(args: argparse.Namespace, allow_wv: bool = False) -> dict[str, A
     from gmwm.readers.recording import read_recording
     from gmwm.readers.timebase import signal_for_wv
 
-    if args.columns is not None and args.column is not None:
-        raise UsageError("give --column (one signal) or --columns (several), not both")
-    cols = args.columns if args.columns is not None else (None if args.column is None else [args.column])
+    cols = _wanted_columns(args)
     args.progress(f"reading {args.input}")
+    if getattr(args, "dtype", None) is not None:  # raw binary, read whole (e.g. the robust WV)
+        with _raw_source(args) as src:
+            rows = src.read(0, src.n_samples)
+            signals = {n: np.ascontiguousarray(rows[:, i], dtype=np.float64)
+                       for i, n in enumerate(src.names)}
+        args.freq_hz = _resolve_freq(args, None, None, list(signals))
+        for name, x in signals.items():
+            bad = ~np.isfinite(x)
+            if bad.any():
+                raise InputError(f"{args.input} ({name}) contains a non-finite value at sample "
+                                 f"{int(np.argmax(bad))}; clean or interpolate it first")
+        return signals
     rec = read_recording(args.input, topic=getattr(args, "topic", None), columns=cols,
                          dataset=args.dataset, freq=args.freq,
                          time_unit=getattr(args, "time_unit", None))
@@ -852,6 +965,24 @@ def _compute_wvs(args: argparse.Namespace, signals: dict[str, np.ndarray]) -> tu
                  "import_s": took.get("scipy.special", 0.0)}
 
 
+def _input_wvs(args: argparse.Namespace) -> tuple[dict, dict, float]:
+    """WV per channel of the input, the timings of :func:`_compute_wvs` and the read seconds:
+    streamed (:func:`_open_stream`; the reading is then part of the WV's seconds) or read whole."""
+    t0 = time.perf_counter()
+    src = _open_stream(args)
+    if src is None:
+        signals = _read_input(args)
+        read_s = time.perf_counter() - t0
+        wvs, timing = _compute_wvs(args, signals)
+        return wvs, {**timing, "streamed": False}, read_s
+    from gmwm.wv import kernel_name
+
+    got = _stream_wvs(args, src)
+    return ({k: v.wv for k, v in got.items()},
+            {"first_call_s": 0.0, "wv_s": {k: v.seconds for k, v in got.items()},
+             "kernel": kernel_name(), "import_s": 0.0, "streamed": True}, 0.0)
+
+
 def _channel_table(wvs: dict[str, Any], fields: Sequence[tuple[str, Any]], what: str
                    ) -> tuple[list[str], list[list]]:
     """One CSV table over channels: shared level/scale/n columns, then ``field[channel]``."""
@@ -883,10 +1014,7 @@ def _plot_channels(items: dict[str, Any], draw, path: str) -> None:
 
 
 def cmd_wv(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
-    t0 = time.perf_counter()
-    signals = _read_input(args)
-    read_s = time.perf_counter() - t0
-    wvs, timing = _compute_wvs(args, signals)
+    wvs, timing, read_s = _input_wvs(args)
     units = _units_by_column(args, list(wvs))
     multi = args.columns is not None
     if args.plot:
@@ -894,7 +1022,8 @@ def cmd_wv(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
         _plot_channels(wvs, lambda wv, ax, c: plot_wv(wv, ax=ax, units=units[c]), args.plot)
     secs = {"seconds_read": read_s, "seconds_first_call": timing["first_call_s"],
-            "seconds_import_scipy": timing["import_s"], "wv_kernel": timing["kernel"]}
+            "seconds_import_scipy": timing["import_s"], "wv_kernel": timing["kernel"],
+            "streamed": timing["streamed"]}
     if not multi:
         name, wv = next(iter(wvs.items()))
         headers = ["level", "scale", "scale_s", "variance", "ci_low", "ci_high", "n"]
@@ -944,10 +1073,7 @@ def cmd_av(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from gmwm.datasheet import allan_readings
     from gmwm.wv import AllanVariance
 
-    t0 = time.perf_counter()
-    signals = _read_input(args)
-    read_s = time.perf_counter() - t0
-    wvs, timing = _compute_wvs(args, signals)
+    wvs, timing, read_s = _input_wvs(args)
     avs = {c: AllanVariance.from_wv(w) for c, w in wvs.items()}
     units = _units_by_column(args, list(avs))
     readings = {c: allan_readings(av, units[c] or None) for c, av in avs.items()}
@@ -959,7 +1085,8 @@ def cmd_av(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                        args.plot)
     multi = args.columns is not None
     secs = {"seconds_read": read_s, "seconds_first_call": timing["first_call_s"],
-            "seconds_import_scipy": timing["import_s"], "wv_kernel": timing["kernel"]}
+            "seconds_import_scipy": timing["import_s"], "wv_kernel": timing["kernel"],
+            "streamed": timing["streamed"]}
     if not multi:
         name, av = next(iter(avs.items()))
         m = np.asarray(av.clusters, dtype=float)
@@ -1058,7 +1185,7 @@ def _fit_data(args: argparse.Namespace) -> tuple[dict[str, Any], bool]:
     p = Path(args.input)
     if not p.exists():
         raise InputError(f"file not found: {p}")
-    if is_wv_table(p):
+    if args.dtype is None and is_wv_table(p):  # --dtype: raw binary, whatever the name
         if (args.start is not None or args.end is not None or args.segment != "all"
                 or args.strict):
             raise UsageError("--start/--end/--segment/--strict apply to recordings, not to a WV "
@@ -1083,6 +1210,10 @@ def _fit_data(args: argparse.Namespace) -> tuple[dict[str, Any], bool]:
         return data, True
     if args.n_samples is not None:
         raise UsageError("--n-samples applies to a WV table (a CSV with 'scale' and 'variance' columns)")
+    src = _open_stream(args)
+    if src is not None:  # a WV is all a fit needs: stream it, keep the drift sign and timing
+        args.streamed = _stream_wvs(args, src)
+        return {k: v.wv for k, v in args.streamed.items()}, False
     data = _read_input(args, allow_wv=True)
     return data, any(not isinstance(d, np.ndarray) for d in data.values())
 
@@ -1146,12 +1277,15 @@ def _fit_columns(args: argparse.Namespace) -> tuple[dict[str, dict[str, Any]], b
 
     identify = _identify_module() if getattr(args, "check", False) else None
     data, is_table = _fit_data(args)
+    streamed = getattr(args, "streamed", None) or {}
     models = _models_by_column(args.model, list(data))
     units = _units_by_column(args, list(data))
     built = {}
     for name, d in data.items():
         model = Model(models[name], freq=args.freq_hz)
-        if is_table:
+        if name in streamed:
+            _check_levels(d.n_samples, args.levels, model.n_params)
+        elif is_table:
             if model.n_params > d.n_levels:
                 raise IdentifiabilityError(
                     f"model has {model.n_params} parameters but the table has only {d.n_levels} "
@@ -1166,7 +1300,13 @@ def _fit_columns(args: argparse.Namespace) -> tuple[dict[str, dict[str, Any]], b
         t0 = time.perf_counter()
         res, seconds_wv = _run_fit(args, d, model)
         elapsed = time.perf_counter() - t0
-        if is_table:
+        if name in streamed:  # the WV was streamed for all channels together, before the fit
+            from gmwm.select import _fix_drift_sign
+
+            if args.method != "avsm":
+                res = _fix_drift_sign(res, streamed[name].drift_sign)
+            seconds_wv = streamed[name].seconds
+        elif is_table:
             seconds_wv = 0.0
         elif seconds_wv is None:
             seconds_wv = getattr(res, "seconds_wv", None)
@@ -1467,11 +1607,15 @@ def cmd_select(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         for m in args.models:  # model errors before reading the file
             spec = Model(m).spec
             models += [] if spec in models else [spec]
-    signals = _read_input(args)
+    src = _open_stream(args)
+    if src is not None:  # ranking needs the WV only (the drift sign does not enter it)
+        signals: dict[str, Any] = {k: v.wv for k, v in _stream_wvs(args, src).items()}
+    else:
+        signals = _read_input(args)
     options = {} if args.n_starts is None else {"n_starts": args.n_starts}
     rankings: dict[str, tuple[Any, float]] = {}
     for col, x in signals.items():
-        _check_levels(x.size, args.levels)
+        _check_levels(x.n_samples if src is not None else x.size, args.levels)
         where = "" if args.columns is None else f" [{col}]"
 
         def progress(i: int, n: int, spec: str, where: str = where) -> None:
@@ -1638,9 +1782,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             _python_warnings(caught, err, args.debug)
 
 
+def _announce_compiles(args: argparse.Namespace, err: TextIO) -> None:
+    """A note on stderr if this command has to compile kernels (no valid cache: they are
+    normally compiled at install time, see gmwm._precompile); does not import Numba."""
+    from gmwm._precompile import announce_compiles
+
+    announce_compiles(err)
+
+
 def _run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     try:
         _check_args(args)
+        _announce_compiles(args, err)
         return args.func(args, out, err)
     except UsageError as exc:
         err.write(f"gmwm: error: {_one_line(exc)} (see 'gmwm {args.command} --help')\n")

@@ -13,12 +13,19 @@ It is evaluated cache-friendly in two phases:
 1. levels ``1..L`` on time blocks of ``B`` samples plus a halo of ``2**L - 1`` samples (the halo is
    recomputed, so the values equal those of one global pass), storing ``V_L``;
 2. for ``j > L`` the lags are multiples of ``P = 2**L``, so ``V_L`` splits into ``P`` interleaved
-   sub-series on which levels ``j > L`` are the ordinary pyramid (levels ``j - L``). Sub-series are
-   gathered a few at a time into a short buffer that stays in cache.
+   sub-series on which levels ``j > L`` are the ordinary pyramid (levels ``j - L``). Phase 1 stores
+   ``V_L`` "panel-major": the sub-series a panel of a few at a time, each panel contiguous, so
+   phase 2 runs on each panel in cache.
+
+Blocks and panels are independent: the C kernel shares them among threads and adds their sums to
+the totals in block (panel) order, so the bits depend neither on the thread count nor on how
+:mod:`gmwm.stream` cuts a file into chunks (it runs the same phases on chunks and keeps the panels
+in a temporary file).
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import cache, lru_cache
@@ -34,68 +41,120 @@ __all__ = ["AllanVariance", "WaveletVariance", "avar", "biweight_tuning", "chi2_
 def _layout(T: int, n_levels: int) -> tuple[int, int, int]:
     """Default (L, block length, panel width). Phase 1 does up to 11 levels (blocks of
     ``8 * 2**L`` samples, ~300 KiB of work arrays, sit in L2) and more only when needed to keep the
-    phase-2 sub-series (``~T / 2**L`` samples) short. Chosen from ``bench_wv.py --tune`` on a
-    2-core AMD EPYC (512 KiB L2, 32 MiB L3); timings are flat within 10 % around this choice."""
+    phase-2 sub-series (``~T / 2**L`` samples) short. Chosen from ``bench_wv.py --tune``; timings
+    are flat within 10 % around this choice."""
     n_block = min(n_levels, max((n_levels + 1) // 2, 11))
     return n_block, 8 << n_block, 8
 
 
 @cache
-def _wv_kernel() -> Any:
-    """The classical WV sums kernel: the C one (``gmwm._haar``, built at install; no Numba
-    start-up, releases the GIL) or else its Numba twin (``gmwm._wvkernels``). Both compute
-    the same operations in the same order (bit-identical on Zen 4/5 hosts, tests/test_wv.py)."""
+def _kernels() -> Any:
+    """The classical WV kernels (a module with ``phase1`` and ``phase2``): the C ones
+    (``gmwm._haar``, built at install; no Numba start-up, several threads, releases the GIL) or
+    else their Numba twins (``gmwm._wvkernels``, one thread). Both compute the same operations in
+    the same order: identical bits on any IEEE-754 machine (tests/test_wv.py)."""
     try:
-        from gmwm._haar import wv_sums
+        from gmwm import _haar
+        return _haar
     except ImportError:
-        from gmwm._wvkernels import wv_sums
-    return wv_sums
+        from gmwm import _wvkernels
+        return _wvkernels
 
 
 def kernel_name() -> str:
     """``"c"`` or ``"numba"``: which classical WV kernel this installation uses."""
-    return "c" if _wv_kernel().__module__ == "gmwm._haar" else "numba"
+    return "c" if _kernels().__name__ == "gmwm._haar" else "numba"
+
+
+#: signals shorter than this are done on one thread (starting a thread costs ~50 us)
+_THREAD_MIN_SAMPLES = 1 << 17
+
+
+def n_threads(T: int | None = None) -> int:
+    """Threads the C kernel uses for a signal of ``T`` samples: the cores this process may run on
+    (``GMWM_NUM_THREADS`` overrides), 1 for short signals. The result does not depend on it."""
+    if T is not None and T < _THREAD_MIN_SAMPLES:
+        return 1
+    env = os.environ.get("GMWM_NUM_THREADS", "").strip()
+    if env:
+        try:
+            return max(1, min(64, int(env)))
+        except ValueError:
+            raise InputError(f"GMWM_NUM_THREADS must be a positive integer, got {env!r}") from None
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    return max(1, min(64, cores))
 
 
 def load_kernel(n: int = 1024) -> str:
     """Load the classical WV kernel by a call on ``n`` (>= 4) samples and return its name (see
     :func:`kernel_name`). The C kernel loads in about a millisecond; the Numba fallback pays its
-    runtime's start-up and the cache load (~0.6 s) once per process."""
+    runtime's start-up and the cache load once per process."""
     n = max(4, int(n))
     J = n.bit_length() - 2
     _Workspace(n, J).sums(np.arange(float(n)), J)
     return kernel_name()
 
 
+def _aligned(n: int) -> np.ndarray:
+    """``np.empty(n)`` starting on a 64-byte boundary (whole cache lines for the kernel's
+    panel-major stores)."""
+    raw = np.empty(n + 8)
+    skip = (-raw.ctypes.data % 64) // 8
+    return raw[skip:skip + n]
+
+
 class _Workspace:
-    """Work arrays for one signal length, reused across replicates by ``wvar_many``.
+    """Geometry and the phase-2 store for one signal length, reused across replicates by
+    ``wvar_many``.
 
     ``n_block`` = L (levels done on time blocks, halo ``2**L - 1``), ``block`` = samples per time
-    block, ``panel`` = sub-series gathered together in phase 2. Defaults: see ``_layout``.
+    block, ``panel`` = sub-series per phase-2 panel; ``rows`` = length of a sub-series,
+    ``n_out = T - 2**L + 1`` values of ``V_L``, ``store`` holds them panel-major
+    (``rows * 2**L`` values, only when ``J > L``). Defaults: see ``_layout``.
     """
 
     def __init__(self, T: int, n_levels: int, n_block: int | None = None,
                  block: int | None = None, panel: int | None = None) -> None:
         d_block, d_len, d_panel = _layout(T, n_levels)
+        self.T = T
         self.n_block = d_block if n_block is None else min(n_block, n_levels)
-        halo = (1 << self.n_block) - 1
-        blen = min(T, d_len if block is None else block)
-        self.buf_a = np.empty(blen + halo)
-        self.buf_b = np.empty(blen + halo)
-        if n_levels > self.n_block:
-            n_out = T - halo
-            rows = -(-n_out // (halo + 1))
-            width = d_panel if panel is None else panel
-            self.v_l = np.empty(n_out)
-            self.pan_a = np.empty(rows * width)
-            self.pan_b = np.empty(rows * width)
-        else:
-            self.v_l = self.pan_a = self.pan_b = np.empty(0)
+        self.block = min(T, d_len if block is None else block)
+        self.panel = d_panel if panel is None else panel
+        P = 1 << self.n_block
+        self.n_out = T - P + 1
+        self.rows = -(-self.n_out // P)
+        self.n_panels = -(-P // self.panel)
+        self.phase2 = n_levels > self.n_block
+        self._store = np.empty(0)
 
-    def sums(self, x: np.ndarray, n_levels: int) -> np.ndarray:
+    def store(self) -> np.ndarray:
+        """The phase-2 store (``rows * 2**L`` values; allocated on first use, then reused)."""
+        if self.phase2 and self._store.size == 0:
+            self._store = _aligned(self.rows << self.n_block)
+        return self._store
+
+    def sums(self, x: np.ndarray, n_levels: int, threads: int | None = None) -> np.ndarray:
+        """``sum_t (2 W_{j,t})**2`` over the boundary-free coefficients of ``x``, ``j = 1..J``."""
+        kern = _kernels()
         out = np.zeros(n_levels)
-        _wv_kernel()(x, n_levels, self.n_block, out, self.buf_a, self.buf_b, self.v_l, self.pan_a,
-                     self.pan_b)
+        nt = n_threads(self.T) if threads is None else threads
+        store = self.store()
+        args = (x, 0, 0, self.T, float(x[0]), self.n_block, self.block, out, store, 0, self.rows,
+                self.panel)
+        if kern.__name__ == "gmwm._haar":
+            kern.phase1(*args, nt)
+        else:
+            kern.phase1(*args)
+        if self.phase2:
+            args2 = (store, self.rows, self.n_out, self.n_block, self.panel, 0, self.n_panels,
+                     n_levels - self.n_block, out)
+            if kern.__name__ == "gmwm._haar":
+                kern.phase2(*args2, nt)
+            else:
+                kern.phase2(*args2)
         return out
 
 
@@ -379,11 +438,18 @@ def wvar(x: Any, levels: int | None = None, alpha: float = 0.05, freq: float = 1
     T = arr.shape[0]
     J = _n_levels(T, levels)
     _check_alpha_freq(alpha, freq)
-    sums = _sums_checked(arr, J, _Workspace(T, J), "signal")
+    return wv_from_sums(_sums_checked(arr, J, _Workspace(T, J), "signal"), T, alpha, freq)
+
+
+def wv_from_sums(sums: np.ndarray, T: int, alpha: float = 0.05, freq: float = 1.0
+                 ) -> WaveletVariance:
+    """The WV and its CI from the kernel's sums ``sum_t (2 W_{j,t})**2``, ``j = 1..J``, of a
+    signal of ``T`` samples (shared by :func:`wvar` and :mod:`gmwm.stream`)."""
+    J = len(sums)
     lev = np.arange(1, J + 1)
     scales = 2.0 ** lev
     n = T - (1 << lev) + 1
-    variance = 0.25 * sums / n
+    variance = 0.25 * np.asarray(sums, dtype=np.float64) / n
     low, high = chi2_ci(variance, np.maximum(n / scales, 1.0), alpha)
     return WaveletVariance(lev, scales, variance, low, high, n, T, freq, alpha)
 
