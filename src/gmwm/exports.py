@@ -112,8 +112,8 @@ def parse_inflation(text: str | Inflation | None) -> Inflation:
             key, sep, value = part.partition("=")
             key = key.strip().lower()
             if not sep or key not in factors:
-                raise InputError(f"bad inflation {spec!r}: use noise=F,walk=F (e.g. noise=2,walk=10)"
-                                 f" or one factor for both")
+                raise InputError(f"bad inflation {spec!r}: use noise=F,walk=F (e.g. "
+                                 "noise=2,walk=10) or one factor for both")
             if key in seen:
                 raise InputError(f"bad inflation {spec!r}: {key} given twice")
             seen.add(key)
@@ -277,8 +277,8 @@ def _discrete_dict(value: float | None, ci: tuple[float, float] | None, rate: fl
 def _flag_policy_text(policy: str) -> str:
     if policy == "upper":
         return ("a term at the boundary 0 or not distinguishable from 0 is written as its 95 % "
-                "upper bound: the data cannot exclude values up to it, and a filter told too little "
-                "noise is overconfident while one told too much is only suboptimal")
+                "upper bound: the data cannot exclude values up to it, and a filter told too "
+                "little noise is overconfident while one told too much is only suboptimal")
     return ("a term at the boundary 0 or not distinguishable from 0 is written as its estimate "
             "(flagged in comments); an estimate of 0 is written as its 95 % upper bound")
 
@@ -288,9 +288,10 @@ def _flag_policy_text(policy: str) -> str:
 # --------------------------------------------------------------------------------------------------
 
 
-def noise_export(per_axis: Mapping[str, tuple[str | None, Any]], update_rate: float | None = None, *,
-                 topic: str | None = None, inflation: str | Inflation | None = None,
-                 rule: str = "worst", flagged: str = "upper",
+def noise_export(per_axis: Mapping[str, tuple[str | None, Any]],
+                 update_rate: float | None = None, *, topic: str | None = None,
+                 inflation: str | Inflation | None = None, rule: str = "worst",
+                 flagged: str = "upper",
                  readings: Mapping[str, Mapping[str, Any] | None] | None = None,
                  source: str | None = None) -> NoiseExport:
     """Build the noise representation from per-axis fits.
@@ -324,7 +325,8 @@ def noise_export(per_axis: Mapping[str, tuple[str | None, Any]], update_rate: fl
     for name, (unit, res) in per_axis.items():
         parsed = parse_unit(unit) if unit else None
         if parsed is None:
-            skipped.append(f"{name}: no unit given, so neither its sensor nor its SI scale is known")
+            skipped.append(f"{name}: no unit given, so neither its sensor nor its SI scale is "
+                           "known")
             continue
         got = None if readings is None else readings.get(name)
         axes[name] = _axis(name, unit, parsed[2], res, got)
@@ -448,8 +450,8 @@ def _axis_term(result: Any, comps: list[tuple[str, int]], entries: list[dict], t
         return AxisTerm(est, ci, None, est, note + multi)
     if ci is None:
         if est > 0:
-            return AxisTerm(est, None, flag, est, f"{FLAG_TEXT[flag]} and no interval is available: "
-                            f"written as its estimate{multi}")
+            return AxisTerm(est, None, flag, est, f"{FLAG_TEXT[flag]} and no interval is "
+                            f"available: written as its estimate{multi}")
         return AxisTerm(est, None, flag, None, f"{FLAG_TEXT[flag]} and no upper bound is available"
                         f"{multi}")
     return AxisTerm(est, ci, flag, ci[1], f"{FLAG_TEXT[flag]}: written as its 95 % upper bound"
@@ -469,7 +471,7 @@ def _estimate_policy(a: AxisNoise) -> AxisNoise:
 
 
 def _fmt_ci(ci: Sequence[float] | None, fmt: str = ".3g") -> str:
-    return "no interval" if not ci else f"[{format(ci[0], fmt)}, {format(ci[1], fmt)}]"
+    return "none" if not ci else f"[{format(ci[0], fmt)}, {format(ci[1], fmt)}]"
 
 
 def _other_terms(ds: Mapping[str, dict], used: set[str], us: Any, result: Any, unit: str,
@@ -581,7 +583,8 @@ def _real(v: float) -> str:
     return s if "." in s and "e" not in s.lower() else _num(v)
 
 
-def _header(exp: NoiseExport, tool: str, what: str, values: str) -> list[str]:
+def _header(exp: NoiseExport, tool: str, what: str, values: str, topic_key: bool = True
+            ) -> list[str]:
     from gmwm import __version__
 
     lines = [f"{tool} IMU noise ({what}), written by gmwm {__version__}"
@@ -589,12 +592,12 @@ def _header(exp: NoiseExport, tool: str, what: str, values: str) -> list[str]:
              f"Values: {values}",
              f"Axis rule: one value per sensor = {AXIS_RULES[exp.rule]}.",
              f"Inflation: {exp.inflation.describe()}.",
-             ("Intervals: 95 % confidence intervals of the GMWM fit, before inflation, in the unit "
-             "of the key they follow."),
+             ("Intervals: 95 % confidence intervals of the fit, before inflation, in the unit of "
+             "the key they follow."),
              f"Flagged terms: {_flag_policy_text(exp.flagged_policy)}.",
-             f"Update rate: {exp.update_rate:g} Hz; IMU topic: "
-             + (exp.topic if exp.topic else "not known from the input (placeholder below: set "
-                "yours)") + "."]
+             f"Update rate: {exp.update_rate:g} Hz" + ("" if not topic_key else "; IMU topic: "
+                                                       + (exp.topic or "not known from the input "
+                                                          "(placeholder below: set yours)")) + "."]
     return _wrap_comment(lines)
 
 
@@ -630,8 +633,9 @@ def _key_lines(exp: NoiseExport, key: _Key, indent: str = "") -> list[str]:
         return [*_wrap_comment(lines, indent), f"{indent}# {key.name}:"]
     src = (f"axis {c.axis} (of {', '.join(c.axes)})" if c.axis is not None
            else f"root mean square of {', '.join(a for a in c.axes if a not in c.missing)}")
-    lines.append(f"From {src}: {_num(conv(c.base, rate))}, 95 % CI "
-                 f"{_fmt_ci(None if c.ci95 is None else [conv(x, rate) for x in c.ci95])}"
+    lines.append(f"From {src}: {_num(conv(c.base, rate))}"
+                 + (" (the fit gives no interval)" if c.ci95 is None else
+                    f", 95 % CI {_fmt_ci([conv(x, rate) for x in c.ci95])}")
                  + ("" if c.inflation == 1.0 else
                     f"; inflated x{c.inflation:g} (on the density) to {_num(conv(c.value, rate))}")
                  + ".")
@@ -666,7 +670,8 @@ def _axis_block(exp: NoiseExport, keys: Sequence[_Key]) -> list[str]:
                 parts.append(f"{key.name} not estimated ({t.note})")
                 continue
             ci = None if t.ci95 is None else [key.convert(x, rate) for x in t.ci95]
-            parts.append(f"{key.name} {_num(key.convert(t.value, rate))} {_fmt_ci(ci)}"
+            parts.append(f"{key.name} {_num(key.convert(t.value, rate))} "
+                         + (_fmt_ci(ci) if ci else "(no interval)")
                          + (f" ({FLAG_TEXT[t.flag].split(' (')[0]})" if t.flag else ""))
         lines.append(f"  {a.axis} ({a.sensor}, {a.unit}, model {a.model}): " + "; ".join(parts))
     others = [(a.axis, o) for a in exp.axes.values() for o in a.others]
@@ -703,8 +708,8 @@ def kalibr_text(exp: NoiseExport) -> str:
     """Kalibr ``imu.yaml``: the four continuous-time densities, ``rostopic``, ``update_rate``."""
     keys = _kalibr_keys()
     lines = _header(exp, "Kalibr", "imu.yaml",
-                    "continuous-time densities in SI units, as Kalibr's IMU noise model defines them "
-                    "(Kalibr discretises them with update_rate).")
+                    "continuous-time densities in SI units, as Kalibr's IMU noise model defines "
+                    "them (Kalibr discretises them with update_rate).")
     lines.append("")
     for key in keys:
         lines += [*_key_lines(exp, key), ""]
@@ -725,8 +730,8 @@ def openvins_text(exp: NoiseExport) -> str:
         "continuous-time densities in SI units (OpenVINS discretises them with the measured "
         "time step). T_i_b, time_offset and the intrinsics Tw, R_IMUtoGYRO, Ta, R_IMUtoACC, Tg "
         "are identity/zero placeholders: a static recording does not calibrate them."), "", "imu0:"]
-    lines += ["  T_i_b:", *("    - [" + ", ".join("1.0" if i == j else "0.0" for j in range(4)) + "]"
-                            for i in range(4))]
+    lines += ["  T_i_b:", *("    - [" + ", ".join("1.0" if i == j else "0.0" for j in range(4))
+                            + "]" for i in range(4))]
     for key in keys:
         lines += _key_lines(exp, key, "  ")
     lines += [*(["  # rostopic: placeholder (the input had no ROS topic): set yours."]
@@ -749,7 +754,8 @@ def _vins_keys(convention: str) -> list[_Key]:
             if convention == "continuous":
                 out.append(_Key(f"{short}_{suffix}", s, t, _continuous,
                                 SI_UNITS[s][1 if t == "noise_density" else 2],
-                                _KALIBR_MEANING[t] + " (taken by VINS-Fusion as a per-sample sigma)"))
+                                _KALIBR_MEANING[t]
+                                + " (taken by VINS-Fusion as a per-sample sigma)"))
             elif t == "noise_density":
                 out.append(_Key(f"{short}_{suffix}", s, t, lambda v, r: v * math.sqrt(2.0 * r), si,
                                 "white-noise sigma per sample as VINS-Fusion's midpoint "
@@ -772,7 +778,8 @@ def vins_fusion_text(exp: NoiseExport, convention: str = "matched") -> str:
     ``convention="continuous"`` writes the Kalibr densities unchanged, as many published configs
     do (then the IMU factor is sqrt(2 f_s) and sqrt(f_s) times too confident)."""
     if convention not in ("matched", "continuous"):
-        raise InputError(f"unknown VINS-Fusion convention {convention!r}; use matched or continuous")
+        raise InputError(f"unknown VINS-Fusion convention {convention!r}; use matched or "
+                         "continuous")
     keys = _vins_keys(convention)
     r = exp.update_rate
     if convention == "matched":
@@ -816,11 +823,15 @@ def orbslam3_text(exp: NoiseExport) -> str:
         exp, "ORB-SLAM3", "IMU keys to merge into its settings file",
         "continuous-time densities in SI units; ORB-SLAM3 discretises them with IMU.Frequency "
         "(noise x sqrt(f), walk / sqrt(f)), so IMU.Frequency must be the true rate. "
-        "IMU.T_b_c1 and IMU.InsertKFsWhenLost are not set by this calibration: keep yours."), ""]
+        "IMU.T_b_c1 and IMU.InsertKFsWhenLost are not set by this calibration: keep yours.",
+        topic_key=False), ""]
     for key in keys:
         lines += [*_key_lines(exp, key), ""]
     lines += [f"IMU.Frequency: {_real(exp.update_rate)}  # Hz", "", *_axis_block(exp, keys)]
     return "\n".join(lines) + "\n"
+
+
+_LIOSAM_WALK = "continuous-time bias random-walk density (bias factor sigma = sqrt(dt) * value)"
 
 
 def liosam_text(exp: NoiseExport) -> str:
@@ -835,10 +846,8 @@ def liosam_text(exp: NoiseExport) -> str:
                  "accelerometerCovariance)")),
                 ("imuGyrNoise", "gyroscope", "noise_density",
                  "continuous-time white-noise density (squared into GTSAM's gyroscopeCovariance)"),
-                ("imuAccBiasN", "accelerometer", "random_walk",
-                 "continuous-time bias random-walk density (bias factor sigma = sqrt(dt) * value)"),
-                ("imuGyrBiasN", "gyroscope", "random_walk",
-                 "continuous-time bias random-walk density (bias factor sigma = sqrt(dt) * value)"))]
+                ("imuAccBiasN", "accelerometer", "random_walk", _LIOSAM_WALK),
+                ("imuGyrBiasN", "gyroscope", "random_walk", _LIOSAM_WALK))]
     lines = _header(exp, "LIO-SAM", "keys of params.yaml",
                     "continuous-time densities in SI units. For the ROS 2 branch put the keys "
                     "under '/**: ros__parameters:' instead of 'lio_sam:'. imuGravity, "
@@ -946,7 +955,10 @@ def parse_targets(text: str | Sequence[str] | None) -> list[str]:
 
 def render(exp: NoiseExport, target: str) -> str:
     """The text of one target's file."""
-    return TARGETS[parse_targets(target)[0]].render(exp)
+    names = parse_targets(target)
+    if len(names) != 1:
+        raise InputError(f"render needs exactly one target, got {target!r}")
+    return TARGETS[names[0]].render(exp)
 
 
 def write_exports(exp: NoiseExport, outdir: str | os.PathLike, targets: str | Sequence[str],
