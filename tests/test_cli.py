@@ -14,6 +14,7 @@ import sys
 import h5py
 import numpy as np
 import pytest
+import yaml
 
 from conftest import c_toolchain, needs_c_kernel
 from gmwm.cli import main
@@ -455,9 +456,7 @@ def test_report_writes_markdown_html_yaml(capsys, imu, tmp_path):
         assert f"## {c}" in md and (outdir / f"{c}_wv.png").read_bytes()[:8] == PNG
     assert "deg/sqrt(h)" in md and "m/s/sqrt(h)" in md and "```yaml" in md
     assert md.count("B (bias instability)") == 4
-    yaml = (outdir / "imu.yaml").read_text()
-    values = {line.split(":")[0]: float(line.split(":")[1].split("#")[0])
-              for line in yaml.splitlines() if line and not line.startswith("#")}
+    values = yaml.safe_load((outdir / "imu.yaml").read_text())
     # gyro noise density 0.15 deg/sqrt(h) = 0.15/60 deg/s/sqrt(Hz), in rad/s/sqrt(Hz)
     assert values["gyroscope_noise_density"] == pytest.approx(0.15 / 60 * np.pi / 180, rel=0.06)
     assert values["accelerometer_noise_density"] == pytest.approx(0.05 / 60, rel=0.06)

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from gmwm.datasheet import allan_readings, datasheet, kalibr_yaml, noise_densities, unit_system
+from gmwm.datasheet import allan_readings, datasheet, unit_system
 from gmwm.model import Model
 from gmwm.units import datasheet as units_datasheet
 from gmwm.wv import avar
@@ -108,19 +108,3 @@ def test_allan_readings_without_random_walk_region():
     r = allan_readings(avar(x, freq=10.0), "deg/s")
     assert r["K"]["value"] is None and "slope +0.5" in r["K"]["note"]
     assert r["N"]["unit"] == "deg/sqrt(h)" and r["B"]["unit"] == "deg/h"
-
-
-def test_kalibr_yaml_takes_the_largest_axis_in_si():
-    g1 = fake_result("WN+RW", {"WN[1].sigma2": 1e-4 * FS, "RW[1].gamma2": 1e-10 / FS})
-    g2 = fake_result("WN+RW", {"WN[1].sigma2": 4e-4 * FS, "RW[1].gamma2": 1e-12 / FS})
-    a1 = fake_result("WN", {"WN[1].sigma2": 1e-6 * FS})
-    nd = noise_densities(g1, "deg/s")
-    assert nd["noise_density"] == pytest.approx(1e-2 * math.pi / 180)
-    text = kalibr_yaml({"gx": ("deg/s", g1), "gy": ("deg/s", g2), "ax": ("m/s^2", a1)}, FS)
-    values = {line.split(":")[0]: float(line.split(":")[1].split("#")[0])
-              for line in text.splitlines() if line and not line.startswith("#")}
-    assert values["gyroscope_noise_density"] == pytest.approx(2e-2 * math.pi / 180, rel=1e-6)
-    assert values["gyroscope_random_walk"] == pytest.approx(1e-5 * math.pi / 180, rel=1e-6)
-    assert values["accelerometer_noise_density"] == pytest.approx(1e-3, rel=1e-6)
-    assert values["update_rate"] == FS
-    assert "# accelerometer_random_walk: not estimated" in text

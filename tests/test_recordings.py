@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from gmwm import Model
 from gmwm.errors import InputError
@@ -349,14 +350,11 @@ def test_report_of_a_bag_needs_no_options_and_recovers_densities(tmp_path):
     g, a = _signals(n, 10)
     bag = write_bag(tmp_path / "imu.bag", "ros1", {"/imu/data": (_stamps(n), g, a, "imu")})
     assert main(["report", str(bag), "-o", str(tmp_path / "rep"), "-q"]) == 0
-    yaml = (tmp_path / "rep" / "imu.yaml").read_text()
-    vals = dict(line.split(":")[:2] for line in yaml.splitlines() if ":" in line
-                and not line.startswith("#"))
-    assert float(vals["update_rate"]) == FS
+    vals = yaml.safe_load((tmp_path / "rep" / "imu.yaml").read_text())
+    assert vals["update_rate"] == FS and vals["rostopic"]  # a placeholder until the CLI passes it
     # the largest of three axes: within ~5 % of the simulated 1e-3 and 2e-2 densities
-    assert float(vals["gyroscope_noise_density"].split("#")[0]) == pytest.approx(1e-3, rel=0.06)
-    assert float(vals["accelerometer_noise_density"].split("#")[0]) == pytest.approx(2e-2,
-                                                                                    rel=0.06)
+    assert vals["gyroscope_noise_density"] == pytest.approx(1e-3, rel=0.06)
+    assert vals["accelerometer_noise_density"] == pytest.approx(2e-2, rel=0.06)
 
 
 @pytest.mark.parametrize(("unit", "factor"), [("mg", 1e-3 * 9.80665), ("ug", 1e-6 * 9.80665),
@@ -370,10 +368,9 @@ def test_report_yaml_in_si_for_every_unit(tmp_path, unit, factor):
     np.savez(tmp_path / "x.npz", sig=x, freq=np.float64(FS))
     assert main(["report", str(tmp_path / "x.npz"), "WN", "--units", unit, "-o",
                  str(tmp_path / "r"), "-q"]) == 0
-    yaml = (tmp_path / "r" / "imu.yaml").read_text()
+    vals = yaml.safe_load((tmp_path / "r" / "imu.yaml").read_text())
     key = "gyroscope_noise_density" if unit in ("deg/h", "mdps") else "accelerometer_noise_density"
-    line = next(x for x in yaml.splitlines() if x.startswith(key))
-    assert float(line.split(":")[1].split("#")[0]) == pytest.approx(factor, rel=0.05)
+    assert vals[key] == pytest.approx(factor, rel=0.05)
 
 
 # ---- third-party files (external data folder; absent: skipped) --------------------------------

@@ -1,7 +1,7 @@
 """Datasheet coefficients of a fitted error model and the IEEE 952 Allan-deviation readings.
 
 :func:`datasheet` turns the discrete, per-sample parameters of a GMWM fit into the continuous
-coefficients a datasheet prints, in the user's units (SPEC section 3):
+coefficients a datasheet prints, in the user's units (docs/METHODS.md §10.3):
 
 ==========  ==================  ===========================================================
 term        from                value (``u`` = signal unit, ``f_s`` = sampling frequency)
@@ -32,8 +32,8 @@ import numpy as np
 
 from gmwm.errors import InputError
 
-__all__ = ["SIGNAL_UNITS", "UNIT_SYSTEMS", "UnitSystem", "allan_readings", "datasheet", "kalibr_yaml",
-           "known_units", "noise_densities", "parse_unit", "unit_system"]
+__all__ = ["SIGNAL_UNITS", "UNIT_SYSTEMS", "UnitSystem", "allan_readings", "datasheet", "known_units",
+           "parse_unit", "unit_system"]
 
 G0 = 9.80665  # standard gravity, m/s^2
 BI_AD_FACTOR = math.sqrt(2.0 * math.log(2.0) / math.pi)  # AD floor of flicker noise = 0.6643 B
@@ -379,52 +379,3 @@ def allan_readings(av: Any, units: str | None = None, tol: float = 0.15) -> dict
                 "ci95": [factor * dlo[i] / BI_AD_FACTOR, factor * dhi[i] / BI_AD_FACTOR],
                 "tau_s": float(tau[i]), "at_end": bool(i == adev.size - 1)}
     return out
-
-
-# --------------------------------------------------------------------------------------------------
-# Kalibr-style noise densities
-# --------------------------------------------------------------------------------------------------
-
-
-def noise_densities(result: Any, units: str) -> dict[str, float | None]:
-    """White-noise density [SI/sqrt(Hz)] and random-walk density [SI/s/sqrt(Hz)] of a fit, in
-    rad/s (gyroscope) or m/s^2 (accelerometer), as Kalibr-style tools expect; None for a term
-    the model lacks. ``units`` must be one of 'deg/s', 'rad/s', 'm/s^2', 'g'."""
-    us = unit_system(units)
-    if us.si is None:
-        raise InputError(f"noise densities need a known unit (deg/s, rad/s, m/s^2, g), got {units!r}")
-    freq = float(result.wv.freq)
-    d = dict(zip(result.param_names, np.asarray(result.params, float), strict=True))
-    wn = d.get("WN[1].sigma2")
-    rw = d.get("RW[1].gamma2")
-    return {"noise_density": None if wn is None else us.si * math.sqrt(max(wn, 0.0) / freq),
-            "random_walk": None if rw is None else us.si * math.sqrt(max(rw, 0.0) * freq)}
-
-
-def kalibr_yaml(per_axis: Mapping[str, tuple[str, Any]], update_rate: float) -> str:
-    """A Kalibr ``imu.yaml`` block from fits: ``per_axis[column] = (units, result)``.
-
-    Each sensor type gets the largest density over its axes (the conservative choice for a filter);
-    the comment lines name the axis each value came from. Keys: gyroscope_noise_density
-    [rad/s/sqrt(Hz)], gyroscope_random_walk [rad/s^2/sqrt(Hz)], accelerometer_noise_density
-    [m/s^2/sqrt(Hz)], accelerometer_random_walk [m/s^3/sqrt(Hz)], update_rate [Hz].
-    """
-    best: dict[str, tuple[float, str]] = {}
-    for col, (units, res) in per_axis.items():
-        sensor = unit_system(units).sensor
-        if sensor is None:
-            continue
-        prefix = "gyroscope" if sensor == "gyroscope" else "accelerometer"
-        for key, v in noise_densities(res, units).items():
-            name = f"{prefix}_{key}"
-            if v is not None and (name not in best or v > best[name][0]):
-                best[name] = (v, col)
-    lines = ["# noise densities of the largest axis per sensor, SI units (Kalibr imu.yaml)"]
-    for name in ("accelerometer_noise_density", "accelerometer_random_walk",
-                 "gyroscope_noise_density", "gyroscope_random_walk"):
-        if name in best:
-            lines.append(f"{name}: {best[name][0]:.6e}  # from {best[name][1]}")
-        else:
-            lines.append(f"# {name}: not estimated (no such axis or term in the model)")
-    lines.append(f"update_rate: {update_rate:g}")
-    return "\n".join(lines)

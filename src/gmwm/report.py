@@ -4,9 +4,9 @@ First the stationarity check of the recording (``docs/METHODS.md`` §16): a warn
 time ranges that moved, the part of the recording used and a timeline figure with the flagged
 ranges. Per axis: the empirical WV with the fitted model and its components (PNG), the datasheet
 coefficients with 95 % CIs (:func:`gmwm.datasheet.datasheet`), the IEEE 952 Allan-deviation readings
-of the same data (bias instability included) and the fit's warnings; at the end a
-YAML block of noise densities as Kalibr-style tools expect (:func:`gmwm.datasheet.kalibr_yaml`),
-also written alone as ``imu.yaml``. Every file is written atomically.
+of the same data (bias instability included) and the fit's warnings; at the end the Kalibr
+``imu.yaml`` (:mod:`gmwm.exports`), also written alone with the other filter configuration files
+asked for. Every file is written atomically.
 """
 
 from __future__ import annotations
@@ -14,12 +14,12 @@ from __future__ import annotations
 import html
 import os
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from gmwm import __version__
-from gmwm.datasheet import allan_readings, kalibr_yaml
+from gmwm.datasheet import allan_readings
 from gmwm.errors import InputError
 
 __all__ = ["write_report"]
@@ -139,18 +139,24 @@ def _stationarity_section(st: Any, out: Path) -> tuple[list[str], list[str], lis
 
 
 def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]], *, source: str,
-                 title: str, timing: list[str] | None = None,
-                 stationarity: Any = None) -> list[Path]:
-    """Write ``report.md``, ``report.html``, ``imu.yaml`` and one ``<axis>_wv.png`` per axis to
-    ``outdir``; return the paths.
+                 title: str, timing: list[str] | None = None, stationarity: Any = None,
+                 topic: str | None = None, targets: str | Sequence[str] = ("kalibr",),
+                 inflation: Any = None) -> list[Path]:
+    """Write ``report.md``, ``report.html``, the filter configuration files of ``targets``
+    (:func:`gmwm.exports.parse_targets`; default the Kalibr ``imu.yaml``) and one
+    ``<axis>_wv.png`` per axis to ``outdir``; return the paths.
 
     ``axes[name]`` holds ``result`` (a GMWM fit), ``units`` (signal unit; deg/s or rad/s mark a
     gyroscope, m/s^2 or g an accelerometer), ``warnings`` (list of str) and ``datasheet``.
     ``timing``: lines on the recording's time base (rate source, jitter, gaps, gap policy).
     ``stationarity``: a :class:`gmwm.stationarity.StationarityReport` (its ``used`` range set):
     a warning at the top when it flags the part used, a section with the timeline figure.
+    ``topic``: the IMU's ROS topic (written as ``rostopic``); ``inflation``: e.g.
+    ``"noise=2,walk=10"`` (:func:`gmwm.exports.parse_inflation`). Without any gyroscope or
+    accelerometer unit no configuration file is written and the report says why.
     """
     from gmwm.atomic import save_figure, write_text_atomic
+    from gmwm.exports import kalibr_text, noise_export, parse_targets, write_exports
     from gmwm.plots import plot_wv
 
     out = Path(outdir)
@@ -160,6 +166,12 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     if not axes:
         raise InputError("the report needs at least one axis")
     freq = float(next(iter(axes.values()))["result"].wv.freq)
+    # the configuration files' inputs are checked before any file is written
+    names = parse_targets(targets)
+    exp = None
+    if any(a["units"] for a in axes.values()):
+        exp = noise_export({n: (a["units"], a["result"]) for n, a in axes.items()}, freq,
+                           topic=topic, inflation=inflation, source=source)
     written: list[Path] = []
     md = [f"# {title}", "",
           (f"Input `{source}`, sampling frequency {freq:g} Hz, {len(axes)} axes; "
@@ -230,9 +242,15 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
         else:
             md += ["No warnings.", ""]
             body += ["<p>No warnings.</p>"]
-    yaml = kalibr_yaml({n: (a["units"], a["result"]) for n, a in axes.items()}, freq)
-    md += ["## Noise densities (Kalibr imu.yaml)", "", "```yaml", yaml, "```", ""]
-    body += ["<h2>Noise densities (Kalibr imu.yaml)</h2>", f"<pre>{html.escape(yaml)}</pre>"]
+    if exp is not None:
+        yaml = kalibr_text(exp).rstrip("\n")
+        md += ["## Noise densities (Kalibr imu.yaml)", "", "```yaml", yaml, "```", ""]
+        body += ["<h2>Noise densities (Kalibr imu.yaml)</h2>", f"<pre>{html.escape(yaml)}</pre>"]
+    else:
+        why = ("No filter configuration file (imu.yaml): no axis has a gyroscope or accelerometer "
+               "unit, so neither the sensor nor the SI scale is known (give --units).")
+        md += ["## Noise densities", "", why, ""]
+        body += ["<h2>Noise densities</h2>", f"<p>{html.escape(why)}</p>"]
     style = ("body{font-family:sans-serif;max-width:60em;margin:2em auto;padding:0 1em}"
              "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;"
              "padding:.2em .6em;text-align:right}th{background:#f4f4f4}pre{background:#f8f8f8;"
@@ -241,5 +259,6 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
             f"</title><style>{style}</style></head><body>\n" + "\n".join(body) + "\n</body></html>\n")
     written.append(write_text_atomic(out / "report.md", "\n".join(md)))
     written.append(write_text_atomic(out / "report.html", page))
-    written.append(write_text_atomic(out / "imu.yaml", yaml + "\n"))
+    if exp is not None and names:
+        written += write_exports(exp, out, names)
     return written
