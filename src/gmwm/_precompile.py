@@ -95,12 +95,22 @@ def _register() -> None:
 
     class _Note(event.Listener):
         def on_start(self, ev: event.Event) -> None:
-            if not _NoteState.announced and _NoteState.err is not None:
-                _NoteState.announced = True
-                _NoteState.err.write("gmwm: note: compiling numerical kernels for this machine "
-                                     "(once: later runs load them from Numba's cache; an install "
-                                     "normally does this)\n")
-                _NoteState.err.flush()
+            err = _NoteState.err
+            if _NoteState.announced or err is None:
+                return
+            if getattr(err, "closed", False):
+                # the command that asked for the note has finished (its stream is gone):
+                # a library call compiling later must not fail on the note
+                _NoteState.err = None
+                return
+            _NoteState.announced = True
+            try:
+                err.write("gmwm: note: compiling numerical kernels for this machine "
+                          "(once: later runs load them from Numba's cache; an install "
+                          "normally does this)\n")
+                err.flush()
+            except (OSError, ValueError):
+                pass
 
         def on_end(self, ev: event.Event) -> None:
             pass
