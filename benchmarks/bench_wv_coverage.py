@@ -2,6 +2,7 @@
 
 Usage: python benchmarks/bench_wv_coverage.py [--reps 400] [--sizes 12 14 16 18 20 22]
        [--models WN RW ...] [--jobs 2] [--acf-max 14] [--json PATH] [--readme]
+       [--readings-reps 400] [--no-grid | --no-readings]
 
 Per process of the grid and length T = 2^k: R replicates (``Model.simulate_fast``, WV by
 ``gmwm.wvar_many``), then per level the share of 95 % intervals that cover the true WV
@@ -19,6 +20,15 @@ Per process of the grid and length T = 2^k: R replicates (``Model.simulate_fast`
   per level; computed for T <= 2^acf-max only);
 * ``oracle``: the true EDF 2 nu_j^2 / Var(nu_hat_j) from ``gmwm.wvcov.wv_covariance`` (what the
   chi-square form itself achieves; none for a deterministic process).
+
+Second table: the IEEE 952 Allan-deviation readings (``gmwm.datasheet.allan_readings``) on two
+gyroscope-like signals at 100 Hz (WN + RW; WN + a flicker floor made of 16 Gauss-Markov terms of
+equal variance with correlation times 0.25-8192 s). Coverage of the value the same rule reads on the
+exact Allan deviation (the readings' estimand: their sampling uncertainty), old (eta_3 points, the
+line through the points' bounds) against new (mixture points, correlated chi-square combination);
+the new intervals' coverage of the true N and K; the interval half-width in Monte Carlo SDs of the
+reading (log scale); the bias of the exact-curve reading against the true N, K (the rule's own
+error, e.g. from the other noise near a crossover).
 
 The Allan variance is exactly 2 x WV with 2 x the interval and the Allan deviation its square root,
 so their coverage is the WV's, level for level. Levels are grouped by ``r = M_j / tau_j``
@@ -201,6 +211,149 @@ def run_case(name: str, T: int, reps: int, acf_max: int) -> dict:
             "cpu_s": time.process_time() - t0}
 
 
+# --------------------------------------------------------------------------------------------------
+# IEEE 952 readings
+
+
+FS = 100.0
+# a flicker floor: 16 Gauss-Markov terms of equal variance, correlation times 0.25 .. 8192 s
+_FLICKER = {f"GM[{k + 1}].beta": 2.0 ** (2 - k) for k in range(16)}
+_FLICKER.update({f"GM[{k + 1}].sigma2": 1e-6 for k in range(16)})
+READING_CASES: dict[str, tuple[str, dict[str, float], int]] = {
+    # N = 0.01 u sqrt(s), K = 1e-3 u / sqrt(s): WN sigma2 = N^2 fs, RW gamma2 = K^2 / fs
+    "WN+RW": ("WN+RW", {"WN[1].sigma2": 1e-4 * FS, "RW[1].gamma2": 1e-6 / FS}, 2**18),
+    "WN+flicker": ("WN+16*GM", {"WN[1].sigma2": 1e-6 * FS, **_FLICKER}, 2**20),
+}
+
+
+def _old_readings(av) -> dict[str, tuple[float, float, float] | None]:
+    """The readings' intervals before the mixture EDF: eta_3 points, the slope line through the
+    points' bounds (eta_3-weighted), B from the minimum's bounds."""
+    tau, adev = np.asarray(av.tau), np.sqrt(av.avar)
+    lo, hi = np.sqrt(av.ci_low), np.sqrt(av.ci_high)
+    w = np.maximum(av.n / (2.0 * av.clusters), 1.0)
+    lt = np.log10(tau)
+    local = np.gradient(np.log10(adev), lt)
+    out: dict[str, tuple[float, float, float] | None] = {}
+    for key, slope, at in (("N", -0.5, 1.0), ("K", 0.5, 3.0)):
+        ok = np.abs(local - slope) <= 0.15
+        runs, start = [], None
+        for i, flag in enumerate([*ok, False]):
+            if flag and start is None:
+                start = i
+            elif not flag and start is not None:
+                runs.append((start, i))
+                start = None
+        runs = [r for r in runs if r[1] - r[0] >= 2]
+        if not runs:
+            out[key] = None
+            continue
+        a, b = max(runs, key=lambda r: float(w[r[0]:r[1]].sum()))
+        ww = w[a:b] / w[a:b].sum()
+
+        def line(y: np.ndarray, a: int = a, b: int = b, ww: np.ndarray = ww, slope: float = slope,
+                 at: float = at) -> float:
+            return 10.0 ** (float(ww @ (np.log10(y[a:b]) - slope * lt[a:b])) + slope * np.log10(at))
+
+        out[key] = (line(adev), line(lo), line(hi))
+    i = int(np.argmin(adev))
+    f = 1.0 / 0.6643
+    out["B"] = (adev[i] * f, lo[i] * f, hi[i] * f)
+    return out
+
+
+def _exact_av(model: Model, theta: np.ndarray, T: int):
+    """AllanVariance of the exact (expected) AV, for the readings' estimands."""
+    from gmwm.wv import AllanVariance, WaveletVariance
+
+    J = T.bit_length() - 2
+    levels = np.arange(1, J + 1)
+    scales = 2.0**levels
+    nu = model.wv(theta, scales)
+    wv = WaveletVariance(levels, scales, nu, 0.5 * nu, 2.0 * nu, T - scales + 1, T, FS,
+                         ci_kind="table", ci_edof=mixture_edof(nu, scales, T))
+    return AllanVariance.from_wv(wv)
+
+
+def run_readings(name: str, reps: int) -> dict:
+    from gmwm.datasheet import allan_readings
+    from gmwm.wv import avar
+
+    t0 = time.process_time()
+    spec, values, T = READING_CASES[name]
+    model = Model(spec, freq=FS)
+    theta = model.theta(values)
+    d = model.as_dict(theta)
+    param = {"N": np.sqrt(d["WN[1].sigma2"] / FS),
+             "K": np.sqrt(d["RW[1].gamma2"] * FS) if "RW[1].gamma2" in d else None, "B": None}
+    exact = allan_readings(_exact_av(model, theta, T))
+    rule = {k: exact[k]["value"] for k in "NK"}
+    rule["B"] = None if exact["B"]["upper_bound"] else exact["B"]["value"]
+    rng = np.random.default_rng(_seed(name, 0))
+    new: dict[str, list] = {k: [] for k in "NKB"}
+    old: dict[str, list] = {k: [] for k in "NKB"}
+    flags = {"K_warning": 0, "N_warning": 0, "B_upper": 0}
+    for _ in range(reps):
+        x = model.simulate_fast(theta, T, rng)
+        r = allan_readings(avar(x, freq=FS))
+        flags["K_warning"] += "warning" in r["K"]
+        flags["N_warning"] += "warning" in r["N"]
+        flags["B_upper"] += bool(r["B"]["upper_bound"])
+        for k in "NKB":
+            e = r[k]
+            ok = e.get("value") is not None and not (k == "B" and e["upper_bound"])
+            new[k].append((e["value"], *e["ci95"]) if ok else None)
+        o = _old_readings(avar(x, freq=FS, ci="eta3"))
+        for k in "NKB":
+            old[k].append(o[k])
+    rows = []
+    for k in "NKB":
+        if rule[k] is None:
+            continue
+        row = {"reading": k, "rule": float(rule[k]),
+               "param": None if param[k] is None else float(param[k])}
+        for tag, vals in (("old", old[k]), ("new", new[k])):
+            v = np.array([t for t in vals if t is not None])
+            if v.size == 0:
+                row[tag] = None
+                continue
+            sd = float(np.std(np.log(v[:, 0])))
+            row[tag] = {"n": int(v.shape[0]),
+                        "cover": float(np.mean((v[:, 1] <= rule[k]) & (rule[k] <= v[:, 2]))),
+                        "half_sd": float(np.median(np.log(v[:, 2] / v[:, 1]) / 2)) / sd,
+                        "bias_sd": float(np.mean(np.log(v[:, 0] / rule[k]))) / sd}
+            if param[k] is not None:
+                row[tag]["cover_param"] = float(np.mean((v[:, 1] <= param[k])
+                                                        & (param[k] <= v[:, 2])))
+                row[tag]["rule_bias_sd"] = float(np.log(rule[k] / param[k])) / sd
+        rows.append(row)
+    return {"case": name, "T": T, "reps": reps, "rows": rows, "flags": flags,
+            "cpu_s": time.process_time() - t0}
+
+
+def readings_table(results: list[dict]) -> str:
+    lines = [("| signal | T | reading | exact-curve reading (true value) | old: coverage | old: "
+              "half-width / SD | new: coverage (n) | new: half-width / SD | new: coverage of the "
+              "true value | exact-curve reading - true, in SDs | flags |"),
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for res in results:
+        fl = res["flags"]
+        for row in res["rows"]:
+            o, n = row["old"], row["new"]
+            k = row["reading"]
+            flag = {"N": f"warned {fl['N_warning']}/{res['reps']}",
+                    "K": f"warned {fl['K_warning']}/{res['reps']}",
+                    "B": f"upper bound {fl['B_upper']}/{res['reps']}"}[k]
+            truth = f"{row['rule']:.4g}" + ("" if row["param"] is None else f" ({row['param']:.4g})")
+            lines.append(
+                f"| {res['case']} | 2^{res['T'].bit_length() - 1} | {k} | {truth} | "
+                + (f"{o['cover']:.3f} | {o['half_sd']:.2f}" if o else "- | -") + " | "
+                + (f"{n['cover']:.3f} ({n['n']}) | {n['half_sd']:.2f} | " if n else "- | - | ")
+                + (f"{n['cover_param']:.3f} | {n['rule_bias_sd']:+.2f}" if n and "cover_param" in n
+                   else "- | -") + f" | {flag} |")
+    return "\n".join(lines)
+
+
 def _fmt_range(c: np.ndarray, lo: float, hi: float) -> str:
     if c.size == 0:
         return "-"
@@ -262,25 +415,38 @@ def main() -> None:
     ap.add_argument("--json", type=Path, default=None, help="write the per-level coverages here")
     ap.add_argument("--readme", action="store_true",
                     help="rewrite the generated section of benchmarks/README.md")
+    ap.add_argument("--readings-reps", type=int, default=400)
+    ap.add_argument("--no-grid", action="store_true", help="only the readings")
+    ap.add_argument("--no-readings", action="store_true", help="only the WV grid")
     args = ap.parse_args()
-    cases = [(m, 1 << k) for k in sorted(args.sizes, reverse=True) for m in args.models]
+    cases = [] if args.no_grid else [(m, 1 << k) for k in sorted(args.sizes, reverse=True)
+                                     for m in args.models]
+    rcases = [] if args.no_readings else list(READING_CASES)
     load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.jobs) as ex:
+        rfuts = [ex.submit(run_readings, c, args.readings_reps) for c in rcases]
         futs = [ex.submit(run_case, m, T, args.reps, args.acf_max) for m, T in cases]
         results = [f.result() for f in futs]
+        rresults = [f.result() for f in rfuts]
     wall = time.perf_counter() - t0
     order = {m: i for i, m in enumerate(MODELS)}
     results.sort(key=lambda d: (order[d["model"]], d["T"]))
-    cpu = sum(d["cpu_s"] for d in results)
-    head = (f"R = {args.reps} replicates per process and T (MC SE {np.sqrt(0.0475 / args.reps):.4f}"
-            f"), {args.jobs} worker processes, {wall / 60:.1f} min wall, {cpu / 60:.1f} min CPU, "
+    cpu = sum(d["cpu_s"] for d in results + rresults)
+    head = (f"WV grid: R = {args.reps} replicates per process and T (MC SE "
+            f"{np.sqrt(0.0475 / args.reps):.4f}); readings: R = {args.readings_reps}. "
+            f"{args.jobs} worker processes, {wall / 60:.1f} min wall, {cpu / 60:.1f} min CPU, "
             f"load average {load0:.1f} before / {os.getloadavg()[0]:.1f} after on "
             f"{os.cpu_count()} cores.")
-    text = "\n".join([head, "", table(results), "", summary(results)])
+    parts = [head]
+    if results:
+        parts += ["", table(results), "", summary(results)]
+    if rresults:
+        parts += ["", readings_table(rresults)]
+    text = "\n".join(parts)
     print(text)
     if args.json:
-        args.json.write_text(json.dumps(results) + "\n")
+        args.json.write_text(json.dumps({"grid": results, "readings": rresults}) + "\n")
     if args.readme:
         readme = Path(__file__).with_name("README.md")
         doc = readme.read_text()

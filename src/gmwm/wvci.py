@@ -55,7 +55,7 @@ import numpy as np
 from gmwm.errors import InputError
 
 __all__ = ["CI_KINDS", "DEFAULT_CI", "check_ci_kind", "edof_for", "eta3_edof", "implied_edof",
-           "mixture_edof"]
+           "mixture_edof", "power_law_wv_cov"]
 
 CI_KINDS = ("mixture", "eta3")
 DEFAULT_CI = "mixture"
@@ -158,15 +158,16 @@ def _acvs_ar1(a: np.ndarray, m: int, h: np.ndarray) -> np.ndarray:
     return out / (2.0 * m) ** 2
 
 
-def _lag_grid(m: int, M: int, dense: int = 16, ratio: float = 1.08
-              ) -> tuple[np.ndarray, np.ndarray]:
-    """Integer lags ``0..M-1`` for a lattice sum ``sum_h f(h)``: every lag within ``dense`` of the
-    kinks 0, m, 2m and of M - 1, geometrically spaced lags in between, with trapezoid weights
-    (each sampled lag stands for itself and half the unsampled lags on either side)."""
-    hmax = M - 1
-    ends = sorted({0, *[k for k in (m, 2 * m) if k < hmax], hmax})
-    pts = [np.array([0])]
-    n_geo = int(np.ceil(np.log(max(hmax, 2) / dense) / np.log(ratio))) + 2
+def _lattice(breaks: list[int], dense: int = 16, ratio: float = 1.08
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Integer points of ``[breaks[0], breaks[-1]]`` for a lattice sum ``sum_h f(h)`` of a
+    function smooth between the ``breaks``: every point within ``dense`` of a break, geometrically
+    spaced points in between, with trapezoid weights (each sampled point stands for itself and
+    half the unsampled points on either side)."""
+    ends = sorted(set(breaks))
+    pts = [np.array(ends[:1])]
+    span = max(ends[-1] - ends[0], 2)
+    n_geo = int(np.ceil(np.log(max(span / dense, 1.0 + 1e-9)) / np.log(ratio))) + 2
     geo = np.unique(np.round(dense * ratio ** np.arange(max(n_geo, 1)))).astype(np.int64)
     for a, b in pairwise(ends):
         if b - a <= 4 * dense:
@@ -177,13 +178,18 @@ def _lag_grid(m: int, M: int, dense: int = 16, ratio: float = 1.08
         g = geo[geo < mid - a]
         pts += [a + near, b - near, a + g, b - g]
     h = np.unique(np.concatenate(pts))
-    h = h[(h >= 0) & (h <= hmax)]
+    h = h[(h >= ends[0]) & (h <= ends[-1])]
     w = np.ones(h.size)
     if h.size > 1:
         gaps = np.diff(h) - 1.0
         w[1:] += 0.5 * gaps
         w[:-1] += 0.5 * gaps
     return h.astype(np.float64), w
+
+
+def _lag_grid(m: int, M: int) -> tuple[np.ndarray, np.ndarray]:
+    """Lags ``0..M-1`` of one level's coefficients (kinks of their autocovariance at 0, m, 2m)."""
+    return _lattice([0, *[k for k in (m, 2 * m) if k < M - 1], M - 1])
 
 
 def _ar_times(levels: tuple[int, ...]) -> np.ndarray:
@@ -307,6 +313,41 @@ def mixture_edof(variance: np.ndarray, scales: np.ndarray, n_samples: int) -> np
     quad = np.einsum("bk,bkm,bm->b", x, np.array([bs[i] for i in idx]), x)
     good = (nu_fit > 0) & (quad > 0)
     out[idx[good]] = np.maximum(n[idx[good]] * nu_fit[good] ** 2 / quad[good], 1.0)
+    return out
+
+
+def power_law_wv_cov(kind: str, levels: np.ndarray, n_samples: int) -> np.ndarray:
+    """Gaussian covariance ``Cov(nu_hat_j, nu_hat_k)`` of the WV estimates at ``levels`` for a
+    unit-amplitude power law ``kind`` ("QN", "WN", "FN" flicker, "RW") and T = ``n_samples``:
+    ``2 / (M_j M_k) sum_h N_jk(h) g_jk(h)**2`` with the exact lag counts ``N_jk`` and the
+    cross-covariance ``g_jk(h) = Cov(W_{j,t}, W_{k,t-h})`` of the coefficients (the form of
+    Percival & Walden 2000, ch. 8; ``gmwm.wvcov`` has it for every model, this one needs only
+    NumPy). Used for the correlation between the levels of an Allan-deviation slope line."""
+    if kind not in _POWER_LAWS:
+        raise InputError(f"unknown power law {kind!r}; use one of {', '.join(_POWER_LAWS)}")
+    lev = np.asarray(levels, dtype=np.int64).reshape(-1)
+    T = int(n_samples)
+    tau = (1 << lev).astype(np.float64)
+    out = np.empty((lev.size, lev.size))
+    for i, tj in enumerate(tau):
+        for k in range(i, lev.size):
+            tk = tau[k]
+            offs_j = (0.0, tj / 2, tj)
+            offs_k = (0.0, tk / 2, tk)
+            lo, hi = int(tj - T), int(T - tk)                # lags with pairs (t, t - h)
+            if kind != "FN":                                  # filters overlap only there
+                lo, hi = max(lo, int(-tk - 1)), min(hi, int(tj + 1))
+            kinks = [int(a - b) for a in offs_j for b in offs_k]
+            h, w = _lattice([lo, hi, *[q for q in kinks if lo < q < hi]])
+            g = np.zeros_like(h)
+            for a, ca in zip(offs_j, (1.0, -2.0, 1.0), strict=True):
+                for b, cb in zip(offs_k, (1.0, -2.0, 1.0), strict=True):
+                    g += ca * cb * _k_power(kind, h - a + b)
+            g /= tj * tk
+            count = np.minimum(T, T + h) - np.maximum(tj, tk + h) + 1.0
+            val = 2.0 * float(np.sum(w * np.clip(count, 0.0, None) * g * g)) / (
+                (T - tj + 1.0) * (T - tk + 1.0))
+            out[i, k] = out[k, i] = val
     return out
 
 
