@@ -2,7 +2,7 @@
 
 Usage: python benchmarks/bench_wv_coverage.py [--reps 400] [--sizes 12 14 16 18 20 22]
        [--models WN RW ...] [--jobs 2] [--acf-max 14] [--json PATH] [--readme]
-       [--readings-reps 400] [--no-grid | --no-readings]
+       [--readings-reps 400] [--no-grid | --no-readings] [--from-json PATH ...]
 
 Per process of the grid and length T = 2^k: R replicates (``Model.simulate_fast``, WV by
 ``gmwm.wvar_many``), then per level the share of 95 % intervals that cover the true WV
@@ -404,6 +404,25 @@ def summary(results: list[dict]) -> str:
     return "; ".join(out)
 
 
+def render(results: list[dict], rresults: list[dict], runs: list[dict]) -> str:
+    """The generated text: one line per run (replicates, time, load), the grid table and its
+    summary, the readings table."""
+    parts = []
+    for run in runs:
+        parts.append(f"{run['what']}: R = {run['reps']} replicates, {run['jobs']} worker processes, "
+                     f"{run['wall_s'] / 60:.1f} min wall, {run['cpu_s'] / 60:.1f} min CPU, load "
+                     f"average {run['load'][0]:.1f} before / {run['load'][1]:.1f} after on "
+                     f"{run['cores']} cores.")
+    if results:
+        se = np.sqrt(0.0475 / results[0]["reps"])
+        parts += ["", (f"Monte Carlo SE of a coverage: {se:.4f}. Cells: coverage range over the "
+                       "levels (number of levels outside 0.95 +- 2 MC SE)."),
+                  "", table(results), "", summary(results)]
+    if rresults:
+        parts += ["", readings_table(rresults)]
+    return "\n".join(parts)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reps", type=int, default=400)
@@ -412,41 +431,45 @@ def main() -> None:
     ap.add_argument("--models", nargs="+", default=list(MODELS), choices=list(MODELS))
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--acf-max", type=int, default=14, help="acf candidate for T <= 2^this")
-    ap.add_argument("--json", type=Path, default=None, help="write the per-level coverages here")
+    ap.add_argument("--json", type=Path, default=None, help="write the results here")
+    ap.add_argument("--from-json", type=Path, nargs="+", default=None,
+                    help="no simulation: render saved results (files of --json)")
     ap.add_argument("--readme", action="store_true",
                     help="rewrite the generated section of benchmarks/README.md")
     ap.add_argument("--readings-reps", type=int, default=400)
     ap.add_argument("--no-grid", action="store_true", help="only the readings")
     ap.add_argument("--no-readings", action="store_true", help="only the WV grid")
     args = ap.parse_args()
-    cases = [] if args.no_grid else [(m, 1 << k) for k in sorted(args.sizes, reverse=True)
-                                     for m in args.models]
-    rcases = [] if args.no_readings else list(READING_CASES)
-    load0 = os.getloadavg()[0]
-    t0 = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=args.jobs) as ex:
-        rfuts = [ex.submit(run_readings, c, args.readings_reps) for c in rcases]
-        futs = [ex.submit(run_case, m, T, args.reps, args.acf_max) for m, T in cases]
-        results = [f.result() for f in futs]
-        rresults = [f.result() for f in rfuts]
-    wall = time.perf_counter() - t0
+    if args.from_json:
+        results, rresults, runs = [], [], []
+        for path in args.from_json:
+            saved = json.loads(path.read_text())
+            results += saved["grid"]
+            rresults += saved["readings"]
+            runs += saved["runs"]
+    else:
+        cases = [] if args.no_grid else [(m, 1 << k) for k in sorted(args.sizes, reverse=True)
+                                         for m in args.models]
+        rcases = [] if args.no_readings else list(READING_CASES)
+        load0 = os.getloadavg()[0]
+        t0 = time.perf_counter()
+        with ProcessPoolExecutor(max_workers=args.jobs) as ex:
+            rfuts = [ex.submit(run_readings, c, args.readings_reps) for c in rcases]
+            futs = [ex.submit(run_case, m, T, args.reps, args.acf_max) for m, T in cases]
+            results = [f.result() for f in futs]
+            rresults = [f.result() for f in rfuts]
+        what = " and ".join(w for w, on in (("WV grid", cases), ("readings", rcases)) if on)
+        runs = [{"what": what, "reps": args.reps if cases else args.readings_reps,
+                 "jobs": args.jobs, "wall_s": time.perf_counter() - t0,
+                 "cpu_s": sum(d["cpu_s"] for d in results + rresults),
+                 "load": [load0, os.getloadavg()[0]], "cores": os.cpu_count()}]
     order = {m: i for i, m in enumerate(MODELS)}
     results.sort(key=lambda d: (order[d["model"]], d["T"]))
-    cpu = sum(d["cpu_s"] for d in results + rresults)
-    head = (f"WV grid: R = {args.reps} replicates per process and T (MC SE "
-            f"{np.sqrt(0.0475 / args.reps):.4f}); readings: R = {args.readings_reps}. "
-            f"{args.jobs} worker processes, {wall / 60:.1f} min wall, {cpu / 60:.1f} min CPU, "
-            f"load average {load0:.1f} before / {os.getloadavg()[0]:.1f} after on "
-            f"{os.cpu_count()} cores.")
-    parts = [head]
-    if results:
-        parts += ["", table(results), "", summary(results)]
-    if rresults:
-        parts += ["", readings_table(rresults)]
-    text = "\n".join(parts)
+    text = render(results, rresults, runs)
     print(text)
     if args.json:
-        args.json.write_text(json.dumps({"grid": results, "readings": rresults}) + "\n")
+        args.json.write_text(json.dumps({"grid": results, "readings": rresults, "runs": runs})
+                             + "\n")
     if args.readme:
         readme = Path(__file__).with_name("README.md")
         doc = readme.read_text()

@@ -5,15 +5,15 @@ Both kinds are chi-square intervals ``[eta nu_hat / q(1 - alpha/2), eta nu_hat /
 differ in the equivalent degrees of freedom (EDF) ``eta_j = 2 nu_j**2 / Var(nu_hat_j)``.
 
 ``"eta3"``: Percival's ``eta_3 = max(M_j / 2**j, 1)`` (Percival & Walden 2000, ch. 8; R ``wv`` and
-``simts``). It ignores the noise type. The exact EDF of the estimator is about 3 M_j / 2**j for
-white noise, 1.9 M_j / 2**j for a random walk and about 0.7 M_j for quantization noise, so these
-intervals are conservative: their 95 % intervals cover 0.98-1.00.
+``simts``). It ignores the noise type. For large M_j the exact EDF of the estimator is
+3 M_j / 2**j for white noise, about 1.9 M_j / 2**j for a random walk and 0.7 M_j or more for
+quantization noise, so these intervals are conservative.
 
 ``"mixture"`` (the default): the EDF of the noise mixture identified around each level.
 
 1. Dictionary. Unit-amplitude Gaussian processes whose Haar coefficients' autocovariance is known
    exactly: the power laws QN (WV slope -2 in log-log), WN (-1), flicker (0), RW (+1), and
-   first-order Gauss-Markov (AR1) processes with correlation times ``2**(k/2)`` samples, whose WV
+   first-order Gauss-Markov (AR1) processes with correlation times ``2**k`` samples, whose WV
    rises like a RW below and falls like a WN above their correlation time (a hump, which no sum
    of power laws has).
 2. Local identification. At level ``j`` a non-negative least-squares fit of the dictionary
@@ -28,21 +28,21 @@ intervals are conservative: their 95 % intervals cover 0.98-1.00.
 
 Guard: a QN atom (the steepest decay, ``tau**-2``) has the largest EDF by far (its coefficients
 are correlated only at lags 0, tau/2, tau). A WV that falls like ``tau**-2`` beyond a sinusoid's
-band, or by chance at the noisy last levels, must not be read as QN, so the QN amplitude at level
-``j`` is capped by the WV at every finer level (a QN whose WV exceeds the observed WV at a finer
-level is impossible). Without the cap the 95 % intervals covered 0.5-0.7 at a sinusoid's levels.
+band, or by chance at the noisy last levels, must not be read as QN (the intervals would be far
+too narrow), so the QN amplitude at level ``j`` is capped by the WV at every finer level (a QN
+whose WV exceeds the observed WV at a finer level is impossible).
 
 What it cannot see (the WV does not tell), all on the conservative side: a deterministic drift
 or sinusoid is treated as noise with the same WV, so levels they dominate get wider intervals
 than the (nearly zero) sampling variability of their WV needs; QN's uniform innovations make its
-WV estimate less variable than a Gaussian's (EDF x 1.45), so QN-dominated levels over-cover
-(~0.98 instead of 0.95). ``benchmarks/bench_wv_coverage.py`` measures the coverage over a grid
-of processes and lengths; ``benchmarks/README.md`` has its table.
+WV estimate less variable than a Gaussian's (fourth cumulant -1.2 Q2**2: the EDF is up to 1.45x
+the Gaussian one), so QN-dominated levels over-cover. ``benchmarks/bench_wv_coverage.py``
+measures the coverage over a grid of processes and lengths (table in ``benchmarks/README.md``).
 
-Cost: the per-level tables depend only on ``(T, levels)`` and are cached (a few ms per new
-length); each WV then costs one 7 x 17 NNLS per level (~0.1 ms). The rule uses only the WV
-itself, so it applies equally to a streamed WV and to a WV read from a table (without
-coefficients): a table of the same levels gets exactly the interval its signal would.
+Cost: the per-level tables depend only on ``(T, levels)`` and are cached; each WV then costs one
+batched NNLS (a 7 x 11 problem per level). The rule uses only the WV itself and T, so it
+applies equally to a streamed WV and to a WV read from a table (without coefficients): a table
+of the same levels gets exactly the interval its signal would.
 """
 
 from __future__ import annotations
