@@ -254,30 +254,46 @@ def _slope_runs(local: np.ndarray, slope: float, tol: float, min_points: int
     return [r for r in runs if r[1] - r[0] >= min_points]
 
 
+def _inv_trigamma_half(v: float) -> float:
+    """The ``eta`` with ``trigamma(eta / 2) = v`` (the chi-square EDF whose log has variance v)."""
+    from scipy.special import polygamma
+
+    lo, hi = 1e-3, 1e12                # trigamma(eta / 2) decreases from ~4e6 to ~2e-12
+    for _ in range(100):
+        mid = math.sqrt(lo * hi)
+        if float(polygamma(1, mid / 2.0)) > v:
+            lo = mid
+        else:
+            hi = mid
+    return math.sqrt(lo * hi)
+
+
 def _line_reading(tau: np.ndarray, adev: np.ndarray, edof: np.ndarray, levels: np.ndarray,
                   n_samples: int, slope: float, tau_read: float, run: tuple[int, int],
                   alpha: float) -> dict[str, Any]:
-    """Fixed-slope line through the points ``run = [a, b)`` (weights = their edof, i.e. inverse
-    variances of log AD), read at ``tau_read`` [s]. CI: chi-square form with the effective edof
-    ``1 / (2 Var(ln reading))``, the variance from each point's edof and the correlation between
-    the levels' WV estimates under the line's own noise type (WN for slope -1/2, flicker for 0,
-    RW for +1/2; :func:`gmwm.wvci.power_law_wv_cov`): one point's chi-square interval when the run
-    is one point, narrower as points add information."""
-    from scipy.special import chdtri
+    """Fixed-slope line through the points ``run = [a, b)``, read at ``tau_read`` [s]; weights =
+    inverse variances of ln AD_i, ``trigamma(eta_i / 2) / 4`` for a chi-square AV estimate with
+    ``eta_i`` edof (the delta method's ``1 / (2 eta_i)`` is too small at the last levels). CI:
+    chi-square form with the effective edof whose log-chi-square has the reading's variance, that
+    from each point's and the correlation between the levels' WV estimates under the line's own
+    noise type (WN for slope -1/2, flicker for 0, RW for +1/2;
+    :func:`gmwm.wvci.power_law_wv_cov`): exactly one point's chi-square interval when the run is
+    one point, narrower as points add information."""
+    from scipy.special import chdtri, polygamma
 
     from gmwm.wvci import power_law_wv_cov
 
     a, b = run
-    w = edof[a:b] / edof[a:b].sum()
+    var_i = np.asarray(polygamma(1, edof[a:b] / 2.0), dtype=np.float64) / 4.0   # Var(ln AD_i)
+    w = (1.0 / var_i) / np.sum(1.0 / var_i)
     lt = np.log(tau[a:b])
     c = float(w @ (np.log(adev[a:b]) - slope * lt))
     value = math.exp(c + slope * math.log(tau_read))
     cov = power_law_wv_cov(_LINE_NOISE[slope], levels[a:b], n_samples)
     d = np.sqrt(np.diag(cov))
-    corr = cov / np.outer(d, d)
-    sd = np.sqrt(1.0 / (2.0 * edof[a:b]))           # sd of ln AD_i (delta method)
-    var = float(w @ (corr * np.outer(sd, sd)) @ w)
-    eta = 1.0 / (2.0 * var)
+    sd = np.sqrt(var_i)
+    var = float(w @ (cov / np.outer(d, d) * np.outer(sd, sd)) @ w)
+    eta = float(edof[a]) if b - a == 1 else _inv_trigamma_half(4.0 * var)
     low = value * math.sqrt(eta / chdtri(eta, alpha / 2.0))
     high = value * math.sqrt(eta / chdtri(eta, 1.0 - alpha / 2.0))
     return {"value": value, "ci95": [low, high], "tau_range_s": [float(tau[a]), float(tau[b - 1])],
@@ -299,8 +315,8 @@ def allan_readings(av: Any, units: str | None = None, tol: float = 0.15) -> dict
       reached) B is the AD minimum / 0.6643 with ``upper_bound: True`` and a ``note`` (``at_end``:
       the minimum is the longest cluster time).
 
-    Slope lines use the heaviest (by edof) run of at least 2 adjacent points whose local slope is
-    within ``tol`` of the nominal one; the CI (``ci95``, level ``1 - av.alpha``) combines the points'
+    Slope lines use the heaviest (by summed edof) run of at least 2 adjacent points whose local
+    slope is within ``tol`` of the nominal one; the CI (``ci95``, level ``1 - av.alpha``) combines the points'
     chi-square intervals with the correlation of the levels (see :func:`_line_reading`). A line
     read outside its run whose near end is within two levels (a factor 4 in tau) of the AD
     minimum carries a ``warning``: near the crossover the other noise still adds to the deviation,
