@@ -302,7 +302,7 @@ def run_readings(name: str, reps: int) -> dict:
         for k in "NKB":
             e = r[k]
             ok = e.get("value") is not None and not (k == "B" and e["upper_bound"])
-            new[k].append((e["value"], *e["ci95"]) if ok else None)
+            new[k].append((e["value"], *e["ci95"], float("warning" in e)) if ok else None)
         o = _old_readings(avar(x, freq=FS, ci="eta3"))
         for k in "NKB":
             old[k].append(o[k])
@@ -326,6 +326,12 @@ def run_readings(name: str, reps: int) -> dict:
                 row[tag]["cover_param"] = float(np.mean((v[:, 1] <= param[k])
                                                         & (param[k] <= v[:, 2])))
                 row[tag]["rule_bias_sd"] = float(np.log(rule[k] / param[k])) / sd
+            if tag == "new":
+                quiet = v[:, 3] == 0
+                row[tag]["n_quiet"] = int(quiet.sum())
+                row[tag]["cover_quiet"] = float(np.mean((v[quiet, 1] <= rule[k])
+                                                        & (rule[k] <= v[quiet, 2]))) \
+                    if quiet.any() else None
         rows.append(row)
     return {"case": name, "T": T, "reps": reps, "rows": rows, "flags": flags,
             "cpu_s": time.process_time() - t0}
@@ -333,9 +339,10 @@ def run_readings(name: str, reps: int) -> dict:
 
 def readings_table(results: list[dict]) -> str:
     lines = [("| signal | T | reading | exact-curve reading (true value) | old: coverage | old: "
-              "half-width / SD | new: coverage (n) | new: half-width / SD | new: coverage of the "
-              "true value | exact-curve reading - true, in SDs | flags |"),
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+              "half-width / SD | new: coverage (n) | new: half-width / SD | new: coverage without "
+              "a warning (n) | new: coverage of the true value | exact-curve reading - true, in SDs "
+              "| flags |"),
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for res in results:
         fl = res["flags"]
         for row in res["rows"]:
@@ -349,6 +356,8 @@ def readings_table(results: list[dict]) -> str:
                 f"| {res['case']} | 2^{res['T'].bit_length() - 1} | {k} | {truth} | "
                 + (f"{o['cover']:.3f} | {o['half_sd']:.2f}" if o else "- | -") + " | "
                 + (f"{n['cover']:.3f} ({n['n']}) | {n['half_sd']:.2f} | " if n else "- | - | ")
+                + (f"{n['cover_quiet']:.3f} ({n['n_quiet']}) | " if n and n.get("cover_quiet")
+                   is not None else "- | ")
                 + (f"{n['cover_param']:.3f} | {n['rule_bias_sd']:+.2f}" if n and "cover_param" in n
                    else "- | -") + f" | {flag} |")
     return "\n".join(lines)
