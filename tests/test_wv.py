@@ -175,7 +175,7 @@ def test_wvar_many_equals_wvar_rows() -> None:
 def test_ci_formula_against_scipy() -> None:
     x = np.random.default_rng(5).standard_normal(3000)
     for alpha in (0.05, 0.1):
-        wv = wvar(x, 11, alpha=alpha)
+        wv = wvar(x, 11, alpha=alpha, ci="eta3")
         eta = np.maximum((3000 - 2.0 ** np.arange(1, 12) + 1) / 2.0 ** np.arange(1, 12), 1.0)
         np.testing.assert_allclose(wv.edof, eta, rtol=1e-15)
         assert not np.all(eta == np.round(eta))                 # non-integer dof are used
@@ -222,7 +222,7 @@ def test_ci_coverage_white_noise() -> None:
 def test_ci_coverage_matches_wvar_ci() -> None:
     # the CI used in the coverage test is the one wvar returns
     x = np.random.default_rng(1).standard_normal(2**12)
-    wv = wvar(x, 10)
+    wv = wvar(x, 10, ci="eta3")
     eta3 = np.maximum(wv.n / wv.scales, 1.0)
     np.testing.assert_allclose(wv.ci_low, eta3 * wv.variance / chi2.ppf(0.975, eta3), rtol=1e-13)
 

@@ -305,50 +305,92 @@ def datasheet(result: Any, units: str | None = None, alpha: float = 0.05) -> dic
 # --------------------------------------------------------------------------------------------------
 
 
-def _line_reading(tau: np.ndarray, adev: np.ndarray, lo: np.ndarray, hi: np.ndarray, w: np.ndarray,
-                  slope: float, tau_read: float, tol: float) -> dict[str, Any] | None:
-    """Fixed-slope line through the heaviest (by edof) run of at least 2 adjacent points whose local
-    log-log slope is within ``tol`` of ``slope``, read at ``tau_read`` [s]. CI: the same line through the points'
-    CI bounds (edof-weighted), i.e. about one point's uncertainty (conservative)."""
-    lt, ld = np.log10(tau), np.log10(adev)
-    if tau.size < 3:
-        return None
-    local = np.gradient(ld, lt)
-    ok = np.abs(local - slope) <= tol
+_LINE_NOISE = {-0.5: "WN", 0.0: "FN", 0.5: "RW"}   # AD slope -> power law with that WV slope
+
+
+def _slope_runs(local: np.ndarray, slope: float, tol: float, min_points: int
+                ) -> list[tuple[int, int]]:
+    """Maximal runs ``[a, b)`` of at least ``min_points`` adjacent points whose local log-log
+    slope is within ``tol`` of ``slope``."""
     runs, start = [], None
-    for i, flag in enumerate([*ok, False]):
+    for i, flag in enumerate([*(np.abs(local - slope) <= tol), False]):
         if flag and start is None:
             start = i
         elif not flag and start is not None:
             runs.append((start, i))
             start = None
-    runs = [r for r in runs if r[1] - r[0] >= 2]  # one point is no slope region
-    if not runs:
-        return None
-    a, b = max(runs, key=lambda r: float(w[r[0]:r[1]].sum()))
-    ww = w[a:b] / w[a:b].sum()
+    return [r for r in runs if r[1] - r[0] >= min_points]
 
-    def at(y: np.ndarray) -> float:
-        c = float(ww @ (np.log10(y[a:b]) - slope * lt[a:b]))
-        return 10.0 ** (c + slope * math.log10(tau_read))
 
-    return {"value": at(adev), "ci95": [at(lo), at(hi)], "tau_range_s": [float(tau[a]),
-                                                                          float(tau[b - 1])],
-            "n_points": b - a, "extrapolated": not tau[a] <= tau_read <= tau[b - 1]}
+def _inv_trigamma_half(v: float) -> float:
+    """The ``eta`` with ``trigamma(eta / 2) = v`` (the chi-square EDF whose log has variance v)."""
+    from scipy.special import polygamma
+
+    lo, hi = 1e-3, 1e12                # trigamma(eta / 2) decreases from ~4e6 to ~2e-12
+    for _ in range(100):
+        mid = math.sqrt(lo * hi)
+        if float(polygamma(1, mid / 2.0)) > v:
+            lo = mid
+        else:
+            hi = mid
+    return math.sqrt(lo * hi)
+
+
+def _line_reading(tau: np.ndarray, adev: np.ndarray, edof: np.ndarray, levels: np.ndarray,
+                  n_samples: int, slope: float, tau_read: float, run: tuple[int, int],
+                  alpha: float) -> dict[str, Any]:
+    """Fixed-slope line through the points ``run = [a, b)``, read at ``tau_read`` [s]; weights =
+    inverse variances of ln AD_i, ``trigamma(eta_i / 2) / 4`` for a chi-square AV estimate with
+    ``eta_i`` edof (the delta method's ``1 / (2 eta_i)`` is too small at the last levels). CI:
+    chi-square form with the effective edof whose log-chi-square has the reading's variance, that
+    from each point's and the correlation between the levels' WV estimates under the line's own
+    noise type (WN for slope -1/2, flicker for 0, RW for +1/2;
+    :func:`gmwm.wvci.power_law_wv_cov`): exactly one point's chi-square interval when the run is
+    one point, narrower as points add information."""
+    from scipy.special import chdtri, polygamma
+
+    from gmwm.wvci import power_law_wv_cov
+
+    a, b = run
+    var_i = np.asarray(polygamma(1, edof[a:b] / 2.0), dtype=np.float64) / 4.0   # Var(ln AD_i)
+    w = (1.0 / var_i) / np.sum(1.0 / var_i)
+    lt = np.log(tau[a:b])
+    c = float(w @ (np.log(adev[a:b]) - slope * lt))
+    value = math.exp(c + slope * math.log(tau_read))
+    cov = power_law_wv_cov(_LINE_NOISE[slope], levels[a:b], n_samples)
+    d = np.sqrt(np.diag(cov))
+    sd = np.sqrt(var_i)
+    var = float(w @ (cov / np.outer(d, d) * np.outer(sd, sd)) @ w)
+    eta = float(edof[a]) if b - a == 1 else _inv_trigamma_half(4.0 * var)
+    low = value * math.sqrt(eta / chdtri(eta, alpha / 2.0))
+    high = value * math.sqrt(eta / chdtri(eta, 1.0 - alpha / 2.0))
+    return {"value": value, "ci95": [low, high], "tau_range_s": [float(tau[a]), float(tau[b - 1])],
+            "n_points": b - a, "edof": eta,
+            "extrapolated": not tau[a] * (1 - 1e-12) <= tau_read <= tau[b - 1] * (1 + 1e-12)}
 
 
 def allan_readings(av: Any, units: str | None = None, tol: float = 0.15) -> dict[str, dict]:
     """IEEE 952 readings of a maximal-overlap Allan variance ``av`` (``tau`` [s], ``avar``,
-    ``ci_low``, ``ci_high``, ``clusters``, ``n``):
+    ``ci_low``, ``ci_high``, ``clusters``, ``n``, and ``ci_edof`` if it has them):
 
     * ``N`` (white noise, ARW/VRW): the slope -1/2 line read at tau = 1 s;
     * ``K`` (random walk, RRW/AccRW): the slope +1/2 line read at tau = 3 s;
-    * ``B`` (bias instability): the AD minimum / 0.6643 (``at_end`` when the minimum is the longest
-      cluster time, so B is then an upper bound of the floor not yet reached).
+    * ``B`` (bias instability): the floor of a flat region / 0.6643. A flat region is a run of at
+      least 3 adjacent points whose local log-log slope is within ``tol`` of 0 and which contains
+      the AD minimum; B is then the slope-0 line through its points within two levels of the
+      minimum. Without one (e.g. white noise meeting
+      a random walk, or a deviation still falling at the longest cluster time: the floor is not
+      reached) B is the AD minimum / 0.6643 with ``upper_bound: True`` and a ``note`` (``at_end``:
+      the minimum is the longest cluster time).
 
-    Slope lines use the points whose local log-log slope is within ``tol`` of the nominal one.
-    Values in the datasheet units of ``units`` (N, K, B labels as in :func:`datasheet`); a reading
-    with no region of its slope is ``{"value": None, "note": ...}``.
+    Slope lines use the heaviest (by summed edof) run of at least 2 adjacent points whose local
+    slope is within ``tol`` of the nominal one; the CI (``ci95``, level ``1 - av.alpha``) combines the points'
+    chi-square intervals with the correlation of the levels (see :func:`_line_reading`). A line
+    read outside its run whose near end is within two levels (a factor 4 in tau) of the AD
+    minimum carries a ``warning``: near the crossover the other noise still adds to the deviation,
+    so the extrapolated reading is too high. Values in the datasheet units of ``units`` (N, K, B
+    labels as in :func:`datasheet`); a reading with no region of its slope is
+    ``{"value": None, "note": ...}``.
     """
     us = unit_system(units)
     tau = np.asarray(av.tau, float)
@@ -356,26 +398,59 @@ def allan_readings(av: Any, units: str | None = None, tol: float = 0.15) -> dict
     lo, hi = np.asarray(av.ci_low, float), np.asarray(av.ci_high, float)
     m = np.asarray(av.clusters, float)
     n = np.asarray(av.n, float)
-    keep = (var > 0) & (lo > 0) & np.isfinite(hi)
+    levels = np.asarray(getattr(av, "levels", np.log2(2 * m)), float).round().astype(np.int64)
+    ci_edof = getattr(av, "ci_edof", None)
+    # each point's equivalent degrees of freedom: those of its interval (eta_3 if unknown)
+    edof = np.maximum(n / (2.0 * m), 1.0) if ci_edof is None else np.asarray(ci_edof, float)
+    keep = (var > 0) & (lo > 0) & np.isfinite(hi) & np.isfinite(edof)
     if keep.sum() < 3:
         raise InputError("the Allan variance needs at least 3 positive values for the readings")
-    tau, var, lo, hi, m, n = (a[keep] for a in (tau, var, lo, hi, m, n))
+    tau, var, lo, hi, edof, levels = (a[keep] for a in (tau, var, lo, hi, edof, levels))
+    T = int(av.n_samples)
+    alpha = float(getattr(av, "alpha", 0.05))
     adev, dlo, dhi = np.sqrt(var), np.sqrt(lo), np.sqrt(hi)
-    w = np.maximum(n / (2.0 * m), 1.0)  # equivalent degrees of freedom of each point
+    local = np.gradient(np.log10(adev), np.log10(tau))
+    i_min = int(np.argmin(adev))
     out: dict[str, dict] = {}
     for key, slope, tau_read, (label, factor), name in (
             ("N", -0.5, 1.0, us.white, us.white_name), ("K", 0.5, 3.0, us.rw, us.rw_name)):
-        r = _line_reading(tau, adev, dlo, dhi, w, slope, tau_read, tol)
-        if r is None:
+        runs = _slope_runs(local, slope, tol, 2)     # one point is no slope region
+        if not runs:
             out[key] = {"value": None, "unit": label, "ci95": None, "name": name,
                         "note": f"no region of slope {slope:+g} in the Allan deviation"}
             continue
+        run = max(runs, key=lambda r: float(edof[r[0]:r[1]].sum()))
+        r = _line_reading(tau, adev, edof, levels, T, slope, tau_read, run, alpha)
         r["value"] *= factor
         r["ci95"] = [c * factor for c in r["ci95"]]
-        out[key] = {"name": name, "unit": label, **r, "read_at_tau_s": tau_read}
-    i = int(np.argmin(adev))
+        near = run[1] - 1 if slope < 0 else run[0]   # the run's end towards the crossover
+        entry = {"name": name, "unit": label, **r, "read_at_tau_s": tau_read}
+        if r["extrapolated"] and abs(near - i_min) <= 2:
+            entry["warning"] = (f"{key} extrapolated from a slope {slope:+g} region that "
+                                f"{'ends' if slope < 0 else 'starts'} within a factor 4 in tau of "
+                                f"the Allan-deviation minimum ({tau[i_min]:.4g} s): the other noise "
+                                "adds to the deviation there, so the reading is likely too high")
+        out[key] = entry
     label, factor = us.level
-    out["B"] = {"name": "bias instability", "value": factor * adev[i] / BI_AD_FACTOR, "unit": label,
-                "ci95": [factor * dlo[i] / BI_AD_FACTOR, factor * dhi[i] / BI_AD_FACTOR],
-                "tau_s": float(tau[i]), "at_end": bool(i == adev.size - 1)}
+    at_end = bool(i_min == adev.size - 1)
+    flat = [r for r in _slope_runs(local, 0.0, tol, 3) if r[0] <= i_min < r[1]]
+    entry: dict[str, Any] = {"name": "bias instability", "unit": label, "tau_s": float(tau[i_min]),
+                             "at_end": at_end}
+    if flat:
+        # the floor: the slope-0 line through the flat points within two levels of the minimum
+        # (their mean lacks the downward selection bias of the minimum of noisy points; farther
+        # points, still within tol of slope 0, can sit measurably above the floor)
+        run = (max(flat[0][0], i_min - 2), min(flat[0][1], i_min + 3))
+        r = _line_reading(tau, adev, edof, levels, T, 0.0, float(tau[i_min]), run, alpha)
+        entry.update(value=factor * r["value"] / BI_AD_FACTOR, upper_bound=False,
+                     ci95=[factor * c / BI_AD_FACTOR for c in r["ci95"]],
+                     tau_range_s=r["tau_range_s"], n_points=r["n_points"])
+    else:
+        why = ("the minimum is at the longest cluster time: the floor is not reached" if at_end
+               else f"no flat region (>= 3 points of local slope within {tol:g} of 0) at the "
+                    "minimum")
+        entry.update(value=factor * adev[i_min] / BI_AD_FACTOR, upper_bound=True,
+                     ci95=[factor * dlo[i_min] / BI_AD_FACTOR, factor * dhi[i_min] / BI_AD_FACTOR],
+                     note=f"upper bound: {why}")
+    out["B"] = entry
     return out

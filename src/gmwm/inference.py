@@ -129,7 +129,8 @@ def weight_matrix(wv: WaveletVariance, weights: str | np.ndarray, method: str = 
     if method == "armav":
         return np.diag(wv.edof / (2 * _LOG10E**2))
     if weights == "ci" and model_wv is None:
-        width = wv.ci_high - wv.ci_low
+        low, high = wv.eta3_ci()   # eta_3 widths whatever the WV's interval kind
+        width = high - low
         return np.diag(1.0 / width**2)
     nu = wv.variance if model_wv is None else model_wv
     return np.diag(wv.edof / (2 * nu**2))

@@ -211,6 +211,12 @@ def _check_alpha_freq(alpha: float, freq: float) -> None:
         raise InputError(f"freq must be a positive number of Hz, got {freq}")
 
 
+def _check_ci(ci: str) -> None:
+    from gmwm.wvci import check_ci_kind
+
+    check_ci_kind(ci)
+
+
 def _sums_checked(x: np.ndarray, J: int, ws: _Workspace, name: str) -> np.ndarray:
     sums = ws.sums(x, J)
     if not np.all(np.isfinite(sums)):
@@ -222,6 +228,23 @@ def _sums_checked(x: np.ndarray, J: int, ws: _Workspace, name: str) -> np.ndarra
 
 # --------------------------------------------------------------------------------------------------
 # public API
+
+
+def _wv_ci(ci: str, variance: np.ndarray, scales: np.ndarray, n: np.ndarray, n_samples: int,
+           alpha: float, efficiency: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(edof, ci_low, ci_high)`` of the interval kind ``ci`` (:mod:`gmwm.wvci`); ``"eta3"`` is
+    :func:`chi2_ci` with ``efficiency * max(M_j / 2**j, 1)`` edof, as before the kinds existed."""
+    from gmwm import wvci
+
+    wvci.check_ci_kind(ci)
+    if ci == "eta3":
+        edof = np.maximum(n / scales, 1.0)
+        if efficiency != 1.0:
+            edof = efficiency * edof
+    else:
+        edof = wvci.edof_for(ci, variance, scales, n, n_samples, efficiency)
+    low, high = chi2_ci(variance, edof, alpha)
+    return edof, low, high
 
 
 def chi2_ci(variance: np.ndarray, edof: np.ndarray, alpha: float = 0.05
@@ -253,10 +276,55 @@ def _freeze_fields(obj: Any, arrays: tuple[tuple[str, type], ...]) -> None:
     object.__setattr__(obj, "alpha", float(obj.alpha))
 
 
+def _recognise_ci(variance: np.ndarray, scales: np.ndarray, n: np.ndarray, n_samples: int,
+                  alpha: float, low: np.ndarray, high: np.ndarray) -> tuple[str, Any]:
+    """``(kind, edof)`` of the interval kind whose bounds equal ``low``/``high`` to 1e-6 (a table
+    written by this package), else ``("table", None)``."""
+    from gmwm import wvci
+
+    for kind in wvci.CI_KINDS:
+        edof, lo, hi = _wv_ci(kind, variance, scales, n, n_samples, alpha)
+        if np.allclose(lo, low, rtol=1e-6, atol=0.0) and np.allclose(hi, high, rtol=1e-6, atol=0.0):
+            return kind, edof
+    return "table", None
+
+
+def _finite_list(a: np.ndarray) -> list[float | None]:
+    """``a`` as a JSON-able list, None for a non-finite value (the edof of a zero-width CI)."""
+    return [float(v) if np.isfinite(v) else None for v in a]
+
+
+def _freeze_ci_edof(obj: Any, wv_variance: np.ndarray, scales: np.ndarray, eff: float) -> None:
+    """Check ``ci_kind`` and store ``ci_edof`` as a read-only array (computed when None)."""
+    from gmwm import wvci
+
+    kind = obj.ci_kind
+    if kind != "table":
+        wvci.check_ci_kind(kind)
+    if obj.ci_edof is None:
+        if kind == "table":
+            edof = wvci.implied_edof(obj.ci_low, obj.ci_high, obj.alpha)
+        else:
+            edof = wvci.edof_for(kind, wv_variance, scales, obj.n, obj.n_samples, eff)
+    else:
+        edof = obj.ci_edof
+    edof = np.array(edof, dtype=np.float64, copy=True).reshape(-1)
+    if edof.size != obj.n.size:
+        raise InputError(f"{type(obj).__name__} ci_edof needs one value per level")
+    edof.setflags(write=False)
+    object.__setattr__(obj, "ci_edof", edof)
+
+
 @dataclass(frozen=True, eq=False)
 class WaveletVariance:
     """Haar WV per level with its chi-square CI. ``scales`` are filter lengths in samples,
-    ``n`` the number of coefficients ``M_j``; variances are in (signal unit)**2."""
+    ``n`` the number of coefficients ``M_j``; variances are in (signal unit)**2.
+
+    ``ci_kind``: how ``ci_low``/``ci_high`` were made, a kind of :data:`gmwm.wvci.CI_KINDS`
+    (``"mixture"``, ``"eta3"``) or ``"table"`` (bounds given with a table); ``ci_edof``: the
+    chi-square edof of those bounds (None: computed for the kind; for ``"table"`` the edof
+    implied by the bounds' ratio). ``edof`` (a property) stays Percival's eta_3: the estimator's
+    ``"ci"``/``"gaussian"`` weights use it (and :meth:`eta3_ci`), whatever the interval kind."""
 
     levels: np.ndarray
     scales: np.ndarray
@@ -268,6 +336,8 @@ class WaveletVariance:
     freq: float = 1.0
     alpha: float = 0.05
     efficiency: float = 1.0
+    ci_kind: str = "eta3"
+    ci_edof: Any = None
 
     def __post_init__(self) -> None:
         _freeze_fields(self, (("levels", np.int64), ("scales", np.float64),
@@ -277,6 +347,7 @@ class WaveletVariance:
         if not 0.0 < eff <= 1.0:
             raise InputError(f"efficiency must be in (0, 1], got {self.efficiency}")
         object.__setattr__(self, "efficiency", eff)
+        _freeze_ci_edof(self, self.variance, self.scales, eff)
 
     @property
     def robust(self) -> bool:
@@ -294,9 +365,18 @@ class WaveletVariance:
 
     @property
     def edof(self) -> np.ndarray:
-        """Equivalent degrees of freedom ``eta_j = e * max(M_j / 2**j, 1)`` with ``e`` the
-        Gaussian efficiency of the estimator (1 for the classical WV, see ``robust_edof``)."""
+        """Percival's eta_3 equivalent degrees of freedom ``eta_j = e * max(M_j / 2**j, 1)`` with
+        ``e`` the Gaussian efficiency of the estimator (1 for the classical WV, see
+        ``robust_edof``). The estimator's weights use it; the CI's own edof is ``ci_edof``."""
         return self.efficiency * np.maximum(self.n / self.scales, 1.0)
+
+    def eta3_ci(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(low, high)`` of the eta_3 chi-square CI (``ci="eta3"``; the given bounds when the CI
+        came with a table). The GMWM's ``"ci"`` weights are the inverse squared widths of these,
+        whatever ``ci_kind``."""
+        if self.ci_kind in ("eta3", "table"):
+            return self.ci_low, self.ci_high
+        return chi2_ci(self.variance, self.edof, self.alpha)
 
     def subset(self, levels: int | Iterable[int]) -> WaveletVariance:
         """Keep levels ``1..levels`` (an int) or the listed level numbers ``j``."""
@@ -315,7 +395,8 @@ class WaveletVariance:
             idx = np.searchsorted(self.levels, np.unique(wanted))
         return WaveletVariance(self.levels[idx], self.scales[idx], self.variance[idx],
                                self.ci_low[idx], self.ci_high[idx], self.n[idx], self.n_samples,
-                               self.freq, self.alpha, self.efficiency)
+                               self.freq, self.alpha, self.efficiency, self.ci_kind,
+                               self.ci_edof[idx])
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able dict (plain lists and numbers; ``efficiency`` only for a robust WV)."""
@@ -329,6 +410,8 @@ class WaveletVariance:
             "ci_high": self.ci_high.tolist(),
             "n": self.n.tolist(),
             "edof": self.edof.tolist(),
+            "ci": self.ci_kind,
+            "ci_edof": _finite_list(self.ci_edof),
             "n_samples": self.n_samples,
             "freq": self.freq,
             "alpha": self.alpha,
@@ -337,11 +420,16 @@ class WaveletVariance:
 
     @classmethod
     def from_table(cls, scales: Any, variance: Any, ci_low: Any = None, ci_high: Any = None, *,
-                   n_samples: int, freq: float = 1.0, alpha: float = 0.05) -> WaveletVariance:
+                   n_samples: int, freq: float = 1.0, alpha: float = 0.05,
+                   ci: str = "mixture") -> WaveletVariance:
         """WV shared as a table: ``scales`` in samples (increasing powers of 2, not necessarily
-        consecutive), ``variance > 0``, optional CI bounds (computed from the eta_3 edof when both
-        are None), ``n_samples`` = T of the signal it came from."""
+        consecutive), ``variance > 0``, optional CI bounds, ``n_samples`` = T of the signal it
+        came from. Without bounds the CI of kind ``ci`` is computed: both kinds need only the
+        WV and T, so a table of the same levels gets exactly its signal's interval. Given bounds
+        are kept; they are recognised as ``"mixture"`` or ``"eta3"`` bounds when they equal
+        those (to 1e-6, e.g. a table written by ``gmwm wv``), else ``ci_kind="table"``."""
         _check_alpha_freq(alpha, freq)
+        _check_ci(ci)
         sc = np.asarray(scales, dtype=np.float64).reshape(-1)
         var = np.asarray(variance, dtype=np.float64).reshape(-1)
         if sc.size == 0 or sc.size != var.size:
@@ -364,7 +452,8 @@ class WaveletVariance:
         if (ci_low is None) != (ci_high is None):
             raise InputError("give both ci_low and ci_high, or neither")
         if ci_low is None:
-            low, high = chi2_ci(var, np.maximum(n / sc, 1.0), alpha)
+            edof, low, high = _wv_ci(ci, var, sc, n, T, alpha)
+            kind = ci
         else:
             low = np.asarray(ci_low, dtype=np.float64).reshape(-1)
             high = np.asarray(ci_high, dtype=np.float64).reshape(-1)
@@ -373,7 +462,9 @@ class WaveletVariance:
             ok = np.isfinite(low) & np.isfinite(high) & (low > 0) & (low <= var) & (var <= high)
             if not np.all(ok):
                 raise InputError("table CI bounds must satisfy 0 < ci_low <= variance <= ci_high")
-        return cls(np.round(lev).astype(np.int64), sc, var, low, high, n, T, freq, alpha)
+            kind, edof = _recognise_ci(var, sc, n, T, alpha, low, high)
+        return cls(np.round(lev).astype(np.int64), sc, var, low, high, n, T, freq, alpha,
+                   ci_kind=kind, ci_edof=edof)
 
 
 @dataclass(frozen=True, eq=False)
@@ -391,11 +482,14 @@ class AllanVariance:
     n_samples: int
     freq: float = 1.0
     alpha: float = 0.05
+    ci_kind: str = "eta3"
+    ci_edof: Any = None
 
     def __post_init__(self) -> None:
         _freeze_fields(self, (("levels", np.int64), ("clusters", np.int64), ("tau", np.float64),
                               ("avar", np.float64), ("ci_low", np.float64),
                               ("ci_high", np.float64), ("n", np.int64)))
+        _freeze_ci_edof(self, self.avar / 2.0, 2.0 * self.clusters, 1.0)
 
     @property
     def adev(self) -> np.ndarray:
@@ -406,7 +500,8 @@ class AllanVariance:
     def from_wv(cls, wv: WaveletVariance) -> AllanVariance:
         clusters = (wv.scales // 2).astype(np.int64)
         return cls(wv.levels, clusters, clusters / wv.freq, 2.0 * wv.variance, 2.0 * wv.ci_low,
-                   2.0 * wv.ci_high, wv.n, wv.n_samples, wv.freq, wv.alpha)
+                   2.0 * wv.ci_high, wv.n, wv.n_samples, wv.freq, wv.alpha, wv.ci_kind,
+                   wv.ci_edof)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able dict (plain lists and numbers)."""
@@ -419,6 +514,8 @@ class AllanVariance:
             "ci_low": self.ci_low.tolist(),
             "ci_high": self.ci_high.tolist(),
             "n": self.n.tolist(),
+            "ci": self.ci_kind,
+            "ci_edof": _finite_list(self.ci_edof),
             "n_samples": self.n_samples,
             "freq": self.freq,
             "alpha": self.alpha,
@@ -426,23 +523,27 @@ class AllanVariance:
 
 
 def wvar(x: Any, levels: int | None = None, alpha: float = 0.05, freq: float = 1.0, *,
-         robust: bool = False, eff: float = 0.6) -> WaveletVariance:
+         robust: bool = False, eff: float = 0.6, ci: str = "mixture") -> WaveletVariance:
     """Haar wavelet variance of a 1-D signal at levels ``1..J`` (``levels`` = J, default
-    ``floor(log2 T) - 1``), with the eta_3 chi-square CI at level ``1 - alpha``; ``freq`` in Hz.
+    ``floor(log2 T) - 1``), with a chi-square CI at level ``1 - alpha``; ``freq`` in Hz.
 
-    ``robust=True``: bounded-influence Tukey-biweight M-estimate of each level's WV with Gaussian
-    efficiency ``eff`` (see :func:`wvar_robust`); the CI then uses ``eff * eta_3`` edof."""
+    ``ci``: ``"mixture"`` (edof of the noise mixture identified around each level, nominal
+    coverage) or ``"eta3"`` (Percival's ``max(M_j / 2**j, 1)``, conservative; R ``wv``/``simts``),
+    see :mod:`gmwm.wvci`. ``robust=True``: bounded-influence Tukey-biweight M-estimate of each
+    level's WV with Gaussian efficiency ``eff`` (see :func:`wvar_robust`); the edof is then
+    ``eff`` times that of ``ci``."""
+    _check_ci(ci)
     if robust:
-        return wvar_robust(x, levels, alpha, freq, eff=eff)
+        return wvar_robust(x, levels, alpha, freq, eff=eff, ci=ci)
     arr = _as_signal(x)
     T = arr.shape[0]
     J = _n_levels(T, levels)
     _check_alpha_freq(alpha, freq)
-    return wv_from_sums(_sums_checked(arr, J, _Workspace(T, J), "signal"), T, alpha, freq)
+    return wv_from_sums(_sums_checked(arr, J, _Workspace(T, J), "signal"), T, alpha, freq, ci)
 
 
-def wv_from_sums(sums: np.ndarray, T: int, alpha: float = 0.05, freq: float = 1.0
-                 ) -> WaveletVariance:
+def wv_from_sums(sums: np.ndarray, T: int, alpha: float = 0.05, freq: float = 1.0,
+                 ci: str = "mixture") -> WaveletVariance:
     """The WV and its CI from the kernel's sums ``sum_t (2 W_{j,t})**2``, ``j = 1..J``, of a
     signal of ``T`` samples (shared by :func:`wvar` and :mod:`gmwm.stream`)."""
     J = len(sums)
@@ -450,8 +551,9 @@ def wv_from_sums(sums: np.ndarray, T: int, alpha: float = 0.05, freq: float = 1.
     scales = 2.0 ** lev
     n = T - (1 << lev) + 1
     variance = 0.25 * np.asarray(sums, dtype=np.float64) / n
-    low, high = chi2_ci(variance, np.maximum(n / scales, 1.0), alpha)
-    return WaveletVariance(lev, scales, variance, low, high, n, T, freq, alpha)
+    edof, low, high = _wv_ci(ci, variance, scales, n, T, alpha)
+    return WaveletVariance(lev, scales, variance, low, high, n, T, freq, alpha, ci_kind=ci,
+                           ci_edof=edof)
 
 
 def wvar_many(X: Any, levels: int | None = None) -> np.ndarray:
@@ -467,10 +569,11 @@ def wvar_many(X: Any, levels: int | None = None) -> np.ndarray:
     return out
 
 
-def avar(x: Any, levels: int | None = None, alpha: float = 0.05, freq: float = 1.0
-         ) -> AllanVariance:
-    """Maximal-overlap Allan variance at clusters ``m_j = 2**(j-1)``, ``j = 1..J`` (= 2 x WV)."""
-    return AllanVariance.from_wv(wvar(x, levels, alpha, freq))
+def avar(x: Any, levels: int | None = None, alpha: float = 0.05, freq: float = 1.0, *,
+         ci: str = "mixture") -> AllanVariance:
+    """Maximal-overlap Allan variance at clusters ``m_j = 2**(j-1)``, ``j = 1..J`` (= 2 x WV;
+    CI kind ``ci`` as in :func:`wvar`)."""
+    return AllanVariance.from_wv(wvar(x, levels, alpha, freq, ci=ci))
 
 
 # --------------------------------------------------------------------------------------------------
@@ -573,14 +676,15 @@ def haar_coefficients(x: Any, level: int) -> np.ndarray:
 
 
 def wvar_robust(x: Any, levels: int | None = None, alpha: float = 0.05, freq: float = 1.0, *,
-                eff: float = 0.6) -> WaveletVariance:
+                eff: float = 0.6, ci: str = "mixture") -> WaveletVariance:
     """Robust Haar WV: per level, the Tukey-biweight M-estimate of scale of the boundary-free
     MODWT coefficients with Gaussian efficiency ``eff`` (default 0.6; see the notes above this
     function in the source for the estimator, its efficiency and the CI). CI: chi-square with
-    ``eff * eta_3`` edof (conservative for correlated coefficients). Cost: per level 3-5 passes for
+    ``eff`` times the edof of kind ``ci`` (conservative for correlated coefficients). Cost: per level 3-5 passes for
     the M-estimate (Newton) and one for the next averages, 11-17x the classical WV's CPU time
     at T = 1e6-1e7; memory: one copy of the signal.
     """
+    _check_ci(ci)
     arr = _as_signal(x)
     T = arr.shape[0]
     J = _n_levels(T, levels)
@@ -604,6 +708,6 @@ def wvar_robust(x: Any, levels: int | None = None, alpha: float = 0.05, freq: fl
     lev = np.arange(1, J + 1)
     scales = 2.0 ** lev
     counts = T - (1 << lev) + 1
-    edof = eff * np.maximum(counts / scales, 1.0)
-    low, high = chi2_ci(variance, edof, alpha)
-    return WaveletVariance(lev, scales, variance, low, high, counts, T, freq, alpha, float(eff))
+    edof, low, high = _wv_ci(ci, variance, scales, counts, T, alpha, float(eff))
+    return WaveletVariance(lev, scales, variance, low, high, counts, T, freq, alpha, float(eff),
+                           ci_kind=ci, ci_edof=edof)
