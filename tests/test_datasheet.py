@@ -72,14 +72,15 @@ def test_negative_phi_stays_an_ar1_and_zero_component_has_no_time_scale():
     assert ds["GM[1]"]["correlation_time"]["value"] is None
 
 
-def test_delta_method_interval():
+def test_interval_is_the_image_of_the_parameter_interval():
     sigma2, se = 1.25e-3, 1e-5
     res = fake_result("WN", {"WN[1].sigma2": sigma2}, se={"WN[1].sigma2": se})
     e = datasheet(res, "deg/s")["ARW"]
-    # N = 60 sqrt(sigma2 / fs): d log N = d sigma2 / (2 sigma2), interval on the log scale
-    half = 1.959963984540054 * se / (2 * sigma2)
-    assert e["ci95"][0] == pytest.approx(e["value"] * math.exp(-half), rel=1e-5)
-    assert e["ci95"][1] == pytest.approx(e["value"] * math.exp(half), rel=1e-5)
+    # N = 60 sqrt(sigma2 / fs) of the sigma2 interval [sigma2 - z se, sigma2 exp(z se / sigma2)]
+    z = 1.959963984540054
+    n = lambda s2: 60 * math.sqrt(s2 / FS)  # noqa: E731
+    assert e["ci95"][0] == pytest.approx(n(sigma2 - z * se), rel=1e-12)
+    assert e["ci95"][1] == pytest.approx(n(sigma2 * math.exp(z * se / sigma2)), rel=1e-12)
 
 
 def test_generic_unit_labels():
