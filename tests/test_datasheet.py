@@ -78,7 +78,7 @@ def test_interval_is_the_image_of_the_parameter_interval():
     e = datasheet(res, "deg/s")["ARW"]
     # N = 60 sqrt(sigma2 / fs) of the sigma2 interval [sigma2 - z se, sigma2 exp(z se / sigma2)]
     z = 1.959963984540054
-    n = lambda s2: 60 * math.sqrt(s2 / FS)  # noqa: E731
+    n = lambda s2: 60 * math.sqrt(s2 / FS)
     assert e["ci95"][0] == pytest.approx(n(sigma2 - z * se), rel=1e-12)
     assert e["ci95"][1] == pytest.approx(n(sigma2 * math.exp(z * se / sigma2)), rel=1e-12)
 
