@@ -125,3 +125,18 @@ def test_kalibr_yaml_takes_the_largest_axis_in_si():
     assert values["accelerometer_noise_density"] == pytest.approx(1e-3, rel=1e-6)
     assert values["update_rate"] == FS
     assert "# accelerometer_random_walk: not estimated" in text
+
+
+def test_ar1_sigma_interval_is_unbounded_when_phi_may_be_one():
+    # phi's interval reaches 1 (a random walk cannot be excluded): the stationary sigma has no
+    # upper bound; the innovation variance is within 1.96 SE of 0, so the interval starts at 0
+    res = fake_result("AR1", {"AR1[1].phi": 0.9995, "AR1[1].sigma2": 1e-6},
+                      se={"AR1[1].phi": 1e-3, "AR1[1].sigma2": 1e-6})
+    e = datasheet(res)["GM[1]"]
+    assert e["sigma"]["ci95"] == [0.0, math.inf]
+    assert e["correlation_time"]["ci95"][1] == math.inf
+    # inside the domain: the delta method on the stationary variance (positive lower end)
+    res = fake_result("AR1", {"AR1[1].phi": 0.9, "AR1[1].sigma2": 1e-2},
+                      se={"AR1[1].phi": 1e-3, "AR1[1].sigma2": 1e-4})
+    lo, hi = datasheet(res)["GM[1]"]["sigma"]["ci95"]
+    assert 0 < lo < math.sqrt(1e-2 / (1 - 0.81)) < hi < math.inf

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import gmwm
+from gmwm.datasheet import datasheet
 from gmwm.intervals import (
     bootstrap_basic,
     fit_intervals,
@@ -108,6 +109,20 @@ def test_bootstrap_basic_inside_domain():
     assert ci[1, 1] == 1.0                                  # 2 * 0.999 - 0.990 > 1: cut
 
 
+def _datasheet_sizes(ds: dict) -> dict[str, tuple[float, float]]:
+    """Datasheet intervals of each component's size coefficient (ARW, RRW, QN, RR, GM/AR1
+    sigma, SIN amplitude), keyed by the component's scale parameter."""
+    out = {}
+    for entry in ds.values():
+        parts = [entry] if "value" in entry else [v for k, v in entry.items()
+                                                   if k in ("sigma", "amplitude")]
+        for e in parts:
+            name = next(n for n in e["parameters"]
+                        if n.split(".")[1] in ("sigma2", "gamma2", "Q2", "omega", "alpha"))
+            out[name] = tuple(e["ci95"])
+    return out
+
+
 CASES = [
     ("WN+AR1+RW", {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.99, "AR1[1].sigma2": 1e-3,
                    "RW[1].gamma2": 1e-6}, 50),
@@ -124,8 +139,9 @@ CASES = [
 def test_every_end_inside_the_domain(spec, truth, R):
     """Default fits at T = 2^14 (weak RW and near-edge phi on purpose; 235 fits in all): every
     interval end in the closed domain, an interval wherever there is an SE or a boundary
-    component, and a scale interval reaches 0 exactly when the fit warns 'not distinguishable
-    from zero' or puts the component at the boundary."""
+    component, and a scale interval - and the datasheet coefficient of that component -
+    reaches 0 exactly when the fit warns 'not distinguishable from zero' or puts the component
+    at the boundary."""
     m = Model(spec)
     theta0 = m.theta(truth)
     wald_outside = 0
@@ -146,10 +162,15 @@ def test_every_end_inside_the_domain(spec, truth, R):
         weak = next((w for w in res.warnings if "not distinguishable" in w), None)
         weak_names = [] if weak is None else \
             weak.split("component(s) ", 1)[1].split(" not distinguishable")[0].split(", ")
+        sizes = _datasheet_sizes(datasheet(res))
         for c in m.components:
             i = c.start + c.process.scale_index
             flagged = c.name in weak_names or c.name in res.diagnostics["at_boundary"]
             reaches_zero = ci[i, 0] == 0.0 or ci[i, 1] == 0.0
             assert reaches_zero == flagged, (spec, r, c.name, ci[i], res.warnings)
+            # the datasheet coefficient of the component agrees with its parameter
+            lo, hi = sizes[res.param_names[i]]
+            assert (lo == 0.0 or hi == 0.0) == flagged, (spec, r, c.name, (lo, hi), ci[i])
+            assert lo <= hi
     if spec in ("WN+AR1+RW", "WN+RW", "WN+AR1"):
         assert wald_outside > 0   # the case the rule exists for

@@ -268,12 +268,26 @@ def datasheet(result: Any, units: str | None = None, alpha: float = 0.05) -> dic
             return max(t[1], 0.0) / max(1.0 - t[0] ** 2, 1e-300)
 
         reaches_zero = ci_all[i_s2, 0] == 0.0
+        phi_lo, phi_hi = ci_all[idx[0]]
         cov = _fit_cov(result, idx)
         ci = (float("nan"), float("nan"))
-        if cov is not None and np.all(np.isfinite(cov)):
+        cov_ok = cov is not None and bool(np.all(np.isfinite(cov)))
+        if cov_ok and -1.0 < phi_lo and phi_hi < 1.0:
             ci = function_interval(var, theta, cov, alpha, weak=bool(reaches_zero))
-        elif reaches_zero:  # at the boundary 0: the variance's interval at the reported phi
+        elif not cov_ok and reaches_zero:
+            # at the boundary 0 (no covariance): the variance's interval at the reported phi
             ci = image_interval(lambda s2: var(np.array([theta[0], s2])), ci_all[i_s2])
+        if math.isnan(ci[0]) and not np.isnan(ci_all[i_s2]).any():
+            # phi's interval reaches +-1 (the linearisation fails there) or the delta method
+            # failed: the image of the box of the two intervals (the stationary variance grows
+            # with sigma2 and |phi|), unbounded above when phi may be +-1
+            if np.isnan([phi_lo, phi_hi]).any():
+                phi_lo = phi_hi = theta[0]
+            p2_lo = 0.0 if phi_lo <= 0.0 <= phi_hi else min(phi_lo**2, phi_hi**2)
+            p2_hi = max(phi_lo**2, phi_hi**2)
+            s2_lo, s2_hi = ci_all[i_s2]
+            lo = s2_lo / (1.0 - p2_lo) if p2_lo < 1.0 else (0.0 if s2_lo == 0 else math.inf)
+            ci = (lo, s2_hi / (1.0 - p2_hi) if p2_hi < 1.0 else math.inf)
         ci = image_interval(lambda v: factor * math.sqrt(v), ci)
         return _entry(factor * math.sqrt(var(theta)), label, ci, [names[i] for i in idx])
 
