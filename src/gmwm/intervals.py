@@ -25,15 +25,16 @@ The rule, per parameter (``z = z_{1-alpha/2}``; which parameter is a component's
 So an interval reaches 0 exactly when the estimate is within ``z`` standard errors of 0, which
 is what the fit's "not distinguishable from zero" warning says (at alpha = 0.05, the same test:
 :func:`is_weak`), and every interval contains the Wald interval cut to the domain, so it never
-covers less. Why (``benchmarks/bench_intervals.py``, coverage on 300 fits per model): a variance
-estimated from a few long scales is right-skewed with an SE that grows with the estimate, and
-Wald's upper end misses it (a random walk at 3 SE: Wald 0.88, log scale 0.95); where the SE is
-set by the other components the estimate is close to normal and the log scale's lower end is
-too high (a Gauss-Markov variance at 3 SE: Wald 0.98, log scale 0.93). The union of the two
-keeps the better side of each. Near 0 the skew is strongest: a random walk at 1.5-2.5 SE was
-covered by the Wald upper end in 0.87-0.89 of the fits, by the continued one in 0.96-0.97. The shape estimates are not log-normal: in the same run a
-log-scale interval for GM beta and an atanh-scale interval for an AR1 phi near 1 both lost
-coverage (0.93 and 0.88 against Wald's 0.97 and 0.98).
+covers less. Why (``benchmarks/bench_intervals.py``, coverage on 300 fits per model; the
+log-scale-only figures from an earlier run of it with that rule): a variance estimated from a
+few long scales is right-skewed with an SE that grows with the estimate, and Wald's upper end
+misses it (a random walk at 3 SE: Wald 0.88, log scale 0.95); where the SE is set by the other
+components the estimate is close to normal and the log scale's lower end is too high (a
+Gauss-Markov variance at 3 SE: Wald 0.98, log scale 0.93). The union of the two keeps the
+better side of each. Near 0 the skew is strongest: random walks at 1.5-2.5 SE were covered by
+Wald in 0.87-0.90 of the fits, by the rule in 0.96-0.97. The shape estimates are not
+log-normal: in the earlier run a log-scale interval for GM beta and an atanh-scale interval for
+an AR1 phi near 1 both lost coverage (0.93 and 0.88 against Wald's 0.97 and 0.98).
 
 Datasheet coefficients that are monotone functions of one parameter (ARW, RRW, QN, RR, GM
 correlation time and sigma, SIN frequency and amplitude) take the image of that parameter's

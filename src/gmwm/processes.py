@@ -12,8 +12,8 @@ Everything else the library knows about one process lives on its class, so no ot
 branches on process names: the variable-projection coordinates of the estimator's search
 (:meth:`Process.shape_bounds`, :meth:`Process.unit_wv_columns`, :meth:`Process.from_vp`,
 :meth:`Process.shape_of`), the primitive form the WV covariance and the fast simulator work with
-(:meth:`Process.primitive`), which parameters are positive, each parameter's domain (the one
-confidence intervals keep to, :attr:`Process.domain`) and the process's own diagnostics
+(:meth:`Process.primitive`), each parameter's domain (the one estimates and confidence intervals
+keep to, :attr:`Process.domain`) and the process's own diagnostics
 (:meth:`Process.fit_warnings`, :meth:`Process.degeneracies`, thresholds in
 :mod:`gmwm.diagnostics`).
 """
@@ -149,12 +149,6 @@ class Process:
     def order_key(self, p: np.ndarray, freq: float = 1.0) -> float:
         """Key sorting same-type components by the time scale they act on, shortest first."""
         return 0.0
-
-    #: Per parameter: its estimates live in [0, inf) (variances, amplitudes, rates; DR omega
-    #: too: the WV identifies only |omega| and fits report omega >= 0 unless a signal says more).
-    @property
-    def positive(self) -> tuple[bool, ...]:
-        return (True,) * self.n_params
 
     #: True if the sign of the parameters is not identified by the WV (DR: taken from the signal).
     signed: bool = False
@@ -472,7 +466,6 @@ class AR1(_AR1Like):
     name = "AR1"
     param_names = ("phi", "sigma2")
     free_kinds = ("phi", "log")
-    positive = (False, True)
     domain = ((-1.0, 1.0), (0.0, math.inf))
 
     def free_limits(self):
@@ -629,7 +622,6 @@ class Sinusoid(Process):
     name = "SIN"
     param_names = ("alpha", "beta")
     free_kinds = ("log", "pi")
-    positive = (True, False)
     domain = ((0.0, math.inf), (0.0, math.pi))
     oscillating = True
     pair_rel = dg.PAIR_REL_SIN
