@@ -22,7 +22,7 @@ from scipy.special import ndtri
 from scipy.stats import binomtest
 
 import gmwm
-from gmwm.intervals import fit_intervals, param_kinds
+from gmwm.intervals import fit_intervals, param_domains
 from gmwm.model import Model
 
 HERE = Path(__file__).resolve().parent
@@ -33,6 +33,12 @@ CASES: dict[str, tuple[str, dict[str, float], int, float, dict[str, float]]] = {
                           2**15, 1.0, {"RW[1]": 2.0}),
     "WN+RW, RW z=1": ("WN+RW", {"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-6}, 2**15, 1.0,
                       {"RW[1]": 1.0}),
+    "WN+RW, RW z=1.5": ("WN+RW", {"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-6}, 2**15, 1.0,
+                        {"RW[1]": 1.5}),
+    "WN+RW, RW z=2": ("WN+RW", {"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-6}, 2**15, 1.0,
+                      {"RW[1]": 2.0}),
+    "WN+RW, RW z=2.5": ("WN+RW", {"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-6}, 2**15, 1.0,
+                        {"RW[1]": 2.5}),
     "WN+RW, RW z=3": ("WN+RW", {"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-6}, 2**15, 1.0,
                       {"RW[1]": 3.0}),
     "QN+WN+RW+DR": ("QN+WN+RW+DR", {"QN[1].Q2": 1.0, "WN[1].sigma2": 1.0,
@@ -54,9 +60,8 @@ def wald(params: np.ndarray, se: np.ndarray, alpha: float = 0.05) -> np.ndarray:
 
 
 def domain(model: Model) -> np.ndarray:
-    """(p, 2) closed domain of each parameter."""
-    dom = {"log": (0.0, np.inf), "phi": (-1.0, 1.0), "pi": (0.0, np.pi)}
-    return np.array([dom[k] for k in param_kinds(model)])
+    """(p, 2) closed domain of each parameter (the processes' ``domain``)."""
+    return param_domains(model)
 
 
 def truncated(model: Model, ci: np.ndarray) -> np.ndarray:

@@ -41,10 +41,10 @@ from pathlib import Path
 
 import numpy as np
 
-from gmwm.criteria import CRITERIA, rerank
+from gmwm.criteria import CRITERIA
 from gmwm.inference import Problem, model_wv_cov, weight_matrix
 from gmwm.model import Model, parse_model
-from gmwm.select import auto_candidates, rank_models
+from gmwm.select import auto_candidates, rank_models, rerank
 from gmwm.wv import WaveletVariance, wvar
 
 HERE = Path(__file__).resolve().parent

@@ -101,10 +101,12 @@ def test_cis_ses_tables_and_efficient_fit(wn_ar1_fit):
     q = boot.quantiles()
     pc, bc = boot.percentile_ci(), boot.basic_ci()
     np.testing.assert_allclose(pc, q)
-    # basic intervals: on the log scale for positive parameters (never below 0), plain for phi
+    # basic intervals: on the log scale for scale parameters (never below 0), plain for phi
+    # (cut to [-1, 1])
     th = wn_ar1_fit.params
     phi = wn_ar1_fit.param_names.index("AR1[1].phi")
-    np.testing.assert_allclose(bc[phi], [2 * th[phi] - q[phi, 1], 2 * th[phi] - q[phi, 0]])
+    np.testing.assert_allclose(bc[phi], [2 * th[phi] - q[phi, 1],
+                                         min(2 * th[phi] - q[phi, 0], 1.0)])
     pos = [i for i in range(th.size) if i != phi]
     np.testing.assert_allclose(bc[pos], np.column_stack([th[pos] ** 2 / q[pos, 1],
                                                          th[pos] ** 2 / q[pos, 0]]))
@@ -206,12 +208,39 @@ def test_coverage_wilson_interval_never_degenerates():
 
 def test_basic_interval_of_a_boundary_estimate_stays_in_the_domain():
     # white noise fitted with WN+RW: the RW variance is estimated at exactly 0, where the log
-    # form theta^2 / q does not exist and 2 theta - q would be negative: percentile instead
+    # form theta^2 / q does not exist and 2 theta - q would be negative: [0, q_hi] instead
     x = np.random.default_rng(5).standard_normal(2**14)
     res = gmwm.fit(gmwm.wvar(x), "WN+RW")
     assert res.params[1] == 0.0
     boot = bs.parametric_bootstrap(res, 20, seed=1)
     q, bc = boot.quantiles(), boot.basic_ci()
     assert q[1, 1] > 0
-    np.testing.assert_array_equal(bc[1], q[1])
+    np.testing.assert_array_equal(bc[1], [0.0, q[1, 1]])
     assert np.all(bc >= 0)
+
+
+@pytest.mark.parametrize("spec, truth, freq", [
+    ("WN+AR1", {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.9995, "AR1[1].sigma2": 1e-5}, 1.0),
+    ("WN+RW", {"WN[1].sigma2": 1.0, "RW[1].gamma2": 2e-7}, 1.0),
+    ("QN+WN+RW+DR", {"QN[1].Q2": 1.0, "WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-5,
+                     "DR[1].omega": -2e-4}, 1.0),
+    ("WN+AR1+SIN", {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.9, "AR1[1].sigma2": 0.1,
+                    "SIN[1].alpha": 0.4, "SIN[1].beta": 3.0}, 1.0),
+    ("WN+GM", {"WN[1].sigma2": 1e-4, "GM[1].beta": 0.05, "GM[1].sigma2": 1e-6}, 100.0),
+])
+def test_bootstrap_intervals_stay_in_the_domain(spec, truth, freq):
+    """Percentile and basic intervals inside the parameter space (phi near 1, a weak RW, a
+    negative drift, a SIN near Nyquist, a slow GM), at two levels."""
+    from gmwm.intervals import param_domains
+
+    m = Model(spec, freq)
+    x = m.simulate(m.theta(truth), 2**12, np.random.default_rng(11))
+    res = gmwm.fit(x, m, freq=freq, n_starts=2)
+    boot = bs.parametric_bootstrap(res, 12, seed=3, n_starts=1)
+    dom = param_domains(m, res.params)
+    for alpha in (0.05, 0.32):
+        for ci in (boot.percentile_ci(alpha), boot.basic_ci(alpha)):
+            ok = np.all(np.isfinite(ci), axis=1)
+            assert ok.any()
+            assert np.all(ci[ok, 0] >= dom[ok, 0]) and np.all(ci[ok, 1] <= dom[ok, 1]), (ci, dom)
+            assert np.all(ci[ok, 0] <= ci[ok, 1])

@@ -72,14 +72,15 @@ def test_negative_phi_stays_an_ar1_and_zero_component_has_no_time_scale():
     assert ds["GM[1]"]["correlation_time"]["value"] is None
 
 
-def test_delta_method_interval():
+def test_interval_is_the_image_of_the_parameter_interval():
     sigma2, se = 1.25e-3, 1e-5
     res = fake_result("WN", {"WN[1].sigma2": sigma2}, se={"WN[1].sigma2": se})
     e = datasheet(res, "deg/s")["ARW"]
-    # N = 60 sqrt(sigma2 / fs): d log N = d sigma2 / (2 sigma2), interval on the log scale
-    half = 1.959963984540054 * se / (2 * sigma2)
-    assert e["ci95"][0] == pytest.approx(e["value"] * math.exp(-half), rel=1e-5)
-    assert e["ci95"][1] == pytest.approx(e["value"] * math.exp(half), rel=1e-5)
+    # N = 60 sqrt(sigma2 / fs) of the sigma2 interval [sigma2 - z se, sigma2 exp(z se / sigma2)]
+    z = 1.959963984540054
+    n = lambda s2: 60 * math.sqrt(s2 / FS)
+    assert e["ci95"][0] == pytest.approx(n(sigma2 - z * se), rel=1e-12)
+    assert e["ci95"][1] == pytest.approx(n(sigma2 * math.exp(z * se / sigma2)), rel=1e-12)
 
 
 def test_generic_unit_labels():
@@ -108,3 +109,18 @@ def test_allan_readings_without_random_walk_region():
     r = allan_readings(avar(x, freq=10.0), "deg/s")
     assert r["K"]["value"] is None and "slope +0.5" in r["K"]["note"]
     assert r["N"]["unit"] == "deg/sqrt(h)" and r["B"]["unit"] == "deg/h"
+
+
+def test_ar1_sigma_interval_is_unbounded_when_phi_may_be_one():
+    # phi's interval reaches 1 (a random walk cannot be excluded): the stationary sigma has no
+    # upper bound; the innovation variance is within 1.96 SE of 0, so the interval starts at 0
+    res = fake_result("AR1", {"AR1[1].phi": 0.9995, "AR1[1].sigma2": 1e-6},
+                      se={"AR1[1].phi": 1e-3, "AR1[1].sigma2": 1e-6})
+    e = datasheet(res)["GM[1]"]
+    assert e["sigma"]["ci95"] == [0.0, math.inf]
+    assert e["correlation_time"]["ci95"][1] == math.inf
+    # inside the domain: the delta method on the stationary variance (positive lower end)
+    res = fake_result("AR1", {"AR1[1].phi": 0.9, "AR1[1].sigma2": 1e-2},
+                      se={"AR1[1].phi": 1e-3, "AR1[1].sigma2": 1e-4})
+    lo, hi = datasheet(res)["GM[1]"]["sigma"]["ci95"]
+    assert 0 < lo < math.sqrt(1e-2 / (1 - 0.81)) < hi < math.inf

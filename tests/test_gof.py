@@ -47,7 +47,7 @@ def _pvalues(spec: str, truth: dict, T: int, R: int, seed: int) -> np.ndarray:
     out = []
     for r in range(R):
         x = m.simulate_fast(theta, T, np.random.default_rng([seed, r]))
-        out.append(gof_test(gmwm.fit(x, m)).p_value)
+        out.append(gmwm.fit(x, m).gof.p_value)
     return np.array(out)
 
 
@@ -71,7 +71,7 @@ def test_power_against_clear_misspecification():
     rejected = 0
     for r in range(10):
         x = m.simulate_fast(theta, 2**14, np.random.default_rng([43, r]))
-        rejected += gof_test(gmwm.fit(x, "WN+RW")).rejected()
+        rejected += gmwm.fit(x, "WN+RW").gof.rejected()
     assert rejected == 10
     m = Model("QN+WN+RW+DR")
     theta = calibrate(m, m.theta({"QN[1].Q2": 1.0, "WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-4,
@@ -80,7 +80,7 @@ def test_power_against_clear_misspecification():
     for r in range(10):
         x = m.simulate_fast(theta, 2**14, np.random.default_rng([44, r]))
         res = gmwm.fit(x, "QN+WN+RW")
-        p_test.append(gof_test(res).p_value)
+        p_test.append(res.gof.p_value)
         p_obj.append(objective_test(res)[2])
     # the long scales the CI weights ignore: the test sees the drift, the objective does not
     assert np.mean(np.array(p_test) < 0.05) >= 0.7
@@ -91,8 +91,8 @@ def test_ramp_fitted_as_white_noise_is_rejected():
     rng = np.random.default_rng(0)
     x = rng.standard_normal(2**15) + 1e-3 * np.arange(2**15)
     res = gmwm.fit(x, "WN")
-    assert res.converged   # the fit itself reports nothing wrong
-    g = gof_test(res)
+    assert res.converged   # the optimiser reports nothing wrong
+    g = res.gof
     assert g.rejected() and g.p_value < 1e-10
     w = g.warning()
     assert w is not None and "rejected" in w
@@ -109,11 +109,11 @@ def test_boundary_component_counts_as_held_and_no_df():
     x = m.simulate(m.theta(AR1_RW), 2**15, np.random.default_rng(3))
     res = gmwm.fit(x, m)
     assert res.diagnostics["at_boundary"] == ["RW[1]"]   # this seed puts the RW at 0
-    g = gof_test(res)
+    g = res.gof
     assert g.df == res.wv.n_levels - 3 and 0 < g.p_value <= 1
     # as many parameters as scales: not testable, said so
     wv = gmwm.wvar(x, levels=2)
-    g0 = gof_test(gmwm.fit(wv, "WN+RW"))
+    g0 = gmwm.fit(wv, "WN+RW").gof
     assert g0.df == 0 and np.isnan(g0.p_value) and not g0.rejected()
     assert "not testable" in g0.line()
 
@@ -122,9 +122,47 @@ def test_efficient_weights_and_armav():
     m = Model("WN+AR1+RW")
     x = m.simulate(m.theta(AR1_RW), 2**15, np.random.default_rng(5))
     for kw in ({"weights": "efficient"}, {"method": "armav"}):
-        g = gof_test(gmwm.fit(x, m, **kw))
+        g = gmwm.fit(x, m, **kw).gof
         assert 0.01 < g.p_value <= 1 and g.df >= res_df(m, x)
 
 
 def res_df(m: Model, x: np.ndarray) -> int:
     return gmwm.wvar(x).n_levels - m.n_params
+
+
+def test_fit_carries_the_test_on_every_surface():
+    """gmwm.fit computes the test (the same as gof_test on the result); a rejected model is a
+    warning in res.warnings, summary() and to_json_dict(), with the per-scale residuals."""
+    import json
+
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal(2**14) + 1e-3 * np.arange(2**14)
+    res = gmwm.fit(x, "WN")
+    g = gof_test(res)
+    assert (res.gof.statistic, res.gof.df, res.gof.p_value) == (g.statistic, g.df, g.p_value)
+    w = res.gof.warning()
+    assert w in res.warnings and w in res.diagnostics["warnings"]
+    text = res.summary()
+    assert res.gof.line() in text and f"warning: {w}" in text
+    d = json.loads(json.dumps(res.to_json_dict(), allow_nan=False))
+    assert d["gof"]["rejected"] is True and d["gof"]["df"] == res.wv.n_levels - 1
+    assert len(d["gof"]["residuals"]) == res.wv.n_levels and w in d["warnings"]
+    # an accepted model: no warning, the line says p
+    ok = gmwm.fit(rng.standard_normal(2**14), "WN")
+    assert not ok.gof.rejected() and not any("goodness" in v for v in ok.warnings)
+    assert "goodness of fit: statistic" in ok.summary()
+
+
+def test_which_covariance_the_fit_s_test_uses():
+    m = Model("WN+AR1+RW")
+    x = m.simulate(m.theta(AR1_RW), 2**13, np.random.default_rng(9))
+    fast = gmwm.fit(x, m, se_cov="gaussian", n_starts=1)
+    assert fast.gof is None                      # the bootstrap's path: not computed
+    model_based = gmwm.fit(x, m, n_starts=1)
+    assert gof_test(fast).statistic == pytest.approx(model_based.gof.statistic, rel=1e-6)
+    V = 1.5 * model_based.wv_cov                 # a user covariance: taken as given
+    for kw in ({"weights": V}, {"se_cov": V}):
+        res = gmwm.fit(x, m, n_starts=1, **kw)
+        assert res.gof.statistic == gof_test(res, V).statistic
+    rob = gmwm.fit(x, m, robust=True, n_starts=1)   # the classical covariance / efficiency, once
+    assert rob.gof.statistic == gof_test(rob, rob.wv_cov / rob.wv.efficiency).statistic

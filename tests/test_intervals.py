@@ -10,14 +10,16 @@ import numpy as np
 import pytest
 
 import gmwm
+from gmwm.datasheet import datasheet
 from gmwm.intervals import (
     bootstrap_basic,
     fit_intervals,
     function_interval,
     image_interval,
     is_weak,
+    param_domains,
     param_intervals,
-    param_kinds,
+    scale_interval,
 )
 from gmwm.model import Model
 
@@ -36,8 +38,8 @@ def test_rule_by_kind():
     assert ci[0, 1] == pytest.approx(math.exp(Z * 0.01)) and ci[0, 1] > 1 + Z * 0.01
     # phi: Wald cut at 1
     assert ci[1, 0] == pytest.approx(0.9995 - Z * 0.001) and ci[1, 1] == 1.0
-    # weak variance: reaches 0, Wald upper end
-    assert ci[2, 0] == 0.0 and ci[2, 1] == pytest.approx(1e-4 + Z * 1e-4)
+    # weak variance: reaches 0, the log-scale upper end continued linearly from z se = estimate
+    assert ci[2, 0] == 0.0 and ci[2, 1] == pytest.approx(1e-4 + (math.e - 1) * Z * 1e-4)
     assert ci[5, 0] == 0.0
     # SIN beta cut at pi
     assert ci[4, 1] == pytest.approx(math.pi)
@@ -49,6 +51,21 @@ def test_rule_by_kind():
     weak = is_weak(theta, se)
     for i in scale:
         assert (ci[i, 0] == 0.0) == bool(weak[i]) or (theta[i] < 0 and ci[i, 1] == 0) == weak[i]
+
+
+def test_scale_ends_move_continuously_and_nest_in_alpha():
+    # across the weak/strong switch (estimate = z se) the ends are continuous in the estimate,
+    # and for every estimate the 95 % interval contains the 90 % one (no jump at the switch)
+    s = 1.0
+    for z in (Z, 1.6448536269514722):
+        below, above = scale_interval(z * s * (1 - 1e-9), s, z), scale_interval(z * s, s, z)
+        assert below[1] == pytest.approx(above[1], rel=1e-8) and above[1] == pytest.approx(
+            math.e * z * s)
+        assert below[0] == 0.0 and above[0] == 0.0
+    for a in np.linspace(0.0, 5.0, 201):
+        w, n = scale_interval(a, s, Z), scale_interval(a, s, 1.6448536269514722)
+        assert w[0] <= n[0] <= a <= n[1] <= w[1]
+        assert w[1] >= a + Z * s and w[0] == max(a - Z * s, 0.0)   # contains Wald cut at 0
 
 
 def test_boundary_component_and_missing_se():
@@ -85,12 +102,25 @@ def test_bootstrap_basic_inside_domain():
     est = np.array([1.0, 0.999, 1e-3, 0.2, 3.0])
     q = np.array([[0.95, 1.04], [0.990, 0.9999], [0.0, 3e-3], [0.15, 0.26], [2.9, 3.14]])
     ci = bootstrap_basic(m, est, q)
-    dom = {"log": (0, np.inf), "phi": (-1, 1), "pi": (0, np.pi)}
-    for (lo, hi), kind in zip(ci, param_kinds(m), strict=True):
-        assert dom[kind][0] <= lo <= hi <= dom[kind][1]
+    for (lo, hi), (d_lo, d_hi) in zip(ci, param_domains(m), strict=True):
+        assert d_lo <= lo <= hi <= d_hi
     assert ci[0] == pytest.approx([1 / 1.04, 1 / 0.95])   # log-scale basic interval
     assert tuple(ci[2]) == (0.0, 3e-3)                      # refits at 0: percentile, from 0
     assert ci[1, 1] == 1.0                                  # 2 * 0.999 - 0.990 > 1: cut
+
+
+def _datasheet_sizes(ds: dict) -> dict[str, tuple[float, float]]:
+    """Datasheet intervals of each component's size coefficient (ARW, RRW, QN, RR, GM/AR1
+    sigma, SIN amplitude), keyed by the component's scale parameter."""
+    out = {}
+    for entry in ds.values():
+        parts = [entry] if "value" in entry else [v for k, v in entry.items()
+                                                   if k in ("sigma", "amplitude")]
+        for e in parts:
+            name = next(n for n in e["parameters"]
+                        if n.split(".")[1] in ("sigma2", "gamma2", "Q2", "omega", "alpha"))
+            out[name] = tuple(e["ci95"])
+    return out
 
 
 CASES = [
@@ -109,35 +139,38 @@ CASES = [
 def test_every_end_inside_the_domain(spec, truth, R):
     """Default fits at T = 2^14 (weak RW and near-edge phi on purpose; 235 fits in all): every
     interval end in the closed domain, an interval wherever there is an SE or a boundary
-    component, and a scale interval reaches 0 exactly when the fit warns 'not distinguishable
-    from zero' or puts the component at the boundary."""
+    component, and a scale interval - and the datasheet coefficient of that component -
+    reaches 0 exactly when the fit warns 'not distinguishable from zero' or puts the component
+    at the boundary."""
     m = Model(spec)
     theta0 = m.theta(truth)
-    dom = {"log": (0.0, np.inf), "phi": (-1.0, 1.0), "pi": (0.0, np.pi)}
-    kinds = param_kinds(m)
     wald_outside = 0
     for r in range(R):
         x = m.simulate_fast(theta0, 2**14, np.random.default_rng([31, r]))
         res = gmwm.fit(x, m)
         ci = fit_intervals(res)
-        for i, kind in enumerate(kinds):
+        np.testing.assert_array_equal(res.conf_int(), ci)
+        dom = param_domains(m, res.params)   # DR omega carries the signal's sign
+        for i in range(m.n_params):
             lo, hi = ci[i]
             if np.isnan(lo):
                 assert not np.isfinite(res.se[i]), (spec, r, res.param_names[i])
                 continue
-            d_lo, d_hi = dom[kind]
-            if res.param_names[i].startswith("DR") and res.params[i] < 0:
-                d_lo, d_hi = -d_hi, 0.0   # DR omega carries the signal's sign
-            assert d_lo <= lo <= hi <= d_hi, (spec, r, res.param_names[i], ci[i])
+            assert dom[i, 0] <= lo <= hi <= dom[i, 1], (spec, r, res.param_names[i], ci[i])
             w = (res.params[i] - Z * res.se[i], res.params[i] + Z * res.se[i])
-            wald_outside += int(w[0] < dom[kind][0]) + int(w[1] > dom[kind][1])
+            wald_outside += int(w[0] < dom[i, 0]) + int(w[1] > dom[i, 1])
         weak = next((w for w in res.warnings if "not distinguishable" in w), None)
         weak_names = [] if weak is None else \
             weak.split("component(s) ", 1)[1].split(" not distinguishable")[0].split(", ")
+        sizes = _datasheet_sizes(datasheet(res))
         for c in m.components:
             i = c.start + c.process.scale_index
             flagged = c.name in weak_names or c.name in res.diagnostics["at_boundary"]
             reaches_zero = ci[i, 0] == 0.0 or ci[i, 1] == 0.0
             assert reaches_zero == flagged, (spec, r, c.name, ci[i], res.warnings)
+            # the datasheet coefficient of the component agrees with its parameter
+            lo, hi = sizes[res.param_names[i]]
+            assert (lo == 0.0 or hi == 0.0) == flagged, (spec, r, c.name, (lo, hi), ci[i])
+            assert lo <= hi
     if spec in ("WN+AR1+RW", "WN+RW", "WN+AR1"):
         assert wald_outside > 0   # the case the rule exists for

@@ -268,3 +268,23 @@ def test_corner_plot_log_coordinates_for_scale_parameters():
     assert ax.get_xlabel() == r"log10 $\varsigma^2$"
     assert fig.axes[2].get_xlabel() == r"$\phi$"  # phi stays linear
     assert fig.axes[2].get_ylabel() == r"log10 $\varsigma^2$"
+
+
+def test_plot_wv_marks_the_scales_a_rejected_model_misses():
+    import gmwm
+
+    model = gmwm.Model("WN+AR1")
+    x = model.simulate(model.theta({"WN[1].sigma2": 1.0, "AR1[1].phi": 0.99,
+                                    "AR1[1].sigma2": 2e-3}), 2**13, np.random.default_rng(2))
+    wrong = gmwm.fit(x, "WN")
+    assert wrong.gof.rejected()
+    ax = wrong.plot()
+    rings = [ln for ln in ax.get_lines() if ln.get_gid() == "gof_miss"]
+    u = np.asarray(wrong.gof.residuals)
+    assert len(rings) == 1 and len(rings[0].get_xdata()) == int(np.sum(np.abs(u) > 2))
+    labels = [t.get_text() for t in ax.texts if t.get_gid() == "gof_miss_label"]
+    assert labels == [f"{v:+.1f}" for v in u[np.abs(u) > 2]]
+    assert "rejected" in ax.get_legend().get_title().get_text()
+    right = gmwm.fit(x, model)
+    ax = right.plot(residuals=False)
+    assert not [ln for ln in ax.get_lines() if ln.get_gid() == "gof_miss"]

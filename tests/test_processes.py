@@ -245,3 +245,19 @@ def test_simulate_fast_sinusoid_drift_and_reproducibility():
         m.simulate_fast(theta, 0, 3)
     with pytest.raises(ModelError, match="alpha"):
         m.simulate_fast(np.array([-1.0, 1e-3, 1.0]), 10, 3)
+
+
+def test_every_process_states_its_domain():
+    import math
+
+    from gmwm.processes import PROCESSES
+
+    for name, proc in PROCESSES.items():
+        dom = proc.domain
+        assert len(dom) == proc.n_params, name
+        assert all(lo < hi for lo, hi in dom), name
+        i = proc.scale_index
+        assert dom[i] == (0.0, math.inf), name    # a scale parameter (|omega| for DR) >= 0
+    assert PROCESSES["AR1"].domain[0] == (-1.0, 1.0)
+    assert PROCESSES["SIN"].domain[1] == (0.0, math.pi)
+    assert PROCESSES["GM"].domain[0] == (0.0, math.inf)

@@ -134,3 +134,22 @@ def test_a_file_of_the_earlier_settings_layout_still_reads(signal, fitted):
     back = result_from_dict(json.loads(json.dumps(d, allow_nan=False)))
     assert back.settings == user.settings
     np.testing.assert_array_equal(back.params, user.params, strict=True)
+
+
+def test_a_file_without_the_gof_field_still_reads(fitted):
+    # written before fits carried their goodness-of-fit test: read with gof None
+    d = result_to_dict(fitted)
+    assert d["gof"] is not None
+    del d["gof"]
+    back = result_from_dict(json.loads(json.dumps(d, allow_nan=False)))
+    assert back.gof is None
+    np.testing.assert_array_equal(back.params, fitted.params, strict=True)
+
+
+def test_the_gof_test_round_trips(fitted):
+    back = result_from_dict(json.loads(json.dumps(result_to_dict(fitted), allow_nan=False)))
+    for name in ("statistic", "df", "p_value", "objective", "freq", "method", "notes"):
+        assert getattr(back.gof, name) == getattr(fitted.gof, name)
+    for name in ("eigenvalues", "residuals", "scales"):
+        np.testing.assert_array_equal(getattr(back.gof, name), getattr(fitted.gof, name),
+                                      strict=True)

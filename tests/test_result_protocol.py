@@ -52,6 +52,16 @@ def test_a_component_at_the_boundary_has_nan_se_and_no_interval():
     check_result(res)
 
 
+def test_a_rejected_model_and_a_fit_without_the_test(wn_ar1):
+    m, x = wn_ar1
+    wrong = gmwm.fit(x, "WN")   # the AR1 left out: rejected, a warning on every surface
+    assert wrong.gof is not None and wrong.gof.rejected()
+    check_result(wrong)
+    fast = gmwm.fit(x, m, se_cov="gaussian", n_starts=1)   # the bootstrap's fast path
+    assert fast.gof is None and "not computed" in fast.summary()
+    check_result(fast)
+
+
 def test_a_result_read_back_from_its_file(gmwm_fit):
     check_result(result_from_dict(result_to_dict(gmwm_fit)))
 

@@ -74,16 +74,17 @@ def test_auto_candidates_bounded_and_complete() -> None:
 
 def test_rank_picks_generating_linear_model() -> None:
     """WN+RW at T = 2^14 among six linear candidates: 30 of 30 seeds picked WN+RW (WIC-log; WIC
-    too)."""
+    too). The default criterion is WIC (k = 2)."""
     cands = ["WN", "RW", "WN+RW", "QN+WN+RW", "WN+RW+DR", "QN+WN"]
     for seed in range(4):
         ranking = rank_models(_signal(seed), cands)
         assert ranking.best.model == "WN+RW"
         crit = [e.criterion for e in ranking.ranked]
         assert crit == sorted(crit)
-        assert ranking.criterion == "wic-log"
+        assert ranking.criterion == "wic" and ranking.factor == 2.0
         for e in ranking.ranked:
-            assert e.criterion == pytest.approx(e.objective + np.log(2**14) * e.penalty)
+            assert e.criterion == pytest.approx(e.objective + 2.0 * e.penalty)
+        assert rerank(ranking, "wic-log").best.model == "WN+RW"
 
 
 def test_rank_picks_ar1_over_rw() -> None:
@@ -103,8 +104,8 @@ def test_superset_with_a_zero_component_ties_and_loses() -> None:
     top = ranking.ranked
     if top[1].objective == pytest.approx(top[0].objective, rel=1e-7):
         assert top[0].model == "WN+RW"
-    other = rerank(ranking, "wic")
-    assert other.best.model == "WN+RW" and other.factor == 2.0
+    other = rerank(ranking, "wic-log")
+    assert other.best.model == "WN+RW" and other.factor == pytest.approx(np.log(2**14))
     for e in other.ranked:
         assert e.criterion == pytest.approx(e.objective + other.factor * e.penalty)
 

@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gmwm.criteria import CRITERIA, DEFAULT, factor, near_ties, ranking_notes, rerank
+from gmwm.criteria import CRITERIA, DEFAULT, factor, near_ties, ranking_notes
 from gmwm.errors import InputError
-from gmwm.select import rank_models
+from gmwm.select import rank_models, rerank, select_model
 from gmwm.wv import wvar
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -66,7 +66,9 @@ def test_ranking_notes_name_the_disagreement():
     s = next(x for x in bs.settings() if x.label == "WN+RW, RW z=3")
     model, theta = s.truth(2**14)
     x = model.simulate_fast(theta, 2**14, np.random.default_rng(7))
-    ranking = rerank(rank_models(wvar(x), ["WN", "WN+RW", "WN+RW+DR"]), DEFAULT)
+    ranking = rank_models(wvar(x), ["WN", "WN+RW", "WN+RW+DR"])
+    assert ranking.criterion == DEFAULT == "wic" and ranking.factor == 2.0
+    assert rerank(ranking, "wic-log").factor == pytest.approx(14 * math.log(2))
     notes = ranking_notes(ranking, tol=1e9)          # every other model counted as a tie
     assert len(notes) == 2
     best = ranking.ranked[0].model
@@ -77,3 +79,32 @@ def test_ranking_notes_name_the_disagreement():
     assert "adds DR" in dr
     # with the default tolerance WN is not a tie of WN+RW here (its RW is at ~3 SE)
     assert all(e.model != "WN" for e in near_ties(ranking))
+
+
+def test_ranking_output_carries_the_notes():
+    """A weak random walk (about 1.5 SE): WN and WN+RW are near ties; the ranking's text and
+    JSON say so and name the RW with its z-value; select_model uses the default criterion."""
+    import json
+
+    s = next(x for x in bs.settings() if x.label == "WN+RW, RW z=3")
+    model, theta = s.truth(2**14)
+    theta = theta.copy()
+    theta[1] /= 4.0   # RW at about 3/4 x 2 = 1.5 SE: the criteria disagree within ~2 chi2
+    found = None
+    for seed in range(8):
+        x = model.simulate_fast(theta, 2**14, np.random.default_rng([8, seed]))
+        ranking = rank_models(wvar(x), ["WN", "WN+RW"])
+        if ranking.notes:
+            found = ranking
+            break
+    assert found is not None, "no near tie in 8 replicates of a 1.5 SE random walk"
+    d = json.loads(json.dumps(found.to_json_dict(), allow_nan=False))
+    assert d["criterion"] == "wic" and d["notes"] == found.notes
+    tie = d["near_ties"][0]
+    assert {tie["model"], found.best.model} == {"WN", "WN+RW"} and tie["delta_chi2"] < 2.0
+    diff = tie["differences"][0]
+    assert diff["process"] == "RW" and diff["in_model"] == "WN+RW" and len(diff["z"]) == 1
+    text = found.summary()
+    assert "note: near tie:" in text and "RW (z = " in text
+    best = select_model(wvar(x), ["WN", "WN+RW"])
+    assert best.model.spec == found.best.model

@@ -12,7 +12,8 @@ Outputs:
   ``gmwm.fit(..., weights=cov)`` (efficient GMWM, SEs from the sandwich with that V).
 * ``parametric_bootstrap``: refits every draw with the original settings; percentile CI
   ``[q(a/2), q(1-a/2)]`` and basic CI ``[2 theta_hat - q(1-a/2), 2 theta_hat - q(a/2)]`` of
-  ``theta*`` (canonical component order), bootstrap SEs. Refits that fail or do not converge are
+  ``theta*`` (canonical component order; scale parameters on the log scale, every end inside the
+  parameter space: :func:`gmwm.intervals.bootstrap_basic`), bootstrap SEs. Refits that fail or do not converge are
   excluded from CIs and SEs and counted (``n_failed``).
 * ``coverage``: share of Monte Carlo replicates whose interval covers the truth, with its
   Monte Carlo SE ``sqrt(c (1 - c) / R)``.
@@ -51,12 +52,6 @@ def _free(model: Model, theta: np.ndarray) -> np.ndarray:
     with np.errstate(all="ignore"):
         eta = model.to_free(np.asarray(theta, dtype=float))
     return np.nan_to_num(eta, nan=0.0, posinf=50.0, neginf=-50.0)
-
-
-def _positive_params(model: Model) -> np.ndarray:
-    """Per parameter: its estimates live in [0, inf) (every parameter but AR1 phi and SIN beta;
-    DR omega counts: the WV identifies only |omega| and fits report omega >= 0)."""
-    return np.array([pos for c in model.components for pos in c.process.positive], dtype=bool)
 
 
 SeedLike = int | np.random.SeedSequence
@@ -269,9 +264,15 @@ class BootstrapResult:
     def aligned(self) -> np.ndarray:
         """Converged refits with same-type components relabelled to match the estimate (the
         permutation closest to it in free coordinates), so quantiles do not mix label-switched
-        draws."""
+        draws, and a signed parameter (DR omega) carrying the estimate's sign: the WV identifies
+        only |omega|, the sign is the signal's (a weak drift's refits take either), so the
+        intervals are those of |omega| on the estimate's side, as the fit's are."""
         used = self._need_refits().copy()
         model = self.estimate.model
+        for c in model.components:
+            if c.process.signed:
+                sign = np.where(self.estimate.params[c.slice] < 0, -1.0, 1.0)
+                used[:, c.slice] = sign * np.abs(used[:, c.slice])
         est_eta = _free(model, self.estimate.params)
         for proc in PROCESSES.values():
             comps = [c for c in model.components if c.process is proc]
@@ -307,22 +308,15 @@ class BootstrapResult:
         return self.quantiles(alpha)
 
     def basic_ci(self, alpha: float = 0.05) -> np.ndarray:
-        """(p, 2) basic intervals ``[2 theta_hat - q(1-alpha/2), 2 theta_hat - q(alpha/2)]``,
-        formed on the log scale for positive parameters (variances, amplitudes, GM beta) so that
-        they never leave the domain: ``[theta_hat^2 / q_hi, theta_hat^2 / q_lo]``. Where the log
-        form does not exist (a positive parameter estimated at the boundary 0, or refits at 0) the
-        basic interval would reach below 0, so the percentile interval ``[q_lo, q_hi]`` is used."""
-        q = self.quantiles(alpha)
-        th = self.estimate.params
-        out = np.column_stack([2 * th - q[:, 1], 2 * th - q[:, 0]])
-        pos = _positive_params(self.estimate.model)
-        with np.errstate(all="ignore"):
-            logci = np.column_stack([th**2 / q[:, 1], th**2 / q[:, 0]])
-        ok = pos & (th > 0) & np.all(q > 0, axis=1)
-        out[ok] = logci[ok]
-        edge = pos & ~ok
-        out[edge] = q[edge]
-        return out
+        """(p, 2) basic intervals inside the parameter space, by the rule of the fit's own
+        intervals (:func:`gmwm.intervals.bootstrap_basic`): for a scale parameter (variance,
+        amplitude, |drift|) the basic interval on the log scale, ``[theta_hat^2 / q_hi,
+        theta_hat^2 / q_lo]``, or ``[0, q_hi]`` where that does not exist (estimate or lower
+        quantile at 0); for a shape (AR1 phi, GM beta, SIN beta) ``[2 theta_hat - q_hi,
+        2 theta_hat - q_lo]`` cut to its domain."""
+        from .intervals import bootstrap_basic
+
+        return bootstrap_basic(self.estimate.model, self.estimate.params, self.quantiles(alpha))
 
     def ci(self, alpha: float = 0.05, kind: str = "percentile") -> np.ndarray:
         """(p, 2) intervals of ``kind`` 'percentile' or 'basic'."""

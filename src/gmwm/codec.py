@@ -111,8 +111,9 @@ def result_from_dict(d: dict[str, Any]) -> Any:
         raise InputError(f"not a gmwm result ({RESULT_FORMAT!r} expected, got {got!r})")
     try:
         wv = WaveletVariance(**{k: _dec_tree(v) for k, v in d["wv"].items()})
+        # a field missing from the file (one added later, e.g. gof) takes its default
         rest = {f.name: _dec_tree(d[f.name]) for f in dataclass_fields(GMWMResult)
-                if f.name not in ("model", "wv")}
+                if f.name not in ("model", "wv") and f.name in d}
         return GMWMResult(model=Model(d["model"], freq=float(d["model_freq"])), wv=wv, **rest)
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(f"damaged gmwm result: {type(exc).__name__} {exc}") from None

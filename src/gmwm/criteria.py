@@ -24,7 +24,6 @@ against the best, with the z-values of those components in the fits that have th
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
@@ -34,7 +33,7 @@ from .errors import InputError
 from .model import parse_model
 
 __all__ = ["CRITERIA", "DEFAULT", "Difference", "disagreements", "factor", "near_ties",
-           "ranking_notes", "rerank"]
+           "ranking_notes"]
 
 CRITERIA = ("wic", "wic-hq", "wic-log")
 #: the criterion chosen by ``benchmarks/bench_selection.py``: over its grid ``wic`` ranked the
@@ -58,16 +57,6 @@ def factor(criterion: str, n_samples: int) -> float:
     if criterion == "wic-log":
         return float(np.log(T))
     raise InputError(f"unknown criterion {criterion!r}; use one of {', '.join(CRITERIA)}")
-
-
-def rerank(ranking: Any, criterion: str) -> Any:
-    """The fits of a :class:`gmwm.select.Ranking` ranked by ``criterion`` (no refitting)."""
-    from .select import Ranking, _order
-
-    k = factor(criterion, ranking.wv.n_samples)
-    entries = [dataclasses.replace(e, criterion=e.objective + k * e.penalty)
-               for e in ranking.ranked]
-    return Ranking(_order(entries) + ranking.skipped, criterion, k, ranking.wv)
 
 
 def _chi2_unit(entry: Any) -> float:

@@ -15,8 +15,10 @@ SIN[k]      ``SIN``             frequency beta f_s / (2 pi) [Hz], amplitude alph
 ==========  ==================  ===========================================================
 
 then scaled to the datasheet units of :data:`UNIT_SYSTEMS` (e.g. deg/sqrt(h), deg/h/sqrt(h) for a
-gyroscope in deg/s). Confidence intervals come from the fit's covariance by the delta method, formed
-on the log scale so they stay positive. The module imports only NumPy (fast CLI start).
+gyroscope in deg/s). Confidence intervals are the images of the parameters' intervals
+(:mod:`gmwm.intervals`: inside the parameter space, reaching 0 exactly for a component not
+distinguishable from zero), so the datasheet and the parameter table agree. The module imports only
+NumPy at load (fast CLI start).
 """
 
 from __future__ import annotations
@@ -25,7 +27,6 @@ import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from statistics import NormalDist
 from typing import Any
 
 import numpy as np
@@ -176,29 +177,22 @@ def _split(name: str) -> tuple[str, int, str]:
 
 def _entry(value: float | None, unit: str, ci: tuple[float, float] | None, params: Sequence[str]
            ) -> dict[str, Any]:
+    ok = ci is not None and not (math.isnan(ci[0]) or math.isnan(ci[1]))
     return {"value": None if value is None or not np.isfinite(value) else float(value), "unit": unit,
-            "ci95": None if ci is None else [float(ci[0]), float(ci[1])], "parameters": list(params)}
+            "ci95": [float(ci[0]), float(ci[1])] if ok else None, "parameters": list(params)}
 
 
-def _delta_ci(fn, theta: np.ndarray, cov: np.ndarray | None, z: float) -> tuple[float, float] | None:
-    """CI of the positive quantity ``fn(theta)`` by the delta method on the log scale."""
-    value = fn(theta)
-    if cov is None or not np.all(np.isfinite(cov)) or not (value > 0 and np.isfinite(value)):
-        return None
-    grad = np.empty(theta.size)
-    for i in range(theta.size):
-        h = 1e-6 * max(abs(theta[i]), 1e-300)
-        up, dn = theta.copy(), theta.copy()
-        up[i] += h
-        dn[i] -= h
-        grad[i] = (fn(up) - fn(dn)) / (2 * h)
-    if not np.all(np.isfinite(grad)):
-        return None
-    var = float(grad @ cov @ grad)
-    if not np.isfinite(var) or var < 0:
-        return None
-    half = z * math.sqrt(var) / value
-    return value * math.exp(-half), value * math.exp(half)
+def _intervals(result: Any, alpha: float) -> np.ndarray:
+    """(p, 2) parameter intervals inside the domain: the result's own ``conf_int`` (a GMWM fit:
+    :func:`gmwm.intervals.fit_intervals`), else the rule of :func:`gmwm.intervals.param_intervals`
+    from ``model``, ``params``, ``cov``/``se`` (NaN where there is no SE)."""
+    if callable(getattr(result, "conf_int", None)):
+        return np.asarray(result.conf_int(alpha), dtype=float)
+    from gmwm.intervals import param_intervals
+
+    cov = getattr(result, "cov", None)
+    return param_intervals(result.model, result.params, cov, alpha,
+                           se=getattr(result, "se", None))
 
 
 def _fit_cov(result: Any, idx: list[int]) -> np.ndarray | None:
@@ -216,17 +210,27 @@ def _fit_cov(result: Any, idx: list[int]) -> np.ndarray | None:
 def datasheet(result: Any, units: str | None = None, alpha: float = 0.05) -> dict[str, dict]:
     """Continuous datasheet coefficients of a fit (see the module table), keyed by term.
 
-    ``result`` has ``params``, ``param_names``, ``se`` (and ``cov``), ``wv.freq`` [Hz]; ``units`` is
-    the signal unit ('deg/s', 'rad/s', 'm/s^2', 'g' or any label). Returns e.g.
-    ``{"ARW": {"value", "unit", "ci95", "parameters"}, "GM[1]": {"correlation_time": {...},
-    "sigma": {...}}, "SIN[1]": {"frequency": {...}, "amplitude": {...}}}``; ``ci95`` is None when the
-    fit has no usable standard error (e.g. a component at the boundary 0).
+    ``result`` has ``model``, ``params``, ``param_names``, ``se`` (and ``cov``), ``wv.freq`` [Hz]
+    and, as every result, ``conf_int(alpha)``; ``units`` is the signal unit ('deg/s', 'rad/s',
+    'm/s^2', 'g' or any label). Returns e.g. ``{"ARW": {"value", "unit", "ci95", "parameters"},
+    "GM[1]": {"correlation_time": {...}, "sigma": {...}}, "SIN[1]": {"frequency": {...},
+    "amplitude": {...}}}``; ``ci95`` (at level ``1 - alpha``) is None when the fit has no
+    interval for the parameter (no standard error).
+
+    Intervals: a coefficient that is a monotone function of one parameter takes the image of that
+    parameter's interval (:func:`gmwm.intervals.image_interval`), so the datasheet agrees with the
+    parameter table by construction and reaches 0 exactly where the parameter's interval does (a
+    component not distinguishable from zero, or at the boundary 0). The AR1 stationary sigma
+    (phi and the innovation variance) uses the delta method with the same rule on the stationary
+    variance (:func:`gmwm.intervals.function_interval`).
     """
+    from gmwm.intervals import function_interval, image_interval
+
     us = unit_system(units)
     freq = float(result.wv.freq)
     names = list(result.param_names)
     theta_all = np.asarray(result.params, float)
-    z = NormalDist().inv_cdf(1 - alpha / 2)
+    ci_all = _intervals(result, alpha)
     comps: dict[tuple[str, int], dict[str, int]] = {}
     for i, name in enumerate(names):
         ctype, k, par = _split(name)
@@ -236,21 +240,11 @@ def datasheet(result: Any, units: str | None = None, alpha: float = 0.05) -> dic
         counts[ctype] = counts.get(ctype, 0) + 1
     out: dict[str, dict] = {}
 
-    def scalar(key: str, par_idx: int, fn, label_factor: tuple[str, float]) -> None:
+    def image(fn, i: int, label_factor: tuple[str, float]) -> dict[str, Any]:
+        """The entry of ``factor * fn(theta_i)``, ``fn`` monotone."""
         label, factor = label_factor
-        theta = theta_all[[par_idx]]
-        cov = _fit_cov(result, [par_idx])
-        ci = _delta_ci(lambda t: factor * fn(t[0]), theta, cov, z)
-        out[key] = _entry(factor * fn(theta[0]), label, ci, [names[par_idx]])
-
-    def pair(idx: list[int], fns: dict[str, tuple[Any, tuple[str, float]]]) -> dict[str, Any]:
-        theta = theta_all[idx]
-        cov = _fit_cov(result, idx)
-        entry: dict[str, Any] = {}
-        for what, (fn, (label, factor)) in fns.items():
-            ci = _delta_ci(lambda t, fn=fn, f=factor: f * fn(t), theta, cov, z)
-            entry[what] = _entry(factor * fn(theta), label, ci, [names[i] for i in idx])
-        return entry
+        ci = image_interval(lambda t: factor * fn(t), ci_all[i])
+        return _entry(factor * fn(theta_all[i]), label, ci, [names[i]])
 
     def blank_shape(entry: dict[str, Any], size: str, shape: str) -> dict[str, Any]:
         # a component estimated at 0 has no identifiable time scale or frequency
@@ -258,45 +252,86 @@ def datasheet(result: Any, units: str | None = None, alpha: float = 0.05) -> dic
             entry[shape].update(value=None, ci95=None, note=f"not identified: {size} is 0")
         return entry
 
+    def corr_time_of_phi(phi: float) -> float:
+        # -1 / (f_s ln phi), increasing on (0, 1); 0 for phi <= 0, infinite for phi >= 1
+        if phi <= 0:
+            return 0.0
+        return math.inf if phi >= 1 else -1.0 / (freq * math.log(phi))
+
+    def ar1_sigma(idx: list[int]) -> dict[str, Any]:
+        """The stationary sigma sqrt(sigma2 / (1 - phi^2)) of an AR1 [signal units]."""
+        label, factor = us.level
+        i_s2 = idx[1]
+        theta = theta_all[idx]
+
+        def var(t: np.ndarray) -> float:
+            return max(t[1], 0.0) / max(1.0 - t[0] ** 2, 1e-300)
+
+        reaches_zero = ci_all[i_s2, 0] == 0.0
+        phi_lo, phi_hi = ci_all[idx[0]]
+        cov = _fit_cov(result, idx)
+        ci = (float("nan"), float("nan"))
+        cov_ok = cov is not None and bool(np.all(np.isfinite(cov)))
+        if cov_ok and -1.0 < phi_lo and phi_hi < 1.0:
+            ci = function_interval(var, theta, cov, alpha, weak=bool(reaches_zero))
+        elif not cov_ok and reaches_zero:
+            # at the boundary 0 (no covariance): the variance's interval at the reported phi
+            ci = image_interval(lambda s2: var(np.array([theta[0], s2])), ci_all[i_s2])
+        if math.isnan(ci[0]) and not np.isnan(ci_all[i_s2]).any():
+            # phi's interval reaches +-1 (the linearisation fails there) or the delta method
+            # failed: the image of the box of the two intervals (the stationary variance grows
+            # with sigma2 and |phi|), unbounded above when phi may be +-1
+            if np.isnan([phi_lo, phi_hi]).any():
+                phi_lo = phi_hi = theta[0]
+            p2_lo = 0.0 if phi_lo <= 0.0 <= phi_hi else min(phi_lo**2, phi_hi**2)
+            p2_hi = max(phi_lo**2, phi_hi**2)
+            s2_lo, s2_hi = ci_all[i_s2]
+            lo = s2_lo / (1.0 - p2_lo) if p2_lo < 1.0 else (0.0 if s2_lo == 0 else math.inf)
+            ci = (lo, s2_hi / (1.0 - p2_hi) if p2_hi < 1.0 else math.inf)
+        ci = image_interval(lambda v: factor * math.sqrt(v), ci)
+        return _entry(factor * math.sqrt(var(theta)), label, ci, [names[i] for i in idx])
+
     gm_k = 0
     for (ctype, k), pars in comps.items():
         suffix = f"[{k}]" if counts[ctype] > 1 else ""
         if ctype == "WN":
-            scalar(us.white_name + suffix, pars["sigma2"], lambda s: math.sqrt(max(s, 0.0) / freq),
-                   us.white)
+            out[us.white_name + suffix] = image(lambda s: math.sqrt(max(s, 0.0) / freq),
+                                                pars["sigma2"], us.white)
         elif ctype == "RW":
-            scalar(us.rw_name + suffix, pars["gamma2"], lambda g: math.sqrt(max(g, 0.0) * freq), us.rw)
+            out[us.rw_name + suffix] = image(lambda g: math.sqrt(max(g, 0.0) * freq),
+                                             pars["gamma2"], us.rw)
         elif ctype == "QN":
-            scalar("QN" + suffix, pars["Q2"], lambda q: math.sqrt(max(q, 0.0)) / freq, us.qn)
+            out["QN" + suffix] = image(lambda q: math.sqrt(max(q, 0.0)) / freq, pars["Q2"], us.qn)
         elif ctype == "DR":
-            scalar("RR" + suffix, pars["omega"], lambda w: w * freq, us.ramp)
+            out["RR" + suffix] = image(lambda w: w * freq, pars["omega"], us.ramp)
         elif ctype == "SIN":
-            idx = [pars["alpha"], pars["beta"]]
-            out[f"SIN[{k}]"] = blank_shape(pair(idx, {
-                "frequency": (lambda t: t[1] * freq / (2 * math.pi), ("Hz", 1.0)),
-                "amplitude": (lambda t: abs(t[0]), us.level)}), "amplitude", "frequency")
+            ia, ib = pars["alpha"], pars["beta"]
+            entry = {"frequency": image(lambda b: b * freq / (2 * math.pi), ib, ("Hz", 1.0)),
+                     "amplitude": image(abs, ia, us.level)}
+            for e in entry.values():
+                e["parameters"] = [names[ia], names[ib]]
+            out[f"SIN[{k}]"] = blank_shape(entry, "amplitude", "frequency")
         elif ctype == "GM":
             gm_k += 1
-            idx = [pars["beta"], pars["sigma2"]]
-            out[f"GM[{gm_k}]"] = blank_shape(pair(idx, {
-                "correlation_time": (lambda t: 1.0 / t[0] if t[0] > 0 else math.inf, ("s", 1.0)),
-                "sigma": (lambda t: math.sqrt(max(t[1], 0.0)), us.level)}), "sigma",
-                "correlation_time")
+            ib, i2 = pars["beta"], pars["sigma2"]
+            entry = {"correlation_time": image(lambda b: 1.0 / b if b > 0 else math.inf, ib,
+                                               ("s", 1.0)),
+                     "sigma": image(lambda s2: math.sqrt(max(s2, 0.0)), i2, us.level)}
+            for e in entry.values():
+                e["parameters"] = [names[ib], names[i2]]
+            out[f"GM[{gm_k}]"] = blank_shape(entry, "sigma", "correlation_time")
         elif ctype == "AR1":
             idx = [pars["phi"], pars["sigma2"]]
             phi = theta_all[idx[0]]
-            sigma = {"sigma": (lambda t: math.sqrt(max(t[1], 0.0) / max(1.0 - t[0] ** 2, 1e-300)),
-                               us.level)}
             if 0.0 < phi < 1.0:  # a Gauss-Markov process sampled at f_s
                 gm_k += 1
-                out[f"GM[{gm_k}]"] = blank_shape(pair(idx, {
-                    "correlation_time": (lambda t: -1.0 / (freq * math.log(min(max(t[0], 1e-300),
-                                                                             1 - 1e-16))), ("s", 1.0)),
-                    **sigma}), "sigma", "correlation_time")
+                entry = {"correlation_time": image(corr_time_of_phi, idx[0], ("s", 1.0)),
+                         "sigma": ar1_sigma(idx)}
+                entry["correlation_time"]["parameters"] = [names[i] for i in idx]
+                out[f"GM[{gm_k}]"] = blank_shape(entry, "sigma", "correlation_time")
             else:  # phi <= 0 has no continuous-time counterpart: report the AR1 itself
-                entry = pair(idx, sigma)
-                entry["phi"] = _entry(phi, "", None, [names[idx[0]]])
-                out[f"AR1[{k}]"] = entry
+                out[f"AR1[{k}]"] = {"sigma": ar1_sigma(idx),
+                                    "phi": image(lambda p: p, idx[0], ("", 1.0))}
     return out
 
 

@@ -21,8 +21,9 @@ Components.
 
 * ``VANISH_SHARE = 1e-6``: a component whose WV is below this share of the estimated WV at every
   scale is "at the boundary 0" (held fixed, no standard error).
-* ``WEAK_Z = 1.96``: a scale parameter below ``WEAK_Z`` standard errors is "not distinguishable
-  from zero" (a two-sided 5 % Wald test).
+* ``WEAK_Z = 1.96`` (the normal 0.975 quantile): a scale parameter below ``WEAK_Z`` standard
+  errors is "not distinguishable from zero" (a two-sided 5 % Wald test,
+  :func:`gmwm.intervals.is_weak`, the test that makes its 95 % interval reach 0).
 * ``UNSUPPORTED_PER_PARAM = 2``: a component whose removal raises the objective, on the
   chi-square scale, by less than 2 per parameter is "not supported by the data" (an AIC-type rule:
   the drop in fit does not pay for the parameters).
@@ -76,7 +77,7 @@ SD_FREE_MAX = 1.0
 #: loadings of a direction's parameters named in a reason
 LOADING_MIN = 0.3
 VANISH_SHARE = 1e-6
-WEAK_Z = 1.96
+WEAK_Z = 1.959963984540054
 UNSUPPORTED_PER_PARAM = 2.0
 SNR_MIN = 1.0
 PHI_EDGE = 1e-6
@@ -136,16 +137,14 @@ def fit_warnings(model: Any, theta: np.ndarray, se: np.ndarray, cond: float,
     if bad_se:
         out.append("standard errors could not be computed for " + ", ".join(bad_se)
                    + " (singular sandwich)")
-    weak = []
-    for c in model.components:
-        if c.name in vanished:
-            continue
-        i = c.start + c.process.scale_index
-        if np.isfinite(se[i]) and abs(theta[i]) < WEAK_Z * se[i]:
-            weak.append(c.name)
+    from .intervals import is_weak
+
+    flags = is_weak(theta, se)  # the rule under which the 95 % interval reaches 0
+    weak = [c.name for c in model.components
+            if c.name not in vanished and flags[c.start + c.process.scale_index]]
     if weak:
         out.append("component(s) " + ", ".join(weak) + " not distinguishable from zero "
-                   f"(estimate below {WEAK_Z:g} standard errors)")
+                   f"(estimate below {WEAK_Z:.3g} standard errors)")
     if not sign_identified and any(c.process.signed for c in model.components):
         out.append("drift sign is not identified from a WV; reported positive")
     return out

@@ -12,10 +12,17 @@ covariance of the WV estimate under the fitted model (between-scale correlation 
 through its cross term with the noise; :func:`gmwm.inference.model_wv_cov`), or the caller's
 covariance. ``weights="efficient"`` is the two-step efficient GMWM: a first fit with CI weights,
 then ``Omega = V(theta_1)^-1``.
+
+Every fit with that ``V`` carries the goodness-of-fit test of :mod:`gmwm.gof` (``result.gof``; a
+rejected model is a warning) and its intervals stay inside the parameter space
+(:func:`gmwm.intervals.fit_intervals`). Fits with ``se_cov="gaussian"`` (the bootstrap's refits,
+the model ranking's candidates) skip the test, which would cost about as much as the fit; call
+:func:`gmwm.gof.gof_test` on them when needed.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -26,13 +33,14 @@ from . import diagnostics as dg
 from .errors import IdentifiabilityError, InputError
 from .inference import Problem, check_cov, omega_from_cov, weight_matrix, wv_cov
 from .model import Model, as_model
-from .results import freeze_arrays, json_safe, wald_ci
+from .results import check_alpha, freeze_arrays, json_safe
 from .search import Search
 from .settings import N_STARTS, FitSettings, prepare_wv
 from .wv import WaveletVariance
 
 if TYPE_CHECKING:
     from .avsm import AVSMResult
+    from .gof import GOFResult
 
 __all__ = ["N_STARTS", "GMWMResult", "fit", "weight_matrix"]
 
@@ -45,7 +53,9 @@ class GMWMResult:
 
     ``weights`` is the weight matrix Omega the objective used, ``wv_cov`` the covariance V of
     the WV estimate behind ``cov``/``se``, and ``settings`` every option needed to repeat the
-    fit (:class:`gmwm.settings.FitSettings`, the user covariance included)."""
+    fit (:class:`gmwm.settings.FitSettings`, the user covariance included). ``gof`` is the
+    goodness-of-fit test (:class:`gmwm.gof.GOFResult`: ``statistic``, ``df``, ``p_value``,
+    per-scale ``residuals``), None for a fit with ``se_cov="gaussian"``."""
 
     model: Model
     params: np.ndarray
@@ -61,11 +71,16 @@ class GMWMResult:
     seconds_fit: float = 0.0
     wv_cov: np.ndarray | None = None
     settings: FitSettings = field(default_factory=FitSettings)
+    gof: GOFResult | None = None
 
     def __post_init__(self) -> None:
         freeze_arrays(self, ("params", "se", "cov", "weights", "wv_cov"))
         if isinstance(self.settings, dict):  # a stored result (gmwm.codec)
             object.__setattr__(self, "settings", FitSettings.from_tree(self.settings))
+        if isinstance(self.gof, dict):
+            from .gof import GOFResult
+
+            object.__setattr__(self, "gof", GOFResult.from_tree(self.gof))
 
     @property
     def method(self) -> str:
@@ -86,8 +101,14 @@ class GMWMResult:
         return self.model.as_dict(self.se)
 
     def conf_int(self, alpha: float = 0.05) -> np.ndarray:
-        """Wald intervals ``params -/+ z se`` (asymptotic; see :mod:`gmwm.bootstrap` for better)."""
-        return wald_ci(self.params, self.se, alpha)
+        """(p, 2) intervals at level ``1 - alpha`` inside the parameter space
+        (:func:`gmwm.intervals.fit_intervals`: Wald lower end, log-scale upper end for a scale
+        parameter, reaching 0 when it is within ``z`` SE of 0; ``[0, z se_0]`` for a component at
+        the boundary 0; shapes cut to their domain). See :mod:`gmwm.bootstrap` for others."""
+        from .intervals import fit_intervals
+
+        check_alpha(alpha)
+        return fit_intervals(self, alpha)
 
     def datasheet(self, units: str | None = None, alpha: float = 0.05) -> dict[str, Any]:
         """Continuous datasheet coefficients (ARW/VRW, RRW, QN, RR, GM, SIN) in ``units``
@@ -110,17 +131,29 @@ class GMWMResult:
     def component_wv(self, scales: np.ndarray | None = None) -> dict[str, np.ndarray]:
         return self.model.component_wv(self.params, self.wv.scales if scales is None else scales)
 
+    def gof_line(self) -> str:
+        """The goodness-of-fit line of the text outputs (:meth:`gmwm.gof.GOFResult.line`)."""
+        if self.gof is None:
+            return ("goodness of fit: not computed (se_cov='gaussian'); "
+                    "gmwm.gof.gof_test(result) computes it")
+        return self.gof.line()
+
     def summary(self) -> str:
-        """Plain-text table of estimates, standard errors and fit diagnostics."""
+        """Plain-text table of estimates, standard errors, 95 % intervals (:meth:`conf_int`),
+        the goodness-of-fit line and the warnings."""
+        ci = self.conf_int()
         lines = [(f"GMWM fit ({self.method}, {self.settings.weights_kind} weights) of "
                   f"{self.model.spec}  |  T = {self.wv.n_samples}, J = {self.wv.n_levels}, "
                   f"freq = {self.wv.freq:g} Hz"),
                  f"objective = {self.objective:.6g}   converged = {self.converged}"
                  + ("" if self.converged else f"   ({self.message})"),
-                 f"{'parameter':<16}{'estimate':>14}{'std. error':>14}",
-                 "-" * 44]
-        for name, est, se in zip(self.param_names, self.params, self.se, strict=True):
-            lines.append(f"{name:<16}{est:>14.6g}{se:>14.4g}")
+                 self.gof_line(),
+                 (f"{'parameter':<16}{'estimate':>14}{'std. error':>14}{'95% CI low':>14}"
+                  f"{'95% CI high':>14}"),
+                 "-" * 72]
+        for name, est, se, (lo, hi) in zip(self.param_names, self.params, self.se, ci,
+                                           strict=True):
+            lines.append(f"{name:<16}{est:>14.6g}{se:>14.4g}{lo:>14.4g}{hi:>14.4g}")
         for w in self.warnings:
             lines.append(f"warning: {w}")
         return "\n".join(lines)
@@ -129,8 +162,11 @@ class GMWMResult:
         return self.summary()
 
     def to_json_dict(self) -> dict[str, Any]:
-        """JSON-able summary (model, n, params, se, objective, converged, warnings, settings, WV,
-        timings); non-finite numbers are None."""
+        """JSON-able summary (model, n, params, se, ci95 (name -> [low, high], :meth:`conf_int`),
+        objective, gof (:meth:`gmwm.gof.GOFResult.to_json_dict`: statistic, df, p_value,
+        rejected, per-scale residuals; None when not computed), converged, warnings, settings,
+        WV, timings); non-finite numbers are None."""
+        ci = self.conf_int()
         return json_safe({
             "model": self.model.spec,
             "method": self.method,
@@ -138,7 +174,10 @@ class GMWMResult:
             "freq": self.wv.freq,
             "params": self.as_dict(),
             "se": self.se_dict(),
+            "ci95": {n: [float(lo), float(hi)] for n, (lo, hi) in zip(self.param_names, ci,
+                                                                       strict=True)},
             "objective": float(self.objective),
+            "gof": None if self.gof is None else self.gof.to_json_dict(),
             "converged": bool(self.converged),
             "message": self.message,
             "warnings": self.warnings,
@@ -257,10 +296,19 @@ def _fit_gmwm(wv: WaveletVariance, model: Model, settings: FitSettings,
         "parameter(s) at the edge of the search region: " + ", ".join(node.edge))
     if not converged:
         warnings.insert(0, f"the optimiser did not converge ({message})")
-    return GMWMResult(model=model, params=theta, se=se, cov=cov, objective=node.objective,
-                      weights=omega, converged=converged, message=message, wv=wv,
-                      diagnostics=diagnostics, seconds_wv=seconds_wv, seconds_fit=seconds_fit,
-                      wv_cov=V, settings=settings)
+    res = GMWMResult(model=model, params=theta, se=se, cov=cov, objective=node.objective,
+                     weights=omega, converged=converged, message=message, wv=wv,
+                     diagnostics=diagnostics, seconds_wv=seconds_wv, seconds_fit=seconds_fit,
+                     wv_cov=V, settings=settings)
+    if user_cov is None and settings.se_cov_kind == "gaussian":
+        return res  # the fast path (bootstrap refits, ranking): no test (module docstring)
+    from .gof import gof_test
+
+    g = gof_test(res)
+    note = g.warning()
+    if note is not None:
+        diagnostics = dict(diagnostics, warnings=[*warnings, note])
+    return dataclasses.replace(res, gof=g, diagnostics=diagnostics)
 
 
 def _unsupported(prob: Problem, model: Model, objective: float, V: np.ndarray,

@@ -62,7 +62,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -160,14 +160,16 @@ def weighted_chi2_sf(x: float, lam: np.ndarray) -> tuple[float, str]:
 
 
 # -- the test -------------------------------------------------------------------------------------
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class GOFResult:
     """Goodness-of-fit test of one fit (module docstring).
 
     ``statistic`` = ``U df / J`` (null mean ``df``), ``p_value`` from the weighted chi-square
     null with weights ``eigenvalues``; ``residuals`` the per-scale standardised residuals
     (normal scores ``u_j``) at ``scales`` [samples] (``scales_s`` [s]), NaN at a scale the fit
-    reproduces exactly; ``objective`` the fit's objective; ``notes`` caveats for this fit."""
+    reproduces exactly; ``objective`` the fit's objective; ``notes`` caveats for this fit.
+    Immutable (read-only arrays); ``to_tree``/``from_tree`` store it losslessly in result files
+    (:mod:`gmwm.codec`)."""
 
     statistic: float
     df: int
@@ -179,6 +181,24 @@ class GOFResult:
     freq: float = 1.0
     method: str = "imhof"
     notes: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        from .results import freeze_arrays
+
+        freeze_arrays(self, ("eigenvalues", "residuals", "scales"))
+        object.__setattr__(self, "notes", [str(n) for n in self.notes])
+
+    def to_tree(self) -> dict[str, Any]:
+        """Every field by name (arrays as arrays), for :mod:`gmwm.codec`."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> GOFResult:
+        """The inverse of :meth:`to_tree` (lists read back as arrays)."""
+        d = dict(tree)
+        for name in ("eigenvalues", "residuals", "scales"):
+            d[name] = np.asarray(d[name], dtype=float)
+        return cls(**d)
 
     @property
     def scales_s(self) -> np.ndarray:
@@ -240,13 +260,18 @@ def _fixed(result: Any) -> np.ndarray:
 
 
 def _wv_cov(result: Any, V: np.ndarray | None) -> np.ndarray:
-    """Covariance of nu_hat for the test: the caller's, the fit's user covariance, else the
-    model-based one at the estimate (recomputed when the fit used another kind)."""
+    """Covariance of nu_hat for the test: the caller's, the fit's user covariance (``weights``
+    or ``se_cov`` a matrix), else the model-based one at the estimate (recomputed when the fit
+    used the Gaussian one). The model-based covariance is the classical estimator's
+    (:func:`gmwm.inference.model_wv_cov`): for a robust WV it is divided by the efficiency here,
+    once; a user covariance is taken as given."""
     if V is not None:
         return np.asarray(V, dtype=float)
     s = result.settings
     if s.user_cov is not None:
         return np.asarray(s.user_cov, dtype=float)
+    if s.se_cov_kind == "covariance":
+        return np.asarray(s.se_cov, dtype=float)
     if s.se_cov_kind == "model" and result.wv_cov is not None:
         V = np.asarray(result.wv_cov, dtype=float)
     else:

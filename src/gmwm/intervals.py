@@ -1,19 +1,21 @@
 """Confidence intervals that stay inside the parameter space, for parameters, datasheet
 coefficients and bootstrap intervals (one rule everywhere).
 
-The rule, per parameter (``z = z_{1-alpha/2}``; kinds from the processes' ``scale_index`` and
-free coordinates ``Process.free_map_kinds``):
+The rule, per parameter (``z = z_{1-alpha/2}``; which parameter is a component's scale from
+``Process.scale_index``, the domains from ``Process.domain``):
 
 * **Scale parameters** (the one that is 0 when a component vanishes: WN sigma2, QN Q2, RW
-  gamma2, AR1/GM variance, SIN alpha, DR |omega|):
+  gamma2, AR1/GM variance, SIN alpha, DR |omega|), with ``a = |theta|`` and ``x = z se / a``:
 
-  - distinguishable from 0 (``|theta| >= z se``): ``[theta - z se, theta exp(z se / theta)]``,
-    the Wald lower end and the log-scale upper end;
-  - near 0 (``|theta| < z se``: the fit's warning "not distinguishable from zero"):
-    ``[0, |theta| + z se]``, the Wald interval cut at 0;
+  - distinguishable from 0 (``x <= 1``): ``[a - z se, a exp(x)]``, the Wald lower end and the
+    log-scale upper end;
+  - near 0 (``x > 1``: the fit's warning "not distinguishable from zero"):
+    ``[0, a + (e - 1) z se]``: the Wald lower end cut at 0; the upper end continues the
+    log-scale one linearly from ``x = 1`` (where both are ``e a``), so the ends move
+    continuously with the estimate and with ``alpha`` (a 95 % interval contains the 90 % one);
   - component at the boundary 0 (no sandwich SE): ``[0, z se_0]``, ``se_0`` the SE of its
     linear scale freed at 0 (:func:`boundary_upper`);
-  - DR omega carries the estimate's sign (the WV sees only |omega|).
+  - a signed scale (DR omega) carries the estimate's sign (the WV sees only |omega|).
 
 * **Shape parameters** (AR1 phi in [-1, 1], GM beta in [0, inf), SIN beta in [0, pi]): Wald
   on the natural scale cut to the closed domain; an end on the domain's edge says the data
@@ -21,17 +23,18 @@ free coordinates ``Process.free_map_kinds``):
   the boundary 0 its shape is not identified: the whole domain.
 
 So an interval reaches 0 exactly when the estimate is within ``z`` standard errors of 0, which
-is what the fit's "not distinguishable from zero" warning says (at alpha = 0.05), and every
-interval contains the Wald interval cut to the domain, so it never covers less. Why the upper
-end of a scale parameter comes from the log scale (``benchmarks/bench_intervals.py``, coverage
-on 300 fits per model; the log-scale-only figures from a run of it with that rule): a variance
-estimated from a few long scales is right-skewed with an SE that grows with the estimate, and
-Wald's upper end misses it (a random walk at 3 SE: Wald 0.88, log scale 0.95); where the SE is
-set by the other components the estimate is close to normal and the log scale's lower end is
-too high (a Gauss-Markov variance at 3 SE: Wald 0.98, log scale 0.93). The union of the two
-keeps the better side of each. The shape estimates are not log-normal: in the same run a
-log-scale interval for GM beta and an atanh-scale interval for an AR1 phi near 1 both lost
-coverage (0.93 and 0.88 against Wald's 0.97 and 0.98).
+is what the fit's "not distinguishable from zero" warning says (at alpha = 0.05, the same test:
+:func:`is_weak`), and every interval contains the Wald interval cut to the domain, so it never
+covers less. Why (``benchmarks/bench_intervals.py``, coverage on 300 fits per model; the
+log-scale-only figures from an earlier run of it with that rule): a variance estimated from a
+few long scales is right-skewed with an SE that grows with the estimate, and Wald's upper end
+misses it (a random walk at 3 SE: Wald 0.88, log scale 0.95); where the SE is set by the other
+components the estimate is close to normal and the log scale's lower end is too high (a
+Gauss-Markov variance at 3 SE: Wald 0.98, log scale 0.93). The union of the two keeps the
+better side of each. Near 0 the skew is strongest: random walks at 1.5-2.5 SE were covered by
+Wald in 0.87-0.90 of the fits, by the rule in 0.96-0.97. The shape estimates are not
+log-normal: in the earlier run a log-scale interval for GM beta and an atanh-scale interval for
+an AR1 phi near 1 both lost coverage (0.93 and 0.88 against Wald's 0.97 and 0.98).
 
 Datasheet coefficients that are monotone functions of one parameter (ARW, RRW, QN, RR, GM
 correlation time and sigma, SIN frequency and amplitude) take the image of that parameter's
@@ -51,11 +54,8 @@ import numpy as np
 from scipy.special import ndtri
 
 __all__ = ["bootstrap_basic", "boundary_upper", "fit_intervals", "function_interval",
-           "image_interval", "is_weak", "param_intervals", "param_kinds"]
-
-
-#: closed domain of each kind of parameter
-_DOMAIN = {"log": (0.0, math.inf), "phi": (-1.0, 1.0), "pi": (0.0, math.pi)}
+           "image_interval", "is_weak", "param_domains", "param_intervals", "param_kinds",
+           "scale_interval"]
 
 
 def _z(alpha: float) -> float:
@@ -70,6 +70,29 @@ def param_kinds(model: Any) -> list[str]:
     """Per parameter: ``"log"`` (positive; DR omega: positive in |omega|), ``"phi"`` (AR1 phi)
     or ``"pi"`` (SIN beta), from the processes' free coordinates."""
     return [k for c in model.components for k in c.process.free_map_kinds]
+
+
+def param_domains(model: Any, theta: np.ndarray | None = None) -> np.ndarray:
+    """(p, 2) closed domain of each parameter (:attr:`gmwm.processes.Process.domain`); with
+    ``theta``, a signed scale parameter estimated negative gets the mirrored domain."""
+    dom = np.array([d for c in model.components for d in c.process.domain], dtype=float)
+    if theta is not None:
+        for c in model.components:
+            i = c.start + c.process.scale_index
+            if c.process.signed and float(theta[i]) < 0:
+                dom[i] = (-dom[i, 1], -dom[i, 0])
+    return dom
+
+
+def scale_interval(a: float, s: float, z: float) -> tuple[float, float]:
+    """The interval of a scale parameter (or a positive function of the parameters) with value
+    ``a >= 0`` and standard error ``s``: ``[a - z s, a exp(z s / a)]`` when ``a >= z s``, else
+    ``[0, a + (e - 1) z s]`` (module docstring); NaN ends without a finite ``a`` and ``s``."""
+    if not (np.isfinite(a) and np.isfinite(s) and a >= 0 and s >= 0):
+        return (math.nan, math.nan)
+    if a > 0 and a >= z * s:
+        return (a - z * s, a * math.exp(z * s / a) if s > 0 else a)
+    return (0.0, a + (math.e - 1.0) * z * s)
 
 
 def _scale_mask(model: Any) -> np.ndarray:
@@ -108,26 +131,23 @@ def param_intervals(model: Any, theta: np.ndarray, cov: np.ndarray | None, alpha
     se = np.asarray(se, dtype=float)
     fixed = np.zeros(p, bool) if fixed is None else np.asarray(fixed, bool)
     upper = np.full(p, np.nan) if boundary_upper is None else np.asarray(boundary_upper, float)
-    kinds = param_kinds(model)
+    domain = param_domains(model)
     scale = _scale_mask(model)
     out = np.full((p, 2), np.nan)
-    for i, (th, s, kind) in enumerate(zip(theta, se, kinds, strict=True)):
+    for i, (th, s) in enumerate(zip(theta, se, strict=True)):
         if fixed[i]:
             if scale[i]:
                 out[i] = (0.0, upper[i])
             else:  # the shape of a component at 0 is not identified: the whole domain
-                out[i] = _DOMAIN[kind]
+                out[i] = domain[i]
             continue
         if not (np.isfinite(s) and np.isfinite(th)):
             continue
-        if scale[i]:  # variance, amplitude, |drift|
-            a, sign = abs(th), (-1.0 if th < 0 else 1.0)
-            # Wald cut at 0, the upper end widened to the log-scale one (module docstring)
-            lo = max(a - z * s, 0.0)
-            hi = a + z * s if lo == 0.0 else a * math.exp(z * s / a)
-            out[i] = (lo, hi) if sign > 0 else (-hi, -lo)
+        if scale[i]:  # variance, amplitude, |drift| (module docstring)
+            lo, hi = scale_interval(abs(th), s, z)
+            out[i] = (lo, hi) if th >= 0 else (-hi, -lo)
         else:  # shape (AR1 phi, GM beta, SIN beta): natural scale, cut to the closed domain
-            d_lo, d_hi = _DOMAIN[kind]
+            d_lo, d_hi = domain[i]
             out[i] = (max(th - z * s, d_lo), min(th + z * s, d_hi))
     return out
 
@@ -207,9 +227,8 @@ def image_interval(fn: Callable[[float], float], interval: Sequence[float]) -> t
 def function_interval(fn: Callable[[np.ndarray], float], theta: np.ndarray, cov: np.ndarray,
                       alpha: float = 0.05, weak: bool = False) -> tuple[float, float]:
     """Interval of a positive function ``fn(theta)`` of several parameters by the delta method,
-    with the rule of a scale parameter: ``[value - z se, value exp(z se / value)]``, or
-    ``[0, value + z se]`` when ``weak`` (a component whose scale is not distinguishable from 0)
-    or the value is within ``z`` SE of 0."""
+    with the rule of a scale parameter (:func:`scale_interval`); ``weak`` (a component whose
+    scale is not distinguishable from 0) makes it reach 0 whatever the delta-method SE says."""
     theta = np.asarray(theta, float)
     value = float(fn(theta))
     cov = np.asarray(cov, float)
@@ -226,9 +245,8 @@ def function_interval(fn: Callable[[np.ndarray], float], theta: np.ndarray, cov:
     if not (np.isfinite(var) and var >= 0):
         return (float("nan"), float("nan"))
     z, s = _z(alpha), math.sqrt(var)
-    if weak or value < z * s:
-        return (0.0, value + z * s)
-    return (value - z * s, value * math.exp(z * s / value))
+    lo, hi = scale_interval(value, s, z)
+    return (0.0, hi) if weak else (lo, hi)
 
 
 def bootstrap_basic(model: Any, estimate: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -242,7 +260,8 @@ def bootstrap_basic(model: Any, estimate: np.ndarray, q: np.ndarray) -> np.ndarr
     q = np.asarray(q, float)
     out = np.full_like(q, np.nan)
     scale = _scale_mask(model)
-    for i, kind in enumerate(param_kinds(model)):
+    domain = param_domains(model)
+    for i in range(est.size):
         th, lo, hi = est[i], q[i, 0], q[i, 1]
         if not np.all(np.isfinite([th, lo, hi])):
             continue
@@ -252,6 +271,6 @@ def bootstrap_basic(model: Any, estimate: np.ndarray, q: np.ndarray) -> np.ndarr
             b = (a * a / qa_hi, a * a / qa_lo) if a > 0 and qa_lo > 0 else (0.0, qa_hi)
             out[i] = b if sign > 0 else (-b[1], -b[0])
         else:
-            d_lo, d_hi = _DOMAIN[kind]
+            d_lo, d_hi = domain[i]
             out[i] = (max(2 * th - hi, d_lo), min(2 * th - lo, d_hi))
     return out

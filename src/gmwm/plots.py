@@ -195,13 +195,17 @@ def plot_wv(
     ax: Axes | None = None,
     units: str = "",
     label: str | None = None,
+    residuals: bool = True,
 ) -> Axes:
     """Empirical wavelet variance (points, shaded CI band) with the model WV and its components.
 
     ``wv`` is a ``gmwm.wv.WaveletVariance``; x is the scale tau_j in seconds (samples when
     ``wv.freq == 1``), log-log. The model comes from ``result`` (a GMWM fit) or ``model`` + ``theta``
     (array or ``{name: value}``); ``components`` adds one dashed line per component. ``units`` is the
-    signal unit (e.g. ``"deg/s"``); the y axis is in its square.
+    signal unit (e.g. ``"deg/s"``); the y axis is in its square. With ``residuals`` and a result
+    carrying a goodness-of-fit test (``result.gof``, :mod:`gmwm.gof`), the scales where the model
+    misses (standardised residual ``|u_j| > 2``) are ringed and labelled with ``u_j``, and the
+    legend's title gives the test's p-value.
     """
     model, theta = _model_theta(model, theta, result)
     ax = new_axes(ax)
@@ -223,7 +227,32 @@ def plot_wv(
             floor = np.nanmin(_positive(data)) / 100.0
             if np.isfinite(floor) and ax.get_ylim()[0] < floor:
                 ax.set_ylim(bottom=floor)
+        gof = getattr(result, "gof", None) if residuals else None
+        if gof is not None:
+            _draw_misses(ax, x, np.asarray(wv.variance, float), gof)
     return ax
+
+
+#: standardised residuals beyond this are marked on the WV plot (about 5 % of scales under the model)
+RESIDUAL_MARK = 2.0
+
+
+def _draw_misses(ax: Axes, x: np.ndarray, y: np.ndarray, gof: Any) -> None:
+    """Ring the WV points whose standardised residual exceeds :data:`RESIDUAL_MARK` in size,
+    label them with it, and title the legend with the test's p-value."""
+    u = np.asarray(gof.residuals, dtype=float)
+    miss = np.isfinite(u) & (np.abs(u) > RESIDUAL_MARK) & (y > 0)
+    if miss.any():
+        ax.plot(x[miss], y[miss], ls="none", marker="o", ms=8, mfc="none", mec=MODEL_COLOR,
+                mew=1.2, zorder=6, gid="gof_miss",
+                label=f"model misses (|residual| > {RESIDUAL_MARK:g} SD)")
+        for xi, yi, ui in zip(x[miss], y[miss], u[miss], strict=True):
+            ax.annotate(f"{ui:+.1f}", (xi, yi), xytext=(0, 7), textcoords="offset points",
+                        ha="center", fontsize=7, color=MODEL_COLOR, gid="gof_miss_label")
+    if gof.df > 0 and np.isfinite(gof.p_value):
+        p = f"{gof.p_value:.2g}" if gof.p_value >= 1e-300 else "< 1e-300"
+        title = f"goodness of fit: p = {p}" + (" (rejected)" if gof.rejected() else "")
+        ax.legend(loc="best", title=title, title_fontsize=STYLE["legend.fontsize"])
 
 
 def plot_av(av: Any, *, ax: Axes | None = None, units: str = "", label: str | None = None,

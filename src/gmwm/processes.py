@@ -12,7 +12,8 @@ Everything else the library knows about one process lives on its class, so no ot
 branches on process names: the variable-projection coordinates of the estimator's search
 (:meth:`Process.shape_bounds`, :meth:`Process.unit_wv_columns`, :meth:`Process.from_vp`,
 :meth:`Process.shape_of`), the primitive form the WV covariance and the fast simulator work with
-(:meth:`Process.primitive`), which parameters are positive, and the process's own diagnostics
+(:meth:`Process.primitive`), each parameter's domain (the one estimates and confidence intervals
+keep to, :attr:`Process.domain`) and the process's own diagnostics
 (:meth:`Process.fit_warnings`, :meth:`Process.degeneracies`, thresholds in
 :mod:`gmwm.diagnostics`).
 """
@@ -149,14 +150,15 @@ class Process:
         """Key sorting same-type components by the time scale they act on, shortest first."""
         return 0.0
 
-    #: Per parameter: its estimates live in [0, inf) (variances, amplitudes, rates; DR omega
-    #: too: the WV identifies only |omega| and fits report omega >= 0 unless a signal says more).
-    @property
-    def positive(self) -> tuple[bool, ...]:
-        return (True,) * self.n_params
-
     #: True if the sign of the parameters is not identified by the WV (DR: taken from the signal).
     signed: bool = False
+
+    @property
+    def domain(self) -> tuple[tuple[float, float], ...]:
+        """Closed domain ``(low, high)`` of each parameter (the order of ``param_names``): where
+        estimates and confidence-interval ends may lie (:mod:`gmwm.intervals`). A ``signed``
+        process lists the domain of the magnitude (DR: |omega| >= 0, the sign from the signal)."""
+        return ((0.0, math.inf),) * self.n_params
 
     def off_params(self, freq: float = 1.0) -> np.ndarray:
         """Parameters of the component switched off: scale 0, any other parameter at a fixed
@@ -464,7 +466,7 @@ class AR1(_AR1Like):
     name = "AR1"
     param_names = ("phi", "sigma2")
     free_kinds = ("phi", "log")
-    positive = (False, True)
+    domain = ((-1.0, 1.0), (0.0, math.inf))
 
     def free_limits(self):
         # 2 expit(eta) - 1 rounds to 1 from eta ~ 37 on: phi = 1 is a random walk, not an AR1
@@ -620,7 +622,7 @@ class Sinusoid(Process):
     name = "SIN"
     param_names = ("alpha", "beta")
     free_kinds = ("log", "pi")
-    positive = (True, False)
+    domain = ((0.0, math.inf), (0.0, math.pi))
     oscillating = True
     pair_rel = dg.PAIR_REL_SIN
     pair_what = "beta"

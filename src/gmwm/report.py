@@ -2,9 +2,10 @@
 
 First the stationarity check of the recording (``docs/METHODS.md`` §16): a warning naming the
 time ranges that moved, the part of the recording used and a timeline figure with the flagged
-ranges. Per axis: the empirical WV with the fitted model and its components (PNG), the datasheet
-coefficients with 95 % CIs (:func:`gmwm.datasheet.datasheet`), the IEEE 952 Allan-deviation readings
-of the same data (bias instability included) and the fit's warnings; at the end the Kalibr
+ranges. Per axis: the empirical WV with the fitted model and its components (PNG), the
+goodness-of-fit line (:mod:`gmwm.gof`), the datasheet coefficients with 95 % CIs
+(:func:`gmwm.datasheet.datasheet`), the IEEE 952 Allan-deviation readings of the same data (bias
+instability included) and the fit's warnings (a rejected model among them); at the end the Kalibr
 ``imu.yaml`` (:mod:`gmwm.exports`), also written alone with the other filter configuration files
 asked for. Every file is written atomically.
 """
@@ -67,6 +68,22 @@ def _reading_rows(res: Any, units: str | None) -> list[tuple[str, str, str, str,
         rows.append((f"{key} ({e['name']})", _num(e.get("value")),
                      "–" if not ci else f"[{_num(ci[0])}, {_num(ci[1])}]", e["unit"], where))
     return rows
+
+
+def _axis_warnings(a: Mapping[str, Any]) -> list[str]:
+    """The axis's warnings, with the fit's rejected-model warning (:meth:`gmwm.gof.GOFResult.warning`)
+    even if the caller's list lacks it: a page never shows "No warnings" over a rejected model."""
+    found = [str(w) for w in a["warnings"]]
+    gof = getattr(a["result"], "gof", None)
+    note = gof.warning() if gof is not None else None
+    if note is not None and note not in found:
+        found.append(note)
+    return found
+
+
+def _gof_line(res: Any) -> str | None:
+    line = getattr(res, "gof_line", None)
+    return line() if callable(line) else None
 
 
 def _md_table(headers: list[str], rows: list[tuple]) -> list[str]:
@@ -176,7 +193,9 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     md = [f"# {title}", "",
           (f"Input `{source}`, sampling frequency {freq:g} Hz, {len(axes)} axes; "
            f"GMWM fits by gmwm {__version__}. Coefficients are continuous-time datasheet values "
-           "with 95 % delta-method intervals; per-sample parameters are in the JSON output."), ""]
+           "with 95 % intervals inside the parameter space (a coefficient not distinguishable "
+           "from zero has an interval from 0); per-sample parameters are in the JSON output."),
+          ""]
     body: list[str] = [f"<h1>{html.escape(title)}</h1>",
                        (f"<p>Input <code>{html.escape(source)}</code>, sampling frequency {freq:g} "
                         f"Hz, {len(axes)} axes; GMWM fits by gmwm {html.escape(__version__)}.</p>")]
@@ -206,7 +225,7 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
         summary.append((name, a["units"] or "–", res.model.spec,
                         "–" if white is None else f"{_num(white['value'])} {white['unit']}",
                         "–" if rw is None else f"{_num(rw['value'])} {rw['unit']}",
-                        len(a["warnings"])))
+                        len(_axis_warnings(a))))
     headers = ["axis", "unit", "model", "white noise", "random walk", "warnings"]
     md += ["## Summary", "", *_md_table(headers, summary), ""]
     body += ["<h2>Summary</h2>", _html_table(headers, summary)]
@@ -235,10 +254,15 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
                    *_md_table(rh, readings), ""]
             body += [("<p>Allan-deviation readings of the same data (slope method, for "
                       "comparison):</p>"), _html_table(rh, readings)]
-        if a["warnings"]:
-            md += ["Warnings:", "", *(f"- {w}" for w in a["warnings"]), ""]
+        gof = _gof_line(res)
+        if gof is not None:  # after the figure and table, before the warnings
+            md += [gof[0].upper() + gof[1:] + ".", ""]
+            body += [f"<p>{html.escape(gof[0].upper() + gof[1:])}.</p>"]
+        warns = _axis_warnings(a)
+        if warns:
+            md += ["Warnings:", "", *(f"- {w}" for w in warns), ""]
             body += ["<p>Warnings:</p><ul>"
-                     + "".join(f"<li>{html.escape(w)}</li>" for w in a["warnings"]) + "</ul>"]
+                     + "".join(f"<li>{html.escape(w)}</li>" for w in warns) + "</ul>"]
         else:
             md += ["No warnings.", ""]
             body += ["<p>No warnings.</p>"]

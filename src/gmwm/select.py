@@ -32,19 +32,17 @@ covariance), it costs nothing beyond the fits (cross-validating the WV would nee
 signals, whose halves have a different WV precision), and it is the GMWM analogue of AIC/Mallows'
 Cp, reducing to them in the efficient case.
 
-``criterion="wic"`` estimates the prediction error; like AIC it keeps a non-vanishing
-probability of adding a spurious component (benchmarks/bench_select.py: WN+RW at T = 2^20 got a
-spurious AR1 in 7 of 20 replicates). ``criterion="wic-log"`` (default) replaces the factor 2 by
-``log T`` (T = signal length). With weights scaling like T (CI or Gaussian weights), a correct
-model's objective and every trace are O(1) while a missing component raises the objective
-proportionally to T, so a factor k_T with k_T -> inf and k_T / T -> 0 selects the generating
-model with probability -> 1 (consistency, the BIC analogue). It needs more data to admit a weak
-component (QN+WN+RW with a faint RW at T = 2^14: never picked; at 2^17: always) and to tell a RW
-from a slow AR1 (WN+2*AR1+RW with RW 1e-7 at T = 2^20: WIC 13 of 20, WIC-log 0 of 20, which
-keeps WN+2*AR1). Over the benchmark's 15 identifiable settings the two criteria hit the
-generating model equally often (223 and 220 of 300); the default favours never adding a
-spurious component on long recordings. ``Ranking`` keeps objective and trace, so
-:func:`rerank` gives the other criterion without refitting.
+The penalty factor: ``criterion="wic"`` (the default) uses ``k = 2`` and estimates the
+prediction error; ``"wic-hq"`` (``k = 2 log log T``) and ``"wic-log"`` (``k = log T``, the BIC
+analogue, consistent) penalise more and need more data to admit a weak component
+(:mod:`gmwm.criteria` gives the factors and the reasons). The default keeps real components:
+over the grid of ``benchmarks/bench_selection.py`` (IMU-like models with weak but real
+components) ``wic`` ranked the generating model first most often and dropped a random walk at
+3 SE in at most a few per cent of the fits where ``wic-log`` dropped it in most; its price is an
+occasional spurious component on a fully strong model. ``Ranking`` keeps objective and trace,
+so :func:`rerank` gives another criterion without refitting, and its notes
+(:func:`gmwm.criteria.ranking_notes`) name the near ties of the best model and the components
+they disagree on, with their z-values.
 Ties (a superset whose extra component is estimated at 0) go to the smaller model.
 """
 
@@ -58,16 +56,16 @@ from typing import Any
 
 import numpy as np
 
+from .criteria import CRITERIA, DEFAULT, disagreements, factor, near_ties, ranking_notes
 from .errors import GMWMError, InputError, ModelError
 from .model import Model, as_model, parse_model, spec_of
 from .processes import PROCESSES, SINGLETONS
 from .settings import prepare_wv
 from .wv import WaveletVariance
 
-__all__ = ["CRITERIA", "RankedModel", "Ranking", "auto_candidates", "optimism", "rank_models",
-           "rerank", "select_model"]
+__all__ = ["CRITERIA", "DEFAULT", "RankedModel", "Ranking", "auto_candidates", "optimism",
+           "rank_models", "rerank", "select_model"]
 
-CRITERIA = ("wic", "wic-log")
 _LOG10E = np.log10(np.e)
 # caps of the automatic candidate set (issue 11): up to 3 AR1/GM and 2 SIN components
 MAX_AR = 3
@@ -126,9 +124,38 @@ class Ranking:
     def skipped(self) -> list[RankedModel]:
         return [e for e in self.entries if e.error is not None]
 
+    @property
+    def notes(self) -> list[str]:
+        """What the ranking leaves open: each near tie of the best model and the components they
+        disagree on, with their z-values (:func:`gmwm.criteria.ranking_notes`)."""
+        return ranking_notes(self)
+
+    def near_ties(self) -> list[dict[str, Any]]:
+        """The near ties as data: model, criterion above the best in chi-square units and the
+        components it adds or drops against the best (process, the model that has it, z-values
+        of that process's components there)."""
+        ranked = self.ranked
+        if len(ranked) < 2:
+            return []
+        from .criteria import _chi2_unit
+
+        unit = _chi2_unit(ranked[0])
+        out = []
+        for e in near_ties(self):
+            diffs = [{"process": d.process, "in_model": d.in_model,
+                      "change": "adds" if d.in_model == e.model else "drops",
+                      "z": [_num(z) for z in d.z]} for d in disagreements(ranked[0], e)]
+            out.append({"model": e.model,
+                        "delta_chi2": _num((e.criterion - ranked[0].criterion) / unit),
+                        "differences": diffs})
+        return out
+
     def to_json_dict(self) -> dict[str, Any]:
+        """criterion, penalty_factor, ranking (best first), near_ties (:meth:`near_ties`), notes
+        (:attr:`notes`), skipped (if any)."""
         out: dict[str, Any] = {"criterion": self.criterion, "penalty_factor": self.factor,
-                               "ranking": [e.to_json_dict() for e in self.ranked]}
+                               "ranking": [e.to_json_dict() for e in self.ranked],
+                               "near_ties": self.near_ties(), "notes": self.notes}
         if self.skipped:
             out["skipped"] = [{"model": e.model, "error": e.error} for e in self.skipped]
         return out
@@ -143,6 +170,7 @@ class Ranking:
                          f"{e.penalty:>10.4g}{e.n_params:>7}  {'yes' if e.converged else 'NO'}")
         for e in self.skipped:
             lines.append(f"   -  {e.model:<24} skipped: {e.error}")
+        lines += [f"note: {n}" for n in self.notes]
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -176,14 +204,6 @@ def optimism(result: Any, cov: np.ndarray | None = None) -> float:
         H = omega @ As @ B @ As.T @ omega
         trace = float(np.sum(H * V.T))
     return trace if np.isfinite(trace) else float("nan")
-
-
-def _factor(criterion: str, n_samples: int) -> float:
-    if criterion == "wic":
-        return 2.0
-    if criterion == "wic-log":
-        return float(np.log(max(n_samples, 3)))
-    raise InputError(f"unknown criterion {criterion!r}; use one of {', '.join(CRITERIA)}")
 
 
 # -- candidates -----------------------------------------------------------------------------------
@@ -252,7 +272,7 @@ def _fix_drift_sign(res: Any, sign: float | None) -> Any:
                                diagnostics=dict(res.diagnostics, warnings=warnings))
 
 
-def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = "wic-log",
+def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = DEFAULT,
                 levels: int | None = None, freq: float | None = None,
                 weights: str | np.ndarray = "ci", robust: bool = False, eff: float = 0.6,
                 alpha: float = 0.05, n_starts: int | None = None, seed: int = 0,
@@ -264,8 +284,9 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = "w
     ----------
     data : 1-D signal (per-sample units) or a :class:`~gmwm.wv.WaveletVariance`.
     models : model strings or Models (duplicates are fitted once). See :func:`auto_candidates`.
-    criterion : ``"wic-log"`` (default; objective + log(T) x optimism, consistent selection) or
-        ``"wic"`` (factor 2, estimated WV prediction error); see the module docstring.
+    criterion : ``"wic"`` (default; objective + 2 x optimism, the estimated WV prediction
+        error), ``"wic-hq"`` (factor 2 log log T) or ``"wic-log"`` (factor log T, consistent
+        selection); see the module docstring and :mod:`gmwm.criteria`.
     levels, freq, alpha : as in :func:`gmwm.fit` (the WV is computed once and shared).
     weights : as in :func:`gmwm.fit`; a (J, J) covariance also becomes V of the penalty.
     robust, eff : rank on the robust WV (``wvar(x, robust=True, eff=eff)``; needs a signal).
@@ -284,7 +305,7 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = "w
 
     wv, drift_sign, _ = prepare_wv(data, levels=levels, alpha=alpha, robust=robust, eff=eff,
                                    freq=freq)
-    factor = _factor(criterion, wv.n_samples)
+    k = factor(criterion, wv.n_samples)
     specs: list[str] = []
     for m in models:
         spec = as_model(m, wv.freq).spec
@@ -319,7 +340,7 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = "w
             if V is not None and wv.robust:  # the model covariance is the classical WV's
                 V = np.asarray(V) / wv.efficiency
         pen = optimism(res, V)
-        crit = float(res.objective) + factor * pen
+        crit = float(res.objective) + k * pen
         entries.append(RankedModel(spec, crit if np.isfinite(crit) else np.inf,
                                    float(res.objective), pen, model.n_params,
                                    bool(res.converged), res))
@@ -327,7 +348,7 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = "w
     if len(bad) == len(entries):
         raise GMWMError("no candidate model could be fitted: " + "; ".join(
             f"{e.model}: {e.error}" for e in bad))
-    return Ranking(_order([e for e in entries if e.error is None]) + bad, criterion, factor, wv,
+    return Ranking(_order([e for e in entries if e.error is None]) + bad, criterion, k, wv,
                    drift_sign)
 
 
@@ -349,11 +370,11 @@ def _order(entries: list[RankedModel]) -> list[RankedModel]:
 
 
 def rerank(ranking: Ranking, criterion: str) -> Ranking:
-    """The same fits ranked by another criterion (no refitting)."""
-    factor = _factor(criterion, ranking.wv.n_samples)
-    entries = [dataclasses.replace(e, criterion=e.objective + factor * e.penalty)
+    """The same fits ranked by another criterion of :data:`CRITERIA` (no refitting)."""
+    k = factor(criterion, ranking.wv.n_samples)
+    entries = [dataclasses.replace(e, criterion=e.objective + k * e.penalty)
                for e in ranking.ranked]
-    return Ranking(_order(entries) + ranking.skipped, criterion, factor, ranking.wv,
+    return Ranking(_order(entries) + ranking.skipped, criterion, k, ranking.wv,
                    ranking.drift_sign)
 
 
