@@ -285,7 +285,7 @@ class _UnitParser:
         kind, val = self.take()
         if val == "(":
             out = self.expr()
-            if self.take()[1] != ")":
+            if self.peek() is None or self.take()[1] != ")":
                 raise InputError(f"unit {self.text!r}: missing ')'")
             return out
         if val == "√":
