@@ -106,9 +106,13 @@ def run_case(case: Case, R: int, seed: int) -> list[dict]:
 
 
 def _git_commit() -> str:
+    """The commit the library came from, '+dirty' when src/ has uncommitted changes."""
     try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, text=True,
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=HERE, text=True,
                               capture_output=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "src"], cwd=HERE.parent,
+                               text=True, capture_output=True, check=True).stdout.strip()
+        return head + ("+dirty" if dirty else "")
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
 
@@ -161,10 +165,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--write", action="store_true",
                     help="store bench_plan.json and render the README section")
     args = ap.parse_args(argv)
-    load0 = os.getloadavg()[0]
+    load0, commit = os.getloadavg()[0], _git_commit()  # the code that produces the numbers
     t0, c0 = time.perf_counter(), time.process_time()
     rows = [row for case in CASES for row in run_case(case, args.R, args.seed)]
-    meta = {"R": args.R, "seed": args.seed, "commit": _git_commit(),
+    meta = {"R": args.R, "seed": args.seed, "commit": commit,
             "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
             "machine": f"{platform.machine()} {os.cpu_count()} cores, Python "
                        f"{platform.python_version()}, numpy {np.__version__}",
