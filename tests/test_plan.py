@@ -160,7 +160,9 @@ def test_plan_json_from_a_datasheet(capsys):
         assert set(p["se"]) == {"WN[1].sigma2", "GM[1].beta", "GM[1].sigma2"}  # as in gmwm fit
         assert set(p["coefficients"]) >= {"ARW", "BI"}
     assert obj["lengths"][1]["se"]["GM[1].beta"] < obj["lengths"][0]["se"]["GM[1].beta"]
-    assert set(obj["min_length"]) == {"ARW", "BI (GM[1])"}
+    assert set(obj["min_length"]) == {"WN[1]", "GM[1]"}
+    assert obj["min_length"]["GM[1]"]["term"] == "BI (GM[1])"
+    assert any("absent from the model: random walk" in n for n in obj["notes"])
     t = obj["targets"]["BI=0.1"]
     assert t["name"] == "BI" and 3600 < t["seconds"] < 6 * 3600
     assert "correlation time" in obj["notes"][0] and "Wald" in obj["identifiable_rule"]

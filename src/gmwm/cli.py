@@ -247,8 +247,9 @@ def build_parser() -> argparse.ArgumentParser:
         description=(
             "Stochastic calibration of inertial sensors with the Generalized Method of Wavelet\n"
             "Moments (GMWM): simulate error models, compute Haar wavelet and Allan variances,\n"
-            "fit composite models (WN, QN, RW, DR, AR1, GM, SIN), read datasheet coefficients and\n"
-            "write calibration reports. Parameters are discrete-time, per sample; scales are\n"
+            "fit composite models (WN, QN, RW, DR, AR1, GM, SIN), read datasheet coefficients,\n"
+            "plan recording lengths, judge a sensor against its datasheet and write calibration\n"
+            "reports. Parameters are discrete-time, per sample; scales are\n"
             "filter lengths tau_j = 2^j samples."
         ),
         epilog=(
@@ -258,7 +259,8 @@ def build_parser() -> argparse.ArgumentParser:
             "  gmwm wv x.npy --plot wv.png\n"
             "  gmwm fit x.npy 'WN+AR1' --json\n"
             "  gmwm fit imu.csv 'WN+GM+RW' --columns gx,gy,gz --units deg/s\n"
-            "  gmwm report imu.csv --columns all --units gx,gy,gz=deg/s --units ax,ay,az=m/s^2 -o rep\n\n"
+            "  gmwm report imu.csv --columns all --units gx,gy,gz=deg/s --units ax,ay,az=m/s^2 -o rep\n"
+            "  gmwm plan --datasheet mti-1 --sensor gyroscope --freq 100 --target BI=10%\n\n"
             + _EXIT_STATUS_HELP
         ),
     )
@@ -1383,8 +1385,6 @@ def _plot_with_datasheet(fits: dict[str, dict[str, Any]], path: str) -> None:
 
 
 def _add_plan_parser(sub: Any) -> None:
-    from gmwm.plan import DEFAULT_DURATIONS  # NumPy only: no start-up cost for 'gmwm --help'
-
     p = sub.add_parser(
         "plan", formatter_class=_Formatter,
         help="how long to record: predicted precision of every coefficient by recording length",
@@ -1423,7 +1423,7 @@ def _add_plan_parser(sub: Any) -> None:
                         "sets the units of the coefficients")
     p.add_argument("--duration", action="append", default=[], metavar="LENGTH",
                    help="recording length of a table row, repeatable, e.g. 30min, 2h, 1d "
-                        f"(default: {', '.join(DEFAULT_DURATIONS)})")
+                        "(default: eight lengths from 10min to 3d, gmwm.plan.DEFAULT_DURATIONS)")
     p.add_argument("--target", action="append", default=[], metavar="NAME=PRECISION",
                    help="the length a coefficient or parameter needs for this relative standard "
                         "error, repeatable, e.g. RRW=20%%, BI=10%%, 'WN[1].sigma2=1%%'")

@@ -260,8 +260,9 @@ class Plan:
                 "identifiable_rule": ("each parameter's predicted 95 % Wald interval excludes 0 "
                                       f"(relative SE <= {IDENTIFIABLE_RSE:.3f})"),
                 "lengths": [p.to_dict() for p in self.predictions],
-                "min_length": {self.labels.get(k, k): ({"seconds": v, "duration":
-                                                        format_duration(v)} if v else None)
+                "min_length": {k: {"term": self.labels.get(k, k), "seconds": v,
+                                   "duration": f"> {format_duration(MAX_SEARCH_S)}" if v is None
+                                   else format_duration(v)}
                                for k, v in self.min_length.items()},
                 "targets": self.targets}
 

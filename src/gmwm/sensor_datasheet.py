@@ -443,6 +443,10 @@ def to_model(spec: SensorSpec, freq: float, unit: str | None = None) -> Datashee
                                                                    freq))
         counts["DR"] = 1
         values["RR"] = (spec.ramp.value, spec.ramp.unit)
+    absent = [k.replace("_", " ") for k in ("white", "bias_instability", "random_walk")
+              if getattr(spec, k) is None]
+    if absent:
+        notes.append(f"not on the datasheet, so absent from the model: {', '.join(absent)}")
     order = ("QN", "WN", "GM", "RW", "DR")
     from gmwm.model import spec_of
 
