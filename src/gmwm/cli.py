@@ -1340,8 +1340,6 @@ def _attach_verdicts(fits: dict[str, dict[str, Any]], sheet: Any, err: TextIO, m
                       f"{sheet.where} has no {parsed[2]} section: no verdict\n")
             f["verdict"] = None
             continue
-        if not hasattr(f["result"], "cov"):
-            raise UsageError("--datasheet needs standard errors: use --method gmwm or armav")
         f["verdict"] = judge(f["result"], sheet, f["units"])
         covered += 1
     if not covered:

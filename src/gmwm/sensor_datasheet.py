@@ -199,10 +199,10 @@ def _check_kind(q: Quantity, kind: str, sensor: str, where: str, key: str) -> No
     probe = "rad/s" if sensor == "gyroscope" else "m/s^2"
     try:
         to_signal_units(q.value, q.unit, kind, probe)
-    except InputError as exc:
-        what = kind.replace("_", " ")
-        raise _err(where, key, f"{q} is not a {what} term of a {sensor} "
-                               f"({str(exc).split('(')[1].split(')')[0]})") from None
+    except InputError:
+        what = "time" if kind == "time" else f"{kind.replace('_', ' ')} term of a {sensor}"
+        raise _err(where, key, f"{q} is not a {what} (its dimension is "
+                               f"{coefficient_unit(q.unit).describe()})") from None
 
 
 def _sensor(raw: Any, sensor: str, where: str) -> SensorSpec:
