@@ -1,4 +1,4 @@
-"""The ``gmwm`` command line tool: simulate, wv, av, fit, model-wv, report.
+"""The ``gmwm`` command line tool: simulate, wv, av, fit, model-wv, report, plan.
 
 Exit status: 0 success; 1 a problem with the input, model or files (one line
 ``gmwm: error: ...`` on stderr, never a traceback); 2 a usage error (bad options, malformed
@@ -278,8 +278,9 @@ def build_parser() -> argparse.ArgumentParser:
         description=(
             "Stochastic calibration of inertial sensors with the Generalized Method of Wavelet\n"
             "Moments (GMWM): simulate error models, compute Haar wavelet and Allan variances,\n"
-            "fit composite models (WN, QN, RW, DR, AR1, GM, SIN), read datasheet coefficients and\n"
-            "write calibration reports. Parameters are discrete-time, per sample; scales are\n"
+            "fit composite models (WN, QN, RW, DR, AR1, GM, SIN), read datasheet coefficients,\n"
+            "plan recording lengths, judge a sensor against its datasheet and write calibration\n"
+            "reports. Parameters are discrete-time, per sample; scales are\n"
             "filter lengths tau_j = 2^j samples."
         ),
         epilog=(
@@ -289,7 +290,8 @@ def build_parser() -> argparse.ArgumentParser:
             "  gmwm wv x.npy --plot wv.png\n"
             "  gmwm fit x.npy 'WN+AR1' --json\n"
             "  gmwm fit imu.csv 'WN+GM+RW' --columns gx,gy,gz --units deg/s\n"
-            "  gmwm report imu.csv --columns all --units gx,gy,gz=deg/s --units ax,ay,az=m/s^2 -o rep\n\n"
+            "  gmwm report imu.csv --columns all --units gx,gy,gz=deg/s --units ax,ay,az=m/s^2 -o rep\n"
+            "  gmwm plan --datasheet mti-1 --sensor gyroscope --freq 100 --target BI=10%\n\n"
             + _EXIT_STATUS_HELP
         ),
     )
@@ -383,6 +385,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--check", action="store_true",
                    help="also run identifiability checks on the estimate (module gmwm.identify)")
     _add_robust(p)
+    _add_datasheet(p)
     p.set_defaults(func=cmd_fit)
 
     p = sub.add_parser(
@@ -433,9 +436,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, metavar="DIR",
                    help="directory for report.md, report.html, imu.yaml and the figures")
     p.add_argument("--title", default=None, help="page title (default: the input file name)")
+    _add_datasheet(p)
     p.set_defaults(func=cmd_report)
     _add_select_parser(sub)
     _add_svo_parser(sub)
+    _add_plan_parser(sub)
     return parser
 
 
@@ -1351,6 +1356,8 @@ def _fit_json(args: argparse.Namespace, name: str, f: dict[str, Any]) -> dict[st
     }
     if f["check"] is not None:
         obj["check"] = _check_json(f["check"])
+    if f.get("verdict") is not None:
+        obj["datasheet_verdict"] = {k: v for k, v in f["verdict"].items() if k != "curves"}
     return obj
 
 
@@ -1390,6 +1397,8 @@ def _fit_text(args: argparse.Namespace, name: str | None, f: dict[str, Any], out
               f"WV {_fmt_s(f['seconds_wv'])}, fit {_fmt_s(f['seconds_fit'])}\n")
     if f["check"] is not None:
         out.write(_check_text(f["check"]) + "\n")
+    if f.get("verdict") is not None:
+        out.write(_verdict_text(f["verdict"]) + "\n")
 
 
 def _fit_status(fits: dict[str, dict[str, Any]], err: TextIO, multi: bool) -> int:
@@ -1408,9 +1417,13 @@ def _fit_status(fits: dict[str, dict[str, Any]], err: TextIO, multi: bool) -> in
 
 
 def cmd_fit(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    sheet = _load_datasheet(args)
     fits, _ = _fit_columns(args)
     multi = args.columns is not None
-    if args.plot:
+    _attach_verdicts(fits, sheet, err, multi)
+    if args.plot and sheet is not None:
+        _plot_with_datasheet(fits, args.plot)
+    elif args.plot:
         from gmwm.plots import plot_wv
 
         _plot_channels(fits, lambda f, ax, c: plot_wv(f["result"].wv, result=f["result"], ax=ax,
@@ -1489,10 +1502,13 @@ def cmd_report(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from gmwm.report import write_report
 
     args.check = False
+    sheet = _load_datasheet(args)
     fits, _ = _fit_columns(args)
+    _attach_verdicts(fits, sheet, err, True)
     args.progress(f"writing the report to {args.output}")
     per_axis = {c: {"result": f["result"], "units": f["units"], "warnings": f["warnings"],
-                    "datasheet": _datasheet(f["result"], f["units"])} for c, f in fits.items()}
+                    "datasheet": _datasheet(f["result"], f["units"]),
+                    "verdict": f.get("verdict")} for c, f in fits.items()}
     st = getattr(args, "stationarity", None)
     if st is not None:  # each flagged axis says so in its own section and in the summary
         a, b = st.used or (0, st.n)
@@ -1524,6 +1540,297 @@ def cmd_report(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         out.write(f"report of {len(fits)} axes of {args.input} written to: "
                   + ", ".join(str(p) for p in files if p.suffix in (".md", ".html", ".yaml")) + "\n")
     return _fit_status(fits, err, True)
+
+
+# --------------------------------------------------------------------------------------------------
+# datasheets (fit, report) and the plan command (gmwm.sensor_datasheet, gmwm.plan)
+# --------------------------------------------------------------------------------------------------
+
+_DATASHEET_HELP = ("sensor datasheet: a YAML file of noise terms in datasheet units (see "
+                   "docs/METHODS.md §17.1) or a packaged example: adis16448, mti-1, stim300")
+
+
+def _add_datasheet(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--datasheet", metavar="FILE", default=None,
+                   help=_DATASHEET_HELP + "; adds a verdict table per axis (within / better / "
+                        "worse than the datasheet) and draws the datasheet's WV and Allan "
+                        "deviation beside the measured ones (needs --units per axis)")
+
+
+def _load_datasheet(args: argparse.Namespace) -> Any:
+    if not getattr(args, "datasheet", None):
+        return None
+    from gmwm.sensor_datasheet import load_datasheet
+
+    return load_datasheet(args.datasheet)
+
+
+def _attach_verdicts(fits: dict[str, dict[str, Any]], sheet: Any, err: TextIO, multi: bool
+                     ) -> None:
+    """Per column the datasheet verdict (``f["verdict"]``); a column the datasheet does not cover
+    (no section for its sensor type) gets a warning, a column without a known unit an error."""
+    if sheet is None:
+        return
+    from gmwm.datasheet import parse_unit
+    from gmwm.sensor_datasheet import judge
+
+    covered = 0
+    for name, f in fits.items():
+        parsed = parse_unit(f["units"]) if f["units"] else None
+        if parsed is None:
+            raise InputError(f"--datasheet: give the unit of {name} with --units (e.g. deg/s or "
+                             "m/s^2) to tell a gyroscope from an accelerometer")
+        if parsed[2] not in sheet.sensors:
+            err.write(f"gmwm: warning: {name + ': ' if multi else ''}the datasheet "
+                      f"{sheet.where} has no {parsed[2]} section: no verdict\n")
+            f["verdict"] = None
+            continue
+        f["verdict"] = judge(f["result"], sheet, f["units"])
+        covered += 1
+    if not covered:
+        raise InputError(f"--datasheet {sheet.where}: no fitted column is of a sensor type it "
+                         f"describes ({', '.join(sheet.sensors)})")
+
+
+def _verdict_text(v: dict[str, Any]) -> str:
+    rows = [(r["term"] + (f" {r['quantity']}" if r["quantity"] else ""), r["datasheet"],
+             r["measured"], *(r["ci95"] or [None, None]), r["unit"], r["verdict"])
+            for r in v["rows"]]
+    lines = [f"against the {v['sensor']} section of the datasheet {v['part']}"
+             + (f" ({v['source']})" if v["source"] else "") + ":",
+             format_table(["term", "datasheet", "measured", "ci95_low", "ci95_high", "unit",
+                           "verdict"], rows)]
+    lines += [f"  {r['term']}: {r['note']}" for r in v["rows"] if r.get("note")]
+    lines.append(f"  rule: {v['rule']}")
+    return "\n".join(lines)
+
+
+def _plot_with_datasheet(fits: dict[str, dict[str, Any]], path: str) -> None:
+    """Per column one row: WV with the fit and the datasheet's WV; Allan deviation with the
+    datasheet's."""
+    from gmwm.plots import add_datasheet_line, channel_grid, plot_av, plot_wv
+    from gmwm.wv import AllanVariance
+
+    fig, axes = channel_grid(2 * len(fits), ncols=2)
+    for i, (name, f) in enumerate(fits.items()):
+        res, v = f["result"], f.get("verdict")
+        ax_wv, ax_ad = axes[2 * i], axes[2 * i + 1]
+        plot_wv(res.wv, result=res, ax=ax_wv, units=f["units"])
+        plot_av(AllanVariance.from_wv(res.wv), deviation=True, ax=ax_ad, units=f["units"])
+        if v is not None:
+            c = v["curves"]
+            add_datasheet_line(ax_wv, c["scales_s"], c["wv"], v["label"])
+            add_datasheet_line(ax_ad, c["tau_s"], c["adev"], v["label"])
+        if len(fits) > 1:
+            ax_wv.set_title(f"{name}: WV")
+            ax_ad.set_title(f"{name}: Allan deviation")
+    _save_plot(fig, path)
+
+
+def _add_plan_parser(sub: Any) -> None:
+    p = sub.add_parser(
+        "plan", formatter_class=_Formatter,
+        help="how long to record: predicted precision of every coefficient by recording length",
+        description=(
+            "Plan a static recording before making it: from a datasheet (--datasheet, noise terms\n"
+            "in datasheet units) or a model with parameter values (MODEL -p ...), predict the\n"
+            "relative standard error and 95% interval of every coefficient that the default fit\n"
+            "('gmwm fit') will report, for recording lengths from minutes to days; the length from\n"
+            "which each term is identifiable (each parameter's 95% Wald interval excludes 0); and\n"
+            "with --target the length a precision needs. The prediction is the fit's own sandwich\n"
+            "standard error (model covariance of the WV, default weights) at the given values.\n"
+            "A datasheet's bias instability becomes a Gauss-Markov term whose Allan-deviation\n"
+            "peak is the floor 0.664 B (correlation time from the file or a stated rule)."
+        ),
+        epilog=(
+            "examples:\n"
+            "  gmwm plan --datasheet mti-1 --sensor gyroscope --freq 100\n"
+            "  gmwm plan --datasheet my_imu.yaml --freq 200 --duration 30min --duration 2h \\\n"
+            "       --target BI=10% --plot plan.png\n"
+            "  gmwm plan 'WN+RW' -p 'WN[1].sigma2=1.25e-3' -p 'RW[1].gamma2=3.9e-11' --freq 200 \\\n"
+            "       --units deg/s --target RRW=20% --json\n\n" + _EXIT_STATUS_HELP
+        ),
+    )
+    p.add_argument("model", metavar="MODEL", nargs="?", default=None,
+                   help="model string (instead of --datasheet), with its values given by -p")
+    p.add_argument("--param", "-p", action="append", type=_param, default=[], metavar="NAME=VALUE",
+                   help="parameter value of MODEL (per sample, as in 'gmwm fit'), repeatable")
+    p.add_argument("--datasheet", metavar="FILE", default=None, help=_DATASHEET_HELP)
+    p.add_argument("--sensor", choices=("gyroscope", "accelerometer"), default=None,
+                   help="with --datasheet: plan this sensor only (default: every sensor it has)")
+    p.add_argument("--freq", type=_positive_float, default=None,
+                   help="sampling frequency in Hz (default: the datasheet's 'rate', if it has one)")
+    p.add_argument("--units", default=None, metavar="UNIT",
+                   help="signal unit: of MODEL's parameters, or the unit the datasheet model is "
+                        "written in (default deg/s for a gyroscope, m/s^2 for an accelerometer); "
+                        "sets the units of the coefficients")
+    p.add_argument("--duration", action="append", default=[], metavar="LENGTH",
+                   help="recording length of a table row, repeatable, e.g. 30min, 2h, 1d "
+                        "(default: eight lengths from 10min to 3d, gmwm.plan.DEFAULT_DURATIONS)")
+    p.add_argument("--target", action="append", default=[], metavar="NAME=PRECISION",
+                   help="the length a coefficient or parameter needs for this relative standard "
+                        "error, repeatable, e.g. RRW=20%%, BI=10%%, 'WN[1].sigma2=1%%'")
+    p.add_argument("--json", action="store_true", help="print machine-readable JSON on stdout")
+    p.add_argument("--plot", metavar="FILE.png", default=None,
+                   help="draw the relative standard error of every coefficient against the length")
+    p.add_argument("--quiet", "-q", action="store_true", help="no progress lines on stderr")
+    p.set_defaults(func=cmd_plan)
+
+
+def _plan_inputs(args: argparse.Namespace) -> list[dict[str, Any]]:
+    """What to plan: per sensor (or the one model) the model, values, unit and notes."""
+    from gmwm.datasheet import parse_unit
+
+    if (args.datasheet is None) == (args.model is None):
+        raise UsageError("give a datasheet (--datasheet FILE) or a MODEL with -p values, not both")
+    if args.datasheet is None:
+        if args.sensor:
+            raise UsageError("--sensor applies to --datasheet")
+        if args.freq is None:
+            raise UsageError("give the sampling frequency with --freq")
+        unit = args.units
+        if unit:
+            parse_unit(unit)
+        model, theta = _model_theta(args.model, args.param, args.freq)
+        return [{"name": None, "model": model, "theta": theta, "unit": unit or None,
+                 "notes": [], "bi": None, "sheet": None}]
+    if args.param:
+        raise UsageError("-p gives the values of a MODEL; a datasheet carries its own")
+    from gmwm.sensor_datasheet import load_datasheet, to_model
+
+    sheet = load_datasheet(args.datasheet)
+    freq = args.freq if args.freq is not None else sheet.rate
+    if freq is None:
+        raise UsageError(f"give the sampling frequency with --freq (the datasheet {sheet.where} "
+                         "has no 'rate')")
+    sensors = [args.sensor] if args.sensor else list(sheet.sensors)
+    items = []
+    for sensor in sensors:
+        spec = sheet.sensor(sensor)
+        unit = args.units
+        if unit is not None:
+            parsed = parse_unit(unit)
+            if parsed is None or parsed[2] != sensor:
+                if len(sensors) > 1:
+                    raise UsageError(f"--units {unit} is not a {sensor} unit; with a datasheet "
+                                     "of several sensors choose one with --sensor")
+                raise InputError(f"--units {unit} is not a {sensor} unit")
+        unit = unit or ("deg/s" if sensor == "gyroscope" else "m/s^2")
+        dm = to_model(spec, freq, unit)
+        notes = list(dm.notes)
+        if args.freq is None:
+            notes.insert(0, f"sampling frequency {freq:g} Hz from the datasheet's 'rate'")
+        items.append({"name": sensor, "model": dm.model, "theta": dm.theta, "unit": unit,
+                      "notes": notes, "bi": dm.bi, "sheet": sheet})
+    return items
+
+
+def _plan_labels(model: Any, unit: str | None, bi: str | None) -> dict[str, str]:
+    """Component -> the name a datasheet gives it (ARW, RRW, ..., BI)."""
+    from gmwm.datasheet import unit_system
+
+    us = unit_system(unit)
+    names = {"WN": us.white_name, "RW": us.rw_name, "QN": "QN", "DR": "RR"}
+    out = {}
+    for c in model.components:
+        if c.name == bi:
+            out[c.name] = f"BI ({c.name})"
+        elif c.process.name in names:
+            out[c.name] = names[c.process.name]
+        else:
+            out[c.name] = c.name
+    return out
+
+
+def _fmt_precision(e: dict[str, Any]) -> str:
+    rse, ci = e.get("rse"), e.get("ci95")
+    if rse is None or not np.isfinite(rse):
+        return "-"
+    pct = f"{100 * rse:.2g}%" if rse < 0.1 else f"{100 * rse:.0f}%"
+    # enough digits that the two ends of a narrow interval differ
+    digits = max(3, 2 + int(np.ceil(-np.log10(max(2 * 1.96 * rse, 1e-15)))))
+    return pct if not ci else f"{pct} [{ci[0]:.{digits}g}, {ci[1]:.{digits}g}]"
+
+
+def _plan_text(item: dict[str, Any], plan: Any) -> str:
+    from gmwm.plan import IDENTIFIABLE_RSE, format_duration
+
+    model = plan.model
+    sheet = item["sheet"]
+    what = (f"{item['name']} of the datasheet {sheet.part}" if sheet is not None
+            else f"model {model.spec}")
+    lines = [f"recording plan for the {what} at {model.freq:g} Hz"
+             + (f", signal in {plan.unit}" if plan.unit else "")
+             + f": model {model.spec}, default fit ({plan.method.upper()}, {plan.weights} weights)"]
+    lines += [f"note: {n}" for n in plan.notes]
+    first = plan.predictions[0] if plan.predictions else None
+    coefs = [k for k in (first.coefficients if first else {})
+             if not (plan.bi and k == f"{plan.bi}.sigma")]
+    rows = []
+    for c in model.components:
+        v = plan.min_length[c.name]
+        rows.append((plan.labels.get(c.name, c.name), "> 30 d" if v is None else format_duration(v)))
+    lines.append(f"identifiable from (each parameter's 95% Wald interval excludes 0, i.e. relative "
+                 f"SE <= {100 * IDENTIFIABLE_RSE:.0f}%):")
+    lines.append(format_table(["term", "length"], rows))
+    if first is not None:
+        lines.append("predicted relative standard error [95% interval] of the fit's coefficients:")
+        headers = ["length", "samples", "J"] + [
+            f"{k} [{first.coefficients[k]['unit']}]" if first.coefficients[k]["unit"] else k
+            for k in coefs]
+        trows = [(format_duration(p.seconds), p.n_samples, p.levels,
+                  *(_fmt_precision(p.coefficients.get(k, {})) for k in coefs))
+                 for p in plan.predictions]
+        lines.append(format_table(headers, trows))
+        vals = ", ".join(f"{k} = {first.coefficients[k]['value']:.4g}"
+                         f"{' ' + first.coefficients[k]['unit'] if first.coefficients[k]['unit'] else ''}"
+                         for k in coefs if first.coefficients[k]["value"] is not None)
+        lines.append(f"(at the values {vals})")
+    for t in plan.targets.values():
+        lines.append(f"target {t['name']} to {100 * t['relative_se']:g}% (relative SE): record "
+                     + (f"at least {t['duration']}" if t["seconds"] is not None
+                        else f"longer than {t['duration'][2:]} (not reached)"))
+    return "\n".join(lines)
+
+
+def cmd_plan(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from gmwm.plan import DEFAULT_DURATIONS, make_plan, parse_duration, parse_target
+
+    items = _plan_inputs(args)
+    durations = [parse_duration(d) for d in (args.duration or DEFAULT_DURATIONS)]
+    targets = [parse_target(t) for t in args.target]
+    plans = []
+    for item in items:
+        args.progress(f"planning {item['name'] or item['model'].spec}")
+        plans.append(make_plan(item["model"], item["theta"], sorted(durations), unit=item["unit"],
+                               targets=targets, bi=item["bi"], notes=item["notes"],
+                               labels=_plan_labels(item["model"], item["unit"], item["bi"])))
+    if args.plot:
+        from gmwm.plan import curve
+        from gmwm.plots import channel_grid, plot_plan
+
+        fig, axes = channel_grid(len(plans), ncols=2, panel=(4.6, 3.2))
+        for ax, item, plan in zip(axes, items, plans, strict=True):
+            secs, rse = curve(plan)
+            plot_plan(secs, rse, plan, ax=ax)
+            if item["name"]:
+                ax.set_title(item["name"])
+        _save_plot(fig, args.plot)
+    if args.json:
+        objs = []
+        for item, plan in zip(items, plans, strict=True):
+            sheet = item["sheet"]
+            objs.append({"command": "plan", **({"datasheet": {
+                "part": sheet.part, "source": sheet.source, "file": sheet.path,
+                "sensor": item["name"]}} if sheet is not None else {}), **plan.to_dict()})
+        if len(objs) == 1:
+            _print_json(objs[0], out)
+        else:
+            _print_json({"command": "plan", "plans": {i["name"]: o for i, o in
+                                                      zip(items, objs, strict=True)}}, out)
+    else:
+        out.write("\n\n".join(_plan_text(i, p) for i, p in zip(items, plans, strict=True)) + "\n")
+    return EXIT_OK
 
 
 # --------------------------------------------------------------------------------------------------

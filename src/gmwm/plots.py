@@ -22,10 +22,12 @@ from matplotlib.figure import Figure
 __all__ = [
     "PALETTE",
     "STYLE",
+    "add_datasheet_line",
     "channel_grid",
     "new_axes",
     "plot_av",
     "plot_model_wv",
+    "plot_plan",
     "plot_stationarity",
     "plot_virtual_wv",
     "plot_wv",
@@ -463,3 +465,54 @@ def plot_stationarity(report: Any, *, channels: Sequence[str] | None = None,
         axes[0].set_title(f"Stationarity: {verdict}"
                           + ("" if used == (0, report.n) else "; grey: not used"))
     return fig
+
+
+#: colour of a datasheet's curves (grey, dashed: a reference, not an estimate)
+DATASHEET_COLOR = "#777777"
+
+
+def add_datasheet_line(ax: Axes, x: Sequence[float], y: Sequence[float],
+                       label: str = "Datasheet") -> Axes:
+    """Draw a datasheet's curve (its WV or Allan deviation, from
+    :func:`gmwm.sensor_datasheet.datasheet_curves`) on an existing log-log plot: a grey dash-dot
+    line (gid ``datasheet``), added to the legend."""
+    with style():
+        ax.plot(np.asarray(x, float), _positive(np.asarray(y, float)), ls="-.", lw=1.3,
+                color=DATASHEET_COLOR, label=label, gid="datasheet", zorder=4)
+        ax.legend()
+    return ax
+
+
+def plot_plan(seconds: Sequence[float], rse: Mapping[str, Sequence[float]], plan: Any, *,
+              ax: Axes | None = None) -> Axes:
+    """Predicted relative standard error [%] of every coefficient against the recording length
+    [h] (log-log) for a :class:`gmwm.plan.Plan`: one line per coefficient (``rse[name]`` at
+    ``seconds``), markers at the plan's lengths, the identifiability limit (relative SE 51 %,
+    dashed) and each target (dotted)."""
+    from gmwm.plan import IDENTIFIABLE_RSE
+
+    ax = new_axes(ax)
+    hours = np.asarray(seconds, float) / 3600.0
+    skip = f"{plan.bi}.sigma" if getattr(plan, "bi", None) else None
+    with style():
+        for i, (name, y) in enumerate((k, v) for k, v in rse.items() if k != skip):
+            color = PALETTE[1:][i % (len(PALETTE) - 1)]
+            ax.plot(hours, 100 * _positive(np.asarray(y, float)), color=color, label=name,
+                    gid=f"plan_{name}")
+            pts = [(p.seconds / 3600.0, p.coefficients.get(name, {}).get("rse"))
+                   for p in plan.predictions]
+            pts = [(h, 100 * r) for h, r in pts if r is not None and np.isfinite(r)]
+            if pts:
+                ax.plot(*zip(*pts, strict=True), "o", color=color, ms=3.5)
+        ax.axhline(100 * IDENTIFIABLE_RSE, ls="--", lw=0.9, color=PALETTE[0],
+                   label="identifiability limit (51 %)", gid="identifiable")
+        for t in getattr(plan, "targets", {}).values():
+            ax.axhline(100 * t["relative_se"], ls=":", lw=0.9, color=PALETTE[5],
+                       gid="target")
+            if t["seconds"] is not None:
+                ax.axvline(t["seconds"] / 3600.0, ls=":", lw=0.9, color=PALETTE[5])
+        _finish_loglog(ax, "Recording length [h]", "Relative standard error [%]")
+        lo, hi = ax.get_ylim()
+        if hi > 2e3:  # far beyond identifiable: keep the useful range readable
+            ax.set_ylim(lo, 2e3)
+    return ax

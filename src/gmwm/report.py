@@ -5,9 +5,11 @@ time ranges that moved, the part of the recording used and a timeline figure wit
 ranges. Per axis: the empirical WV with the fitted model and its components (PNG), the
 goodness-of-fit line (:mod:`gmwm.gof`), the datasheet coefficients with 95 % CIs
 (:func:`gmwm.datasheet.datasheet`), the IEEE 952 Allan-deviation readings of the same data (bias
-instability included) and the fit's warnings (a rejected model among them); at the end the Kalibr
-``imu.yaml`` (:mod:`gmwm.exports`), also written alone with the other filter configuration files
-asked for. Every file is written atomically.
+instability included) and the fit's warnings (a rejected model among them); with a sensor
+datasheet (``axes[name]["verdict"]`` from :func:`gmwm.sensor_datasheet.judge`) also the datasheet's
+WV and Allan deviation beside the measured ones and a verdict table (within / better / worse, with
+the rule); at the end the Kalibr ``imu.yaml`` (:mod:`gmwm.exports`), also written alone with the
+other filter configuration files asked for. Every file is written atomically.
 """
 
 from __future__ import annotations
@@ -84,6 +86,18 @@ def _axis_warnings(a: Mapping[str, Any]) -> list[str]:
 def _gof_line(res: Any) -> str | None:
     line = getattr(res, "gof_line", None)
     return line() if callable(line) else None
+
+
+def _verdict_rows(v: Mapping[str, Any]) -> list[tuple[str, str, str, str, str, str]]:
+    """(term, datasheet, measured, 95 % CI, unit, verdict) rows of a datasheet verdict."""
+    out = []
+    for r in v["rows"]:
+        ci = r.get("ci95")
+        out.append((r["term"] + (f" {r['quantity'].replace('_', ' ')}" if r["quantity"] else ""),
+                    _num(r["datasheet"]), _num(r["measured"]),
+                    "–" if not ci else f"[{_num(ci[0])}, {_num(ci[1])}]", r["unit"],
+                    r["verdict"]))
+    return out
 
 
 def _md_table(headers: list[str], rows: list[tuple]) -> list[str]:
@@ -164,7 +178,9 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     ``<axis>_wv.png`` per axis to ``outdir``; return the paths.
 
     ``axes[name]`` holds ``result`` (a GMWM fit), ``units`` (signal unit; deg/s or rad/s mark a
-    gyroscope, m/s^2 or g an accelerometer), ``warnings`` (list of str) and ``datasheet``.
+    gyroscope, m/s^2 or g an accelerometer), ``warnings`` (list of str), ``datasheet`` and
+    optionally ``verdict`` (a sensor datasheet's judgement, :func:`gmwm.sensor_datasheet.judge`;
+    adds ``<axis>_adev.png`` and the verdict table).
     ``timing``: lines on the recording's time base (rate source, jitter, gaps, gap policy).
     ``stationarity``: a :class:`gmwm.stationarity.StationarityReport` (its ``used`` range set):
     a warning at the top when it flags the part used, a section with the timeline figure.
@@ -174,7 +190,8 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     """
     from gmwm.atomic import save_figure, write_text_atomic
     from gmwm.exports import kalibr_text, noise_export, parse_targets, write_exports
-    from gmwm.plots import plot_wv
+    from gmwm.plots import add_datasheet_line, plot_av, plot_wv
+    from gmwm.wv import AllanVariance
 
     out = Path(outdir)
     if out.exists() and not out.is_dir():
@@ -234,6 +251,10 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
         png = out / f"{_slug(name)}_wv.png"
         ax = plot_wv(res.wv, result=res, units=a["units"] or "")
         ax.set_title(f"{name}: {res.model.spec}")
+        verdict = a.get("verdict")
+        if verdict is not None:
+            c = verdict["curves"]
+            add_datasheet_line(ax, c["scales_s"], c["wv"], verdict["label"])
         written += save_figure(ax.figure, png)
         rows = _rows(a["datasheet"])
         th = ["term", "quantity", "value", "95% CI", "unit"]
@@ -247,6 +268,26 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
                   f"samples, J = {res.wv.n_levels} scales.</p>"),
                  f'<img src="{html.escape(png.name)}" alt="WV of {html.escape(name)}" width="560">',
                  _html_table(th, rows)]
+        if verdict is not None:
+            adev_png = out / f"{_slug(name)}_adev.png"
+            ax = plot_av(AllanVariance.from_wv(res.wv), deviation=True, units=a["units"] or "")
+            add_datasheet_line(ax, verdict["curves"]["tau_s"], verdict["curves"]["adev"],
+                               verdict["label"])
+            ax.set_title(f"{name}: Allan deviation")
+            written += save_figure(ax.figure, adev_png)
+            vh = ["term", "datasheet", "measured", "95% CI", "unit", "verdict"]
+            vrows = _verdict_rows(verdict)
+            src = f" ({verdict['source']})" if verdict["source"] else ""
+            head = f"Against the {verdict['sensor']} section of the datasheet {verdict['part']}{src}:"
+            notes = [f"{r['term']}: {r['note']}" for r in verdict["rows"] if r.get("note")]
+            rule = f"Rule: {verdict['rule']}."
+            md += [head, "", f"![Allan deviation of {name} and the datasheet's]({adev_png.name})",
+                   "", *_md_table(vh, vrows), "", *(f"- {n}" for n in notes), f"- {rule}", ""]
+            body += [f"<p>{html.escape(head)}</p>",
+                     (f'<img src="{html.escape(adev_png.name)}" alt="Allan deviation of '
+                      f'{html.escape(name)}" width="560">'), _html_table(vh, vrows),
+                     "<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in [*notes, rule])
+                     + "</ul>"]
         readings = _reading_rows(res, a["units"])
         if readings:
             rh = ["IEEE 952 reading", "value", "95% CI", "unit", "from"]
