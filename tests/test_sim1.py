@@ -80,6 +80,13 @@ def test_two_clocks_point_estimate_and_with_standard_errors(whole):
     assert (point[ran] > 0).all() and np.isnan(point[~ran]).all()
     # the SEs come on top of the point estimate, for every method (GMWM: the whole fit call)
     assert (full[ran] >= point[ran]).all()
+    cpu, cpu_full = ds["cpu_seconds"].values, ds["cpu_seconds_se"].values
+    assert (cpu[ran] > 0).all() and (cpu_full[ran] >= cpu[ran]).all()
+    assert np.isnan(cpu[~ran]).all()
+    # the GMWM's point-estimate CPU time is its call's split like the wall clock
+    g = ds.sel(estimator="gmwm")
+    np.testing.assert_allclose(g["cpu_seconds"] / g["cpu_seconds_se"],
+                               g["seconds"] / g["seconds_se"], rtol=1e-12)
     se = ds["se"].sel(parameter=list(COMPARED))
     # (the weakly identified RW may sit at the boundary at this T, and then has no SE)
     assert np.isfinite(se.sel(estimator="gmwm", parameter=list(COMPARED[:3]))).all()
@@ -255,6 +262,10 @@ def test_baseline_fits_the_same_signals_and_merges(whole, baseline):
     assert row.n_mle == 2 and row.not_converged + row.wrong_optimum + row.n_used == 2
     assert row.mle_mean_s == pytest.approx(float(b["seconds"].mean()))
     assert row.mle_se_mean_s == pytest.approx(float(b["seconds_se"].mean()))
+    assert row.mle_cpu_mean_s == pytest.approx(float(b["cpu_seconds"].mean()))
+    assert row.speedup_cpu_mean == pytest.approx(
+        row.mle_cpu_mean_s / float(whole["cpu_seconds"].sel(estimator="gmwm",
+                                                            replicate=[0, 1]).mean()))
     # the GMWM's time is averaged over the same two signals
     assert row.gmwm_mean_s == pytest.approx(
         float(whole["seconds"].sel(estimator="gmwm", replicate=[0, 1]).mean()))

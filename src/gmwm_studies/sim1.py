@@ -18,11 +18,14 @@ on a smaller subset of the same signals because it is slow) the general-purpose 
 ``statsmodels``: statsmodels' own estimator (:func:`gmwm_studies.mle.fit_statsmodels`), merged
 in by :func:`add_baseline`. Raw signals are never stored.
 
-Two clocks per fit (wall time): ``seconds``, the point estimate alone (GMWM: its WV and search,
+Two clocks per fit: ``seconds``, the point estimate alone (GMWM: its WV and search,
 ``GMWMResult.seconds_wv + seconds_fit``; MLE: the optimisation), and ``seconds_se``, the point
 estimate with its standard errors (GMWM: the whole ``gmwm.fit`` call, which adds the sandwich SEs
 under the model-based WV covariance and the fit diagnostics; Kalman MLE: plus the observed
-information by a finite-difference Hessian; statsmodels: plus its default OPG covariance).
+information by a finite-difference Hessian; statsmodels: plus its default OPG covariance). Both
+in wall time and (``cpu_seconds``, ``cpu_seconds_se``) in process CPU time, which other load on
+the machine barely affects; the GMWM's point-estimate CPU time is its call's CPU time split in the
+proportion of its wall-clock parts (``gmwm.fit`` times its parts by wall clock only).
 
 Results are xarray Datasets with dims ``(estimator, replicate, parameter)``; ``estimator`` is
 ``['gmwm', <variant names>]``. The methods are compared on WN sigma2, AR1 phi, AR1 innovation
@@ -142,7 +145,7 @@ def _check_model(model: Any, truth: Mapping[str, float]) -> float:
 def _empty_fit(n: int, ran: bool = False, message: str = "") -> dict[str, Any]:
     return {"estimate": np.full(n, np.nan), "se": np.full(n, np.nan), "converged": False,
             "start": "", "loglike": np.nan, "seconds": np.nan, "seconds_se": np.nan,
-            "ran": ran, "message": message}
+            "cpu_seconds": np.nan, "cpu_seconds_se": np.nan, "ran": ran, "message": message}
 
 
 def _mle_record(res: Any, names: Sequence[str]) -> dict[str, Any]:
@@ -152,7 +155,9 @@ def _mle_record(res: Any, names: Sequence[str]) -> dict[str, Any]:
             "se": np.array([se.get(n, np.nan) for n in names]),
             "converged": bool(res.converged), "start": res.start, "loglike": float(res.loglike),
             "message": res.message, "seconds": float(res.seconds),
-            "seconds_se": float(res.seconds + res.seconds_se)}
+            "seconds_se": float(res.seconds + res.seconds_se),
+            "cpu_seconds": float(res.cpu_seconds),
+            "cpu_seconds_se": float(res.cpu_seconds + res.cpu_seconds_se)}
 
 
 def _fit_variant(x: np.ndarray, beta: float, rule: str, gmwm_start: dict[str, float] | None,
@@ -163,14 +168,19 @@ def _fit_variant(x: np.ndarray, beta: float, rule: str, gmwm_start: dict[str, fl
         return _empty_fit(len(names), True, "not run: the GMWM fit failed")
     kw = {"maxiter": int(settings["maxiter"]), "backend": str(settings["backend"]), "n_starts": 1,
           "own_starts": "default" if rule == "default" else "variogram", "se": True}
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         return {**_mle_record(fit_mle(x, beta, gmwm_start if rule == "gmwm" else None, **kw),
                               names), "ran": True}
     except _FAILURES as exc:
-        secs = time.perf_counter() - t0
         return {**_empty_fit(len(names), True, f"{type(exc).__name__}: {exc}"),
-                "seconds": secs, "seconds_se": secs}
+                **_failed_clocks(t0, c0)}
+
+
+def _failed_clocks(t0: float, c0: float) -> dict[str, float]:
+    """Both clocks of a fit that raised: the time it cost, as point estimate and with SEs."""
+    secs, cpu = time.perf_counter() - t0, time.process_time() - c0
+    return {"seconds": secs, "seconds_se": secs, "cpu_seconds": cpu, "cpu_seconds_se": cpu}
 
 
 def _signal(model: Any, theta: np.ndarray, n_samples: int, replicate: int, study: str,
@@ -213,17 +223,20 @@ def run_replicate(
     x = _signal(model, theta, n_samples, replicate, study, base_seed)
     g = _empty_fit(len(names), True)
     seed = replicate_seed(study, n_samples, replicate, base_seed, stream=1)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         res = fit(x, model, seed=seed, **gmwm_kwargs)
         g["seconds_se"] = time.perf_counter() - t0
-        # the point estimate's clock: the WV and the search, without the SEs and diagnostics
+        g["cpu_seconds_se"] = time.process_time() - c0
+        # the point estimate's clock: the WV and the search, without the SEs and diagnostics;
+        # its CPU time is the call's, split like its wall time
         g["seconds"] = float(res.seconds_wv + res.seconds_fit)
+        g["cpu_seconds"] = g["cpu_seconds_se"] * min(1.0, g["seconds"] / g["seconds_se"])
         gmwm_theta = model.canonical(np.asarray(res.params, dtype=float))
         g.update(estimate=gmwm_theta, se=np.asarray(res.se, dtype=float),
                  converged=bool(res.converged), message=str(res.message))
     except _FAILURES as exc:
-        g["seconds"] = g["seconds_se"] = time.perf_counter() - t0
+        g.update(_failed_clocks(t0, c0))
         gmwm_theta = None
         g["message"] = f"{type(exc).__name__}: {exc}"
     fits = {"gmwm": g}
@@ -337,6 +350,8 @@ def _dataset(rows: Sequence[Mapping[str, Any]], methods: Sequence[str], reps: Se
             "ran": (per_fit, stack("ran", bool)),
             "seconds": (per_fit, stack("seconds")),
             "seconds_se": (per_fit, stack("seconds_se")),
+            "cpu_seconds": (per_fit, stack("cpu_seconds")),
+            "cpu_seconds_se": (per_fit, stack("cpu_seconds_se")),
             "message": (per_fit, stack("message", object)),
             "start": (per_fit, stack("start", object)),
             "loglike": (per_fit, stack("loglike")),
@@ -392,14 +407,13 @@ def run_baseline_chunk(
     rows = []
     for i, rep in enumerate(reps):
         x = _signal(model, theta, n_samples, rep, study, base_seed)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         try:
             rec = {**_mle_record(fit_statsmodels(x, beta, maxiter=int(opts["maxiter"]), se=True),
                                  names), "ran": True}
         except _FAILURES as exc:
-            secs = time.perf_counter() - t0
             rec = {**_empty_fit(len(names), True, f"{type(exc).__name__}: {exc}"),
-                   "seconds": secs, "seconds_se": secs}
+                   **_failed_clocks(t0, c0)}
         rows.append({"fits": {BASELINE: rec}})
         progress(f"{study} T={n_samples} statsmodels: replicate {i + 1}/{len(reps)} (id {rep}): "
                  f"{rec['seconds']:.2f} s (+SE {rec['seconds_se']:.2f} s) "
@@ -436,7 +450,8 @@ def add_baseline(ds: xr.Dataset, baseline: xr.Dataset) -> xr.Dataset:
         raise InputError(f"statsmodels baseline ran on replicates {no_mle.tolist()} where the "
                          "Kalman-filter MLE did not: raise the MLE cap or lower the baseline's")
     fill = {"estimate": np.nan, "se": np.nan, "converged": False, "ran": False,
-            "seconds": np.nan, "seconds_se": np.nan, "message": "not run (beyond the "
+            "seconds": np.nan, "seconds_se": np.nan, "cpu_seconds": np.nan,
+            "cpu_seconds_se": np.nan, "message": "not run (beyond the "
             "statsmodels baseline's subset)", "start": "", "loglike": np.nan}
     b = b.reindex(replicate=ds["replicate"].values, fill_value=fill)
     for var in ("converged", "ran"):
@@ -528,7 +543,8 @@ def summarize_comparison(ds: xr.Dataset) -> pd.DataFrame:
     replicates of :func:`paired_mask` for that variant, identical for both methods; run times are
     over every replicate where the MLE ran (converged or not: a failed fit costs time too), the
     same signals for both methods: ``mean_seconds`` / ``median_seconds`` of the point estimate,
-    ``*_seconds_se`` with the standard errors. ``mean_se`` is the mean reported SE over the
+    ``*_seconds_se`` with the standard errors, ``*_seconds_cpu`` / ``*_seconds_cpu_se`` the same
+    in CPU time. ``mean_se`` is the mean reported SE over the
     paired replicates (compare with ``sd``). ``n_mle_run``: replicates where that variant ran.
     ``set = 'all'`` rows (``gmwm`` only, variant ``''``): every replicate with a converged GMWM
     fit, including those beyond the MLE cap.
@@ -547,12 +563,13 @@ def summarize_comparison(ds: xr.Dataset) -> pd.DataFrame:
     jobs.append(("all", "gmwm", gmwm_ok, np.ones_like(gmwm_ok),
                  {"n_mle_run": int(ds["mle_ran"].values.sum()), "variant": "", "start_rule": "",
                   "n_not_converged": int((~gmwm_ok).sum()), "n_wrong_optimum": 0}))
-    has_se_clock = "seconds_se" in ds
     for set_name, method, subset, timed, counts in jobs:
-        times = _times(ds["seconds"].sel(estimator=method).values[timed])
-        secs_se = (ds["seconds_se"].sel(estimator=method).values[timed] if has_se_clock
-                   else np.full(int(timed.sum()), np.nan))
-        times.update(_times(secs_se, "_se"))
+        times: dict[str, float] = {}
+        for var, suffix in (("seconds", ""), ("seconds_se", "_se"), ("cpu_seconds", "_cpu"),
+                            ("cpu_seconds_se", "_cpu_se")):
+            secs = (ds[var].sel(estimator=method).values[timed] if var in ds
+                    else np.full(int(timed.sum()), np.nan))
+            times.update(_times(secs, suffix))
         for p in COMPARED:
             truth = float(ds["truth"].sel(parameter=p))
             x = ds["estimate"].sel(estimator=method, parameter=p).values[subset]
@@ -566,7 +583,8 @@ def summarize_comparison(ds: xr.Dataset) -> pd.DataFrame:
 def comparison_table(summary: pd.DataFrame) -> pd.DataFrame:
     """One row per sample size and MLE variant: counts, mean and median times, speed-ups (MLE /
     GMWM time on the same signals, ratio of means and ratio of medians) of the point estimates
-    and (``*_se``) of the fits with their standard errors, and the RMSE ratio MLE / GMWM per
+    and (``*_se``) of the fits with their standard errors, in wall time and (``*_cpu*``, ratio of
+    means) CPU time, and the RMSE ratio MLE / GMWM per
     compared parameter (that variant's paired replicates)."""
     paired = summary[summary["set"] == "paired"]
     rows = []
@@ -593,6 +611,10 @@ def comparison_table(summary: pd.DataFrame) -> pd.DataFrame:
             "mle_se_mean_s": float(ml["mean_seconds_se"]),
             "speedup_se_mean": _ratio(ml["mean_seconds_se"], gm["mean_seconds_se"]),
             "speedup_se_median": _ratio(ml["median_seconds_se"], gm["median_seconds_se"]),
+            "gmwm_cpu_mean_s": float(gm["mean_seconds_cpu"]),
+            "mle_cpu_mean_s": float(ml["mean_seconds_cpu"]),
+            "speedup_cpu_mean": _ratio(ml["mean_seconds_cpu"], gm["mean_seconds_cpu"]),
+            "speedup_cpu_se_mean": _ratio(ml["mean_seconds_cpu_se"], gm["mean_seconds_cpu_se"]),
         }
         for p in COMPARED:
             row[f"rmse_ratio_{SHORT_NAMES[p]}"] = _ratio(by.loc[(variant, p), "rmse"],
@@ -681,10 +703,12 @@ def counts_text(comp: pd.DataFrame, mle_settings: Mapping[str, Any],
         f"from both methods' statistics for that variant (as in the paper)."
     )]
     lines.append(
-        "Clocks (wall time, same signals for all methods): point estimate (GMWM: WV and search; "
+        "Clocks (same signals for all methods): point estimate (GMWM: WV and search; "
         "MLE: the optimisation) and, separately, with standard errors (GMWM: the whole fit call, "
         "with its sandwich SEs and diagnostics; own-filter MLE: plus a finite-difference Hessian; "
-        "statsmodels: plus its default OPG covariance).")
+        "statsmodels: plus its default OPG covariance); wall time, and CPU time of the process "
+        "(cpu columns; the GMWM's point-estimate share of its call's CPU time taken in the "
+        "proportion of the wall clock).")
     if len(base):
         opts = _baseline_settings(baseline_settings)
         lines.append(
