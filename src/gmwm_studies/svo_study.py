@@ -321,7 +321,7 @@ def abs_correlation(cov: np.ndarray) -> np.ndarray:
     if np.linalg.eigvalsh(cov)[0] <= 0:
         raise InputError("covariance matrix is not positive definite")
     d = 1.0 / np.sqrt(np.diag(cov))
-    return np.abs(cov * d[:, None] * d[None, :])
+    return np.clip(np.abs(cov * d[:, None] * d[None, :]), 0.0, 1.0)  # 1 + 1 ulp on the diagonal
 
 
 def input_table(case_name: str) -> list[dict[str, Any]]:
