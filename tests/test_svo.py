@@ -524,3 +524,20 @@ def test_report_tables_coefficient_range_and_fig3_numbers():
     v = par[:, :, METHODS.index("svo_w1"), 0].ravel()
     assert w1["median"] == pytest.approx(np.median(v))
     assert w1["q25"] <= w1["median"] <= w1["q75"]
+
+
+def test_wv_table_population_ratios():
+    """true_ratio_to_equal: the methods' population coefficients on the true WCCV (Case 1: SPEC
+    6.4's 0.235 for omega_1 at j = 19, and RDVG with the true Q just below it, as paper 003
+    Fig. 2 says); Case 2 has no population RDVG."""
+    from gmwm_studies.svo_study import wv_table
+
+    res = {"wv": np.ones((2, 3, 4, 19))}
+    rows = {(r["method"], r["level"]): r for r in wv_table(res, 10.0, "case1")}
+    assert round(rows[("svo_w1", 19)]["true_ratio_to_equal"], 3) == 0.235
+    assert rows[("rdvg", 19)]["true_ratio_to_equal"] < rows[("svo_w1", 19)]["true_ratio_to_equal"]
+    assert rows[("equal", 7)]["true_ratio_to_equal"] == pytest.approx(1.0)
+    assert round(rows[("svo_w2", 1)]["true_ratio_to_equal"], 2) == 0.86
+    case2 = {(r["method"], r["level"]): r for r in wv_table(res, 10.0, "case2")}
+    assert np.isnan(case2[("rdvg", 19)]["true_ratio_to_equal"])
+    assert "true_ratio_to_equal" not in wv_table(res, 10.0)[0]

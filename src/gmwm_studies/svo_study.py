@@ -411,21 +411,33 @@ def gmwm_table(res: Mapping[str, np.ndarray]) -> list[dict[str, Any]]:
     return rows
 
 
-def wv_table(res: Mapping[str, np.ndarray], freq: float) -> list[dict[str, Any]]:
+def wv_table(res: Mapping[str, np.ndarray], freq: float,
+             case_name: str | None = None) -> list[dict[str, Any]]:
     """Average WV of the out-of-sample virtual signals per method and level, its 95 % CI (normal,
-    over all test signals) and the ratio of averages to equal weights."""
+    over all test signals) and the ratio of averages to equal weights; with ``case_name`` also
+    ``true_ratio_to_equal``, the same ratio for the method's population coefficients (c0(omega),
+    c_RDVG from the true Q: Case 1 only) on the true WCCV, i.e. without estimation error."""
     wv = res["wv"].reshape(-1, len(METHODS), res["wv"].shape[-1])
-    n = wv.shape[0]
+    n, J = wv.shape[0], wv.shape[-1]
     mean = wv.mean(axis=0)
     half = 1.96 * wv.std(axis=0, ddof=1) / math.sqrt(n) if n > 1 else np.zeros_like(mean)
+    true_ratio: dict[str, np.ndarray] = {}
+    if case_name is not None:
+        A = case(case_name).wccv(2.0 ** np.arange(1, J + 1))
+        nu = {m: np.einsum("i,jik,k->j", c, A, c) for m, c in true_coefs(case_name, J).items()}
+        true_ratio = {m: v / nu["equal"] for m, v in nu.items()}
     rows = []
     for b, m in enumerate(METHODS):
         for j in range(mean.shape[1]):
-            rows.append({"method": m, "level": j + 1, "scale_s": 2.0 ** (j + 1) / freq,
-                         "mean_wv": float(mean[b, j]), "ci_low": float(mean[b, j] - half[b, j]),
-                         "ci_high": float(mean[b, j] + half[b, j]),
-                         "ratio_to_equal": float(mean[b, j] / mean[METHODS.index("equal"), j]),
-                         "n_signals": n})
+            row = {"method": m, "level": j + 1, "scale_s": 2.0 ** (j + 1) / freq,
+                   "mean_wv": float(mean[b, j]), "ci_low": float(mean[b, j] - half[b, j]),
+                   "ci_high": float(mean[b, j] + half[b, j]),
+                   "ratio_to_equal": float(mean[b, j] / mean[METHODS.index("equal"), j]),
+                   "n_signals": n}
+            if case_name is not None:
+                row["true_ratio_to_equal"] = (float(true_ratio[m][j]) if m in true_ratio
+                                              else float("nan"))
+            rows.append(row)
     return rows
 
 
