@@ -523,7 +523,9 @@ def test_report_tables_coefficient_range_and_fig3_numbers():
     w1 = next(x for x in g if x["method"] == "svo_w1" and x["parameter"] == "sigma2")
     v = par[:, :, METHODS.index("svo_w1"), 0].ravel()
     assert w1["median"] == pytest.approx(np.median(v))
-    assert w1["q25"] <= w1["median"] <= w1["q75"]
+    assert w1["q25"] <= w1["median"] <= w1["q75"] <= w1["max"] == v.max()
+    for name in ("sigma2", "gamma2"):
+        assert sum(x["share_lowest"] for x in g if x["parameter"] == name) == pytest.approx(1.0)
 
 
 def test_wv_table_population_ratios():

@@ -392,21 +392,26 @@ def coef_table(res: Mapping[str, np.ndarray], case_name: str, levels: int) -> li
 
 def gmwm_table(res: Mapping[str, np.ndarray]) -> list[dict[str, Any]]:
     """[SVO] Fig. 3 in numbers: per method and parameter (WN ``sigma2``, RW ``gamma2``, per
-    sample) the median, quartiles, mean and SD of the WN+RW GMWM estimates of the out-of-sample
-    virtual signals, and the median relative to the equal-weights one."""
+    sample) the median, quartiles, maximum, mean and SD of the WN+RW GMWM estimates of the
+    out-of-sample virtual signals, the median relative to the equal-weights one, and
+    ``share_lowest``: the share of test signals on which this method's estimate is the lowest of
+    the four (the methods are applied to the same test arrays, so this is a paired comparison)."""
     par = res["gmwm"].reshape(-1, len(METHODS), 2)
     eq = METHODS.index("equal")
     rows = []
     for k, name in enumerate(("sigma2", "gamma2")):
         ref = float(np.median(par[:, eq, k]))
+        lowest = np.argmin(par[:, :, k], axis=1)
         for b, m in enumerate(METHODS):
             v = par[:, b, k]
             q25, med, q75 = (float(q) for q in np.percentile(v, [25, 50, 75]))
             rows.append({"method": m, "parameter": name, "median": med, "q25": q25, "q75": q75,
+                         "max": float(v.max()),
                          "iqr_over_median": (q75 - q25) / med if med > 0 else float("nan"),
                          "mean": float(v.mean()),
                          "sd": float(v.std(ddof=1)) if v.size > 1 else float("nan"),
                          "median_to_equal": med / ref if ref > 0 else float("nan"),
+                         "share_lowest": float(np.mean(lowest == b)),
                          "n_signals": int(v.size)})
     return rows
 
