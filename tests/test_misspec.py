@@ -41,6 +41,8 @@ def test_misspecified_model_is_biased_on_the_ar1(fits):
     s1 = tab.loc[("model1", "AR1[1].sigma2")]
     assert s1["rel_bias"] > 0.5 and abs(s1["std_bias"]) > 5
     assert s1["rmse_ratio"] > 10
+    assert s1["sd_ratio"] == pytest.approx(s1["sd"] / tab.loc[("model2", "AR1[1].sigma2"), "sd"])
+    assert tab.loc[("model2", "AR1[1].phi"), "sd_ratio"] == pytest.approx(1.0)
 
 
 def test_nested_check_and_figure(fits):

@@ -106,11 +106,18 @@ def test_sim1_and_uncertainty_outputs(run):
                  "fig9_boxplot.png"):
         assert (sim1 / name).stat().st_size > 0, name
     comp = pd.read_csv(sim1 / "comparison.csv")
-    # one row per T and MLE variant (config sim1.mle.variants), headline variant first
-    assert list(comp.n_mle) == [6] * 3 + [4] * 3 and list(comp.variant[:3]) == ["mle", "mle_sm",
-                                                                                 "mle_gmwm"]
+    # one row per T and MLE variant (config sim1.mle.variants), headline variant first, then the
+    # statsmodels baseline on its smaller subset (config sim1.statsmodels.replicates)
+    assert list(comp.variant[:4]) == ["mle", "mle_sm", "mle_gmwm", "statsmodels"]
+    kalman = comp[comp.variant != "statsmodels"]
+    assert list(kalman.n_mle) == [6] * 3 + [4] * 3
+    assert list(comp[comp.variant == "statsmodels"].n_mle) == [2, 1]
     assert (comp.not_converged + comp.wrong_optimum <= comp.n_mle).all()
     assert (comp.speedup_mean > 0).all() and (comp.speedup_median > 0).all()
+    # both clocks: point estimate, and with standard errors (never shorter)
+    assert (comp.mle_se_mean_s >= comp.mle_mean_s).all()
+    assert (comp.gmwm_se_mean_s >= comp.gmwm_mean_s).all()
+    assert (comp.speedup_cpu_mean > 0).all()
 
     cov = pd.read_csv(run / "reports" / "sim3_coverage" / "coverage.csv")
     assert len(cov) == 18 and cov.coverage.between(0, 1).all()

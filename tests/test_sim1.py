@@ -9,13 +9,17 @@ import pytest
 import xarray as xr
 
 from gmwm.errors import InputError
+from gmwm_studies.mle import fit_mle, fit_statsmodels, kalman_loglike, mle_covariance
 from gmwm_studies.montecarlo import gather
 from gmwm_studies.sim1 import (
+    BASELINE,
     COMPARED,
+    add_baseline,
     comparison_table,
     counts_text,
     gmwm_text,
     paired_mask,
+    run_baseline_chunk,
     run_chunk,
     run_replicate,
     standardized_by_method,
@@ -65,11 +69,36 @@ def test_runner_records_every_method_and_the_cap(whole):
     starts = ds["start"].sel(replicate=0).values
     assert list(starts) == ["", "variogram", "default", "gmwm"]
     assert ds.attrs["n_samples"] == T_TINY and ds.attrs["n_mle"] == 2
+    assert ds["ran"].sel(estimator="gmwm").values.all()
+    assert (ds["ran"].sel(estimator="mle").values == ds["mle_ran"].values).all()
+
+
+def test_two_clocks_point_estimate_and_with_standard_errors(whole):
+    ds = whole
+    point, full = ds["seconds"].values, ds["seconds_se"].values
+    ran = ds["ran"].values
+    assert (point[ran] > 0).all() and np.isnan(point[~ran]).all()
+    # the SEs come on top of the point estimate, for every method (GMWM: the whole fit call)
+    assert (full[ran] >= point[ran]).all()
+    cpu, cpu_full = ds["cpu_seconds"].values, ds["cpu_seconds_se"].values
+    assert (cpu[ran] > 0).all() and (cpu_full[ran] >= cpu[ran]).all()
+    assert np.isnan(cpu[~ran]).all()
+    # the GMWM's point-estimate CPU time is its call's split like the wall clock
+    g = ds.sel(estimator="gmwm")
+    np.testing.assert_allclose(g["cpu_seconds"] / g["cpu_seconds_se"],
+                               g["seconds"] / g["seconds_se"], rtol=1e-12)
+    se = ds["se"].sel(parameter=list(COMPARED))
+    # (the weakly identified RW may sit at the boundary at this T, and then has no SE)
+    assert np.isfinite(se.sel(estimator="gmwm", parameter=list(COMPARED[:3]))).all()
+    for v in VARIANTS:
+        conv = ds["converged"].sel(estimator=v).values & ds["mle_ran"].values
+        assert (se.sel(estimator=v).values[conv] > 0).all()
+        assert np.isnan(se.sel(estimator=v, replicate=2)).all()
 
 
 def test_estimates_do_not_depend_on_chunking(whole):
     parts = gather([chunk([2], n_mle=2), chunk([0, 1], n_mle=2)])
-    for var in ("estimate", "converged", "mle_ran", "start", "loglike"):
+    for var in ("estimate", "se", "converged", "ran", "mle_ran", "start", "loglike"):
         np.testing.assert_array_equal(parts[var].values, whole[var].values)
 
 
@@ -199,3 +228,112 @@ def test_standardized_boxplot_data_share_the_mle_scale():
         np.testing.assert_allclose(np.std(mle, ddof=1), 1.0)
         # GMWM errors are twice the MLE's on every replicate, so on the common scale twice as wide
         np.testing.assert_allclose(std["GMWM"][p], 2 * mle)
+
+
+# ---------------------------------------------------------------------------------------------
+# the general-purpose baseline (statsmodels' own MLE) and the MLE's standard errors
+
+
+@pytest.fixture(scope="module")
+def baseline():
+    return run_baseline_chunk(MODEL, TRUTH, T_TINY, [0, 1], study="t_sim1", base_seed=11,
+                              settings={"maxiter": 50})
+
+
+def test_baseline_fits_the_same_signals_and_merges(whole, baseline):
+    b = baseline
+    assert list(b["estimator"].values) == [BASELINE] and list(b["replicate"].values) == [0, 1]
+    assert b["ran"].values.all()
+    assert (b["seconds"].values > 0).all() and (b["seconds_se"] >= b["seconds"]).all()
+    assert np.isnan(b["estimate"].sel(parameter="SIN[1].beta")).all()
+    merged = add_baseline(whole, b)
+    assert list(merged["estimator"].values) == ["gmwm", *VARIANTS, BASELINE]
+    assert json.loads(merged.attrs["variants"]) == {**VARIANTS, BASELINE: BASELINE}
+    assert list(merged["ran"].sel(estimator=BASELINE).values) == [True, True, False]
+    assert not merged["converged"].sel(estimator=BASELINE, replicate=2)
+    # same signals: statsmodels' log-likelihood is the project's filter's at its estimate, so
+    # the wrong-optimum rule compares like with like (the sinusoid coefficients re-solved by GLS
+    # give a likelihood at least as high)
+    best_other = merged["loglike"].sel(estimator=list(VARIANTS), replicate=[0, 1]).max("estimator")
+    sm_ll = merged["loglike"].sel(estimator=BASELINE, replicate=[0, 1])
+    assert (sm_ll <= best_other + 1e-3).all()
+    _, comp = study_tables([merged])
+    row = comp[comp.variant == BASELINE].iloc[0]
+    assert row.n_mle == 2 and row.not_converged + row.wrong_optimum + row.n_used == 2
+    assert row.mle_mean_s == pytest.approx(float(b["seconds"].mean()))
+    assert row.mle_se_mean_s == pytest.approx(float(b["seconds_se"].mean()))
+    assert row.mle_cpu_mean_s == pytest.approx(float(b["cpu_seconds"].mean()))
+    assert row.speedup_cpu_mean == pytest.approx(
+        row.mle_cpu_mean_s / float(whole["cpu_seconds"].sel(estimator="gmwm",
+                                                            replicate=[0, 1]).mean()))
+    # the GMWM's time is averaged over the same two signals
+    assert row.gmwm_mean_s == pytest.approx(
+        float(whole["seconds"].sel(estimator="gmwm", replicate=[0, 1]).mean()))
+    text = counts_text(comp, MLE, GMWM, {"maxiter": 50})
+    assert "statsmodels' own estimator" in text and "fit(maxiter=50)" in text
+    assert "T = 2,048: 2" in text
+
+
+def test_baseline_merge_rejects_mismatches(whole, baseline):
+    with pytest.raises(InputError, match="n_samples"):
+        add_baseline(whole, baseline.assign_attrs(n_samples=4096))
+    capped = whole.copy()
+    capped["mle_ran"] = ("replicate", np.array([True, False, False]))
+    with pytest.raises(InputError, match="Kalman-filter MLE did not"):
+        add_baseline(capped, baseline)
+    with pytest.raises(InputError, match="already"):
+        add_baseline(add_baseline(whole, baseline), baseline)
+    with pytest.raises(InputError, match="unknown statsmodels baseline setting"):
+        run_baseline_chunk(MODEL, TRUTH, T_TINY, [0], "s", 0, {"tol": 1})
+    with pytest.raises(InputError, match="cannot be called"):
+        run_replicate(MODEL, TRUTH, 1000, 0, "s", 0, GMWM, {"variants": {BASELINE: "moment"}})
+
+
+def test_statsmodels_likelihood_equals_the_project_filter():
+    from gmwm.model import Model
+
+    m = Model(MODEL)
+    x = m.simulate(np.array([TRUTH[n] for n in m.param_names]), 3000, np.random.default_rng(4))
+    res = fit_statsmodels(x, 0.35, maxiter=50, se=True)
+    assert res.start == "statsmodels" and np.isfinite(res.loglike)
+    assert res.seconds > 0 and res.seconds_se > 0
+    t = np.arange(x.size) * 0.35
+    # statsmodels' estimate of the sinusoid coefficients is not returned by name, so re-solve it:
+    # the GLS coefficients maximise the likelihood at fixed variances
+    from gmwm_studies.mle import _Profile, _to_r
+
+    X = np.column_stack([np.cos(t), np.sin(t)])
+    _, _, b = _Profile(x, X).solve(_to_r(res.as_dict()))
+    assert kalman_loglike(x, 0.35, res.as_dict(), b) >= res.loglike - 1e-6
+    assert kalman_loglike(x, 0.35, res.as_dict(), b) <= res.loglike + 1e-2
+
+
+def test_mle_standard_errors_match_statsmodels_numerical_hessian():
+    # the observed-information SEs of the project's MLE against statsmodels' own numerical
+    # Hessian ('approx') at the same estimate: same likelihood, so they must agree closely
+    from statsmodels.tsa.statespace.structural import UnobservedComponents
+
+    from gmwm.model import Model
+    from gmwm_studies.mle import _Profile, _to_r
+
+    m = Model(MODEL)
+    x = m.simulate(np.array([TRUTH[n] for n in m.param_names]), 8000, np.random.default_rng(3))
+    res = fit_mle(x, 0.35, n_starts=1, se=True)
+    assert res.converged and res.seconds_se > 0
+    d = res.as_dict()
+    t = np.arange(x.size) * 0.35
+    X = np.column_stack([np.cos(t), np.sin(t)])
+    _, _, b = _Profile(x, X).solve(_to_r(d))
+    sm = UnobservedComponents(x, level="llevel", autoregressive=1, exog=X, use_exact_diffuse=True)
+    p = np.array([d["WN[1].sigma2"], d["RW[1].gamma2"], d["AR1[1].sigma2"], d["AR1[1].phi"], *b])
+    bse = dict(zip(sm.param_names, sm.smooth(p, cov_type="approx").bse, strict=True))
+    ours = dict(zip(res.param_names, res.se, strict=True))
+    for mine, theirs in (("WN[1].sigma2", "sigma2.irregular"), ("RW[1].gamma2", "sigma2.level"),
+                         ("AR1[1].sigma2", "sigma2.ar"), ("AR1[1].phi", "ar.L1")):
+        assert ours[mine] == pytest.approx(bse[theirs], rel=0.03), mine
+    assert np.isnan(ours["SIN[1].alpha"])
+    ci = res.conf_int()
+    assert (ci[:4, 0] < res.params[:4]).all() and (ci[:4, 1] > res.params[:4]).all()
+    assert ci[2, 1] <= 1.0 and (ci[[0, 1, 3], 0] >= 0).all()  # never outside the domain
+    # a boundary point has no SEs
+    assert np.isnan(mle_covariance(x, 0.35, {**d, "RW[1].gamma2": 0.0})).all()

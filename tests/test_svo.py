@@ -465,3 +465,81 @@ def test_simulate_recursions_match_numpy_and_lfilter_bit_for_bit():
             b0 = (rng.standard_normal(p) @ L) / math.sqrt(1.0 - phi * phi)
             X += lfilter([1.0], [1.0, -phi], eta, axis=0, zi=(phi * b0)[None, :])[0]
         assert np.array_equal(got, X), name
+
+
+def test_input_correlation_figures_data():
+    """Paper 003 Figs 1 and 6: |corr| of Q (Case 1) and P_1..P_3 (Case 2) from App. C; the
+    diagonals are the values printed in the text (eq. (12), Sec. V-B p_i)."""
+    from gmwm_studies.svo_study import (
+        INPUT_MATRICES,
+        abs_correlation,
+        figure_inputs,
+        input_table,
+    )
+
+    assert list(INPUT_MATRICES["case1"]) == ["Q"]
+    assert list(INPUT_MATRICES["case2"]) == ["P1", "P2", "P3"]
+    np.testing.assert_allclose(np.diag(INPUT_MATRICES["case1"]["Q"]),
+                               np.array([0.255, 0.472, 3.489, 2.092, 0.555, 2.501]) * 1e-13,
+                               atol=6e-17)
+    np.testing.assert_allclose(np.diag(INPUT_MATRICES["case2"]["P1"]),
+                               np.array([0.401, 1.178, 1.966, 1.310, 1.928, 1.434]) * 1e-11,
+                               atol=6e-15)
+    r = abs_correlation(INPUT_MATRICES["case1"]["Q"])
+    np.testing.assert_allclose(np.diag(r), 1.0)
+    assert (r >= 0).all() and (r <= 1).all() and np.allclose(r, r.T)
+    # the strongest pair of Q: gyros 1 and 5, -0.240055 / sqrt(0.255058 * 0.555127)
+    assert r[0, 4] == pytest.approx(0.240055 / np.sqrt(0.255058 * 0.555127))
+    rows = input_table("case2")
+    assert len(rows) == 3 * 21 and {x["matrix"] for x in rows} == {"P1", "P2", "P3"}
+    assert all(x["min_eigenvalue"] > 0 for x in rows)  # valid covariances
+    one = next(x for x in rows if x["matrix"] == "P2" and (x["gyro_i"], x["gyro_k"]) == (2, 3))
+    assert one["correlation"] == pytest.approx(2.264650 / np.sqrt(5.607230 * 7.499051))
+    with pytest.raises(InputError, match="positive definite"):
+        abs_correlation(np.array([[1.0, 2.0], [2.0, 1.0]]))
+    with pytest.raises(InputError, match="unknown SVO case"):
+        input_table("case9")
+    fig = figure_inputs("case2")
+    assert [ax.get_title() for ax in fig.axes[:3]] == ["|corr| of P1", "|corr| of P2",
+                                                       "|corr| of P3"]
+    np.testing.assert_allclose(fig.axes[1].images[0].get_array(),
+                               abs_correlation(INPUT_MATRICES["case2"]["P2"]))
+
+
+def test_report_tables_coefficient_range_and_fig3_numbers():
+    from gmwm_studies.svo_study import METHODS, coef_table, gmwm_table
+
+    rng = np.random.default_rng(0)
+    coef = rng.normal(size=(7, len(METHODS), 6))
+    par = np.exp(rng.normal(size=(7, 3, len(METHODS), 2)))
+    rows = coef_table({"coef": coef}, "case1", 19)
+    row = next(x for x in rows if x["method"] == "rdvg" and x["gyro"] == 3)
+    b = METHODS.index("rdvg")
+    assert row["min"] == coef[:, b, 2].min() and row["max"] == coef[:, b, 2].max()
+    g = gmwm_table({"gmwm": par})
+    assert len(g) == 2 * len(METHODS)
+    eq = next(x for x in g if x["method"] == "equal" and x["parameter"] == "gamma2")
+    assert eq["median_to_equal"] == pytest.approx(1.0) and eq["n_signals"] == 21
+    w1 = next(x for x in g if x["method"] == "svo_w1" and x["parameter"] == "sigma2")
+    v = par[:, :, METHODS.index("svo_w1"), 0].ravel()
+    assert w1["median"] == pytest.approx(np.median(v))
+    assert w1["q25"] <= w1["median"] <= w1["q75"] <= w1["max"] == v.max()
+    for name in ("sigma2", "gamma2"):
+        assert sum(x["share_lowest"] for x in g if x["parameter"] == name) == pytest.approx(1.0)
+
+
+def test_wv_table_population_ratios():
+    """true_ratio_to_equal: the methods' population coefficients on the true WCCV (Case 1: SPEC
+    6.4's 0.235 for omega_1 at j = 19, and RDVG with the true Q just below it, as paper 003
+    Fig. 2 says); Case 2 has no population RDVG."""
+    from gmwm_studies.svo_study import wv_table
+
+    res = {"wv": np.ones((2, 3, 4, 19))}
+    rows = {(r["method"], r["level"]): r for r in wv_table(res, 10.0, "case1")}
+    assert round(rows[("svo_w1", 19)]["true_ratio_to_equal"], 3) == 0.235
+    assert rows[("rdvg", 19)]["true_ratio_to_equal"] < rows[("svo_w1", 19)]["true_ratio_to_equal"]
+    assert rows[("equal", 7)]["true_ratio_to_equal"] == pytest.approx(1.0)
+    assert round(rows[("svo_w2", 1)]["true_ratio_to_equal"], 2) == 0.86
+    case2 = {(r["method"], r["level"]): r for r in wv_table(res, 10.0, "case2")}
+    assert np.isnan(case2[("rdvg", 19)]["true_ratio_to_equal"])
+    assert "true_ratio_to_equal" not in wv_table(res, 10.0)[0]

@@ -158,9 +158,12 @@ class WaveletCrossCovariance:
         k = self.names.index(i) if isinstance(i, str) else int(i)
         return self.combine(np.eye(self.n_signals)[k])
 
-    def combine(self, c: Any, alpha: float | None = None) -> WaveletVariance:
+    def combine(self, c: Any, alpha: float | None = None, ci: str = "mixture") -> WaveletVariance:
         """WV of the virtual signal ``c'X``: ``nu_j = c' A_j c`` (the WV of the combined
-        coefficients, so equal to ``wvar(X @ c)`` up to rounding), eta_3 chi-square CI."""
+        coefficients, so equal to ``wvar(X @ c)`` up to rounding), with the intervals of
+        :func:`gmwm.wvar` of that signal (``ci`` as there)."""
+        from gmwm.wv import _wv_ci
+
         c = np.asarray(c, dtype=np.float64).reshape(-1)
         if c.size != self.n_signals or not np.all(np.isfinite(c)):
             raise InputError(f"coefficients must be {self.n_signals} finite numbers")
@@ -168,9 +171,9 @@ class WaveletCrossCovariance:
         nu = np.einsum("i,jik,k->j", c, self.cov, c)
         if np.any(nu <= 0):
             raise InputError("the virtual signal has a zero wavelet variance at some level")
-        low, high = chi2_ci(nu, self.edof, alpha)
+        edof, low, high = _wv_ci(ci, nu, self.scales, self.n, self.n_samples, alpha)
         return WaveletVariance(self.levels, self.scales, nu, low, high, self.n, self.n_samples,
-                               self.freq, alpha)
+                               self.freq, alpha, ci_kind=ci, ci_edof=edof)
 
     def subset(self, levels: int) -> WaveletCrossCovariance:
         """Keep levels ``1..levels``."""

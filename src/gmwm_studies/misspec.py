@@ -98,7 +98,8 @@ def misspec_table(fits: Mapping[str, xr.Dataset], parameters: Sequence[str] | No
     rows (default: every parameter of each model); ``labels`` gives display names ("Model 1").
     Columns: method ("Model 1 (AR1+RW)"), model (label), then those of
     :func:`montecarlo.summarize`, plus ``rmse_ratio`` = RMSE / RMSE of the last model (the true
-    one) for shared parameters."""
+    one) and ``sd_ratio`` = SD / SD of the last model for shared parameters ([Vibration] Fig. 6
+    compares both bias and variability)."""
     from gmwm_studies.montecarlo import summarize
 
     if not fits:
@@ -113,9 +114,11 @@ def misspec_table(fits: Mapping[str, xr.Dataset], parameters: Sequence[str] | No
         df.insert(0, "method", f"{name} ({ds.attrs.get('model', '')})")
         parts.append(df)
     out = pd.concat(parts, ignore_index=True)
-    ref = parts[-1].set_index("parameter")["rmse"]
-    out["rmse_ratio"] = [r / ref[p] if p in ref.index and ref[p] > 0 else np.nan
-                         for p, r in zip(out["parameter"], out["rmse"], strict=True)]
+    last = parts[-1].set_index("parameter")
+    for col in ("rmse", "sd"):
+        ref = last[col]
+        out[f"{col}_ratio"] = [v / ref[p] if p in ref.index and ref[p] > 0 else np.nan
+                               for p, v in zip(out["parameter"], out[col], strict=True)]
     return out
 
 

@@ -22,6 +22,13 @@ statsmodels' convention: the diffuse first observation contributes ``-0.5 log 2 
 The optimiser is scipy's BFGS in a parametrisation whitened by the Whittle (spectral) Fisher
 information, so that one unit is about one standard error in every direction; this makes the
 convergence tolerance meaningful for parameters as different as ``gamma2 ~ 1e-4`` and ``phi ~ 0.98``.
+With ``se=True`` the standard errors come from the observed information: a central-difference
+Hessian of the exact log-likelihood (sinusoid coefficients concentrated out) at the estimate.
+
+:func:`fit_statsmodels` is the general-purpose baseline: statsmodels' own estimator
+(``UnobservedComponents(...).fit()``, its L-BFGS, its start values and iteration cap) on the same
+model, the sinusoid as two known-frequency regressors, standard errors by statsmodels' default
+(outer product of gradients).
 """
 
 from __future__ import annotations
@@ -42,7 +49,8 @@ if TYPE_CHECKING:
 from gmwm.atomic import to_jsonable
 from gmwm.errors import InputError, ModelError
 
-__all__ = ["BACKENDS", "PARAM_KEYS", "PARAM_NAMES", "MLEResult", "fit_mle", "kalman_loglike"]
+__all__ = ["BACKENDS", "PARAM_KEYS", "PARAM_NAMES", "MLEResult", "fit_mle", "fit_statsmodels",
+           "kalman_loglike", "mle_covariance"]
 
 PARAM_KEYS = ("WN[1].sigma2", "RW[1].gamma2", "AR1[1].phi", "AR1[1].sigma2")
 #: Order of ``MLEResult.params``: the estimated parameters, then the sinusoid amplitude.
@@ -76,9 +84,12 @@ class MLEResult:
     by name. ``loglike`` is the exact Gaussian log-likelihood (statsmodels' exact-diffuse
     convention). ``start`` names the winning start: ``'gmwm'`` (the supplied start),
     ``'variogram'`` (data-driven), ``'grid-k'``, ``'default'`` (statsmodels' own start values).
-    The baseline computes no standard errors: ``se`` and ``conf_int`` are NaN (result protocol of
-    the library: ``params``, ``param_names``, ``se``, ``conf_int``, ``summary``,
-    ``to_json_dict``).
+    ``seconds`` is the wall time of the point estimate [s]; ``cov`` (``(5, 5)``, same order) the
+    covariance of the estimates when they were asked for (``se=True``; NaN for the amplitude and
+    wherever the Hessian was not negative definite), else all NaN, and ``seconds_se`` the extra
+    wall time it took [s] (0 when not computed); ``cpu_seconds`` and ``cpu_seconds_se`` the same
+    in process CPU time (robust to other load on the machine). Result protocol of the library: ``params``,
+    ``param_names``, ``se``, ``conf_int``, ``summary``, ``to_json_dict``.
     """
 
     params: np.ndarray
@@ -88,14 +99,24 @@ class MLEResult:
     n_starts: int
     seconds: float
     message: str
+    cov: np.ndarray | None = None
+    seconds_se: float = 0.0
+    cpu_seconds: float = float("nan")
+    cpu_seconds_se: float = 0.0
 
     def __post_init__(self) -> None:
         params = np.array(self.params, dtype=np.float64, copy=True)
-        if params.shape != (len(PARAM_NAMES),):
-            raise InputError(f"MLEResult needs {len(PARAM_NAMES)} parameters "
+        k = len(PARAM_NAMES)
+        if params.shape != (k,):
+            raise InputError(f"MLEResult needs {k} parameters "
                              f"({', '.join(PARAM_NAMES)}), got shape {params.shape}")
-        params.setflags(write=False)
+        cov = np.full((k, k), np.nan) if self.cov is None else np.array(self.cov, dtype=np.float64)
+        if cov.shape != (k, k):
+            raise InputError(f"MLEResult covariance must be ({k}, {k}), got {cov.shape}")
+        for a in (params, cov):
+            a.setflags(write=False)
         object.__setattr__(self, "params", params)
+        object.__setattr__(self, "cov", cov)
 
     @property
     def param_names(self) -> list[str]:
@@ -103,26 +124,37 @@ class MLEResult:
 
     @property
     def se(self) -> np.ndarray:
-        """NaN for every parameter: the baseline computes no standard errors."""
-        return np.full(len(PARAM_NAMES), np.nan)
+        """Standard errors (NaN unless computed: ``fit_mle(..., se=True)``)."""
+        d = np.diag(self.cov)
+        return np.where(d >= 0, np.sqrt(np.abs(d)), np.nan)
 
     def conf_int(self, alpha: float = 0.05) -> np.ndarray:
-        """``(p, 2)`` intervals, NaN (no standard errors); ``alpha`` is checked all the same."""
+        """``(p, 2)`` Wald intervals ``estimate -+ z se`` (NaN where there is no SE); ``phi`` is
+        clipped to (-1, 1) and the variances at 0, so no interval leaves the parameter space."""
         if not 0.0 < float(alpha) < 1.0:
             raise InputError(f"alpha must be in (0, 1), got {alpha}")
-        return np.full((len(PARAM_NAMES), 2), np.nan)
+        from scipy.stats import norm
+
+        half = norm.ppf(1.0 - alpha / 2.0) * self.se
+        ci = np.column_stack([self.params - half, self.params + half])
+        lo = np.array([0.0, 0.0, -1.0, 0.0, 0.0])
+        hi = np.array([np.inf, np.inf, 1.0, np.inf, np.inf])
+        return np.clip(ci, lo[:, None], hi[:, None])
 
     def as_dict(self) -> dict[str, float]:
         return dict(zip(PARAM_NAMES, self.params.tolist(), strict=True))
 
     def summary(self) -> str:
         """Plain-text table of the estimates with the optimiser's verdict."""
-        lines = [(f"Kalman-filter MLE (WN+RW+AR1+SIN, {self.n_starts} start(s)): "
+        what = ("statsmodels UnobservedComponents MLE" if self.start == "statsmodels"
+                else "Kalman-filter MLE")
+        lines = [(f"{what} (WN+RW+AR1+SIN, {self.n_starts} start(s)): "
                   f"log-likelihood = {self.loglike:.6f}, converged = {self.converged}"),
                  f"  {self.message}",
-                 f"{'parameter':<16}{'estimate':>14}",
-                 "-" * 30]
-        lines += [f"{n:<16}{v:>14.6g}" for n, v in zip(PARAM_NAMES, self.params, strict=True)]
+                 f"{'parameter':<16}{'estimate':>14}{'SE':>14}",
+                 "-" * 44]
+        lines += [f"{n:<16}{v:>14.6g}{s:>14.4g}"
+                  for n, v, s in zip(PARAM_NAMES, self.params, self.se, strict=True)]
         return "\n".join(lines)
 
     def __str__(self) -> str:
@@ -133,7 +165,9 @@ class MLEResult:
         return to_jsonable({
             "params": self.as_dict(), "se": dict(zip(PARAM_NAMES, self.se, strict=True)),
             "converged": self.converged, "loglike": self.loglike, "start": self.start,
-            "n_starts": self.n_starts, "seconds": self.seconds, "message": self.message})
+            "n_starts": self.n_starts, "seconds": self.seconds, "seconds_se": self.seconds_se,
+            "cpu_seconds": self.cpu_seconds, "cpu_seconds_se": self.cpu_seconds_se,
+            "message": self.message})
 
 
 # ----------------------------------------------------------------------------------------------
@@ -613,12 +647,85 @@ class _Backend:
 
 
 # ----------------------------------------------------------------------------------------------
+# standard errors (observed information)
+
+_HESS_STEP = 0.1  # central-difference step of the Hessian, in (Whittle) standard-error units
+
+
+def _full_loglike(Y: np.ndarray, v: np.ndarray) -> float:
+    """Exact log-likelihood at ``v = (log sigma2, log(gamma2/sigma2), log(sigma2_AR/sigma2),
+    atanh phi)`` with the sinusoid coefficients concentrated out (GLS). With the scale ``s``
+    factored out of the filter, ``sum log F_t = (n-1) log s + sum log F_t(s=1)`` (the diffuse first
+    observation contributes only its constant) and the quadratic form is ``RSS / s``."""
+    n = Y.shape[0]
+    S, sum_log_f = _kf_cross(Y, 1.0, float(np.exp(v[1])), float(np.exp(v[2])),
+                             float(np.tanh(v[3])))
+    b = np.linalg.solve(S[1:, 1:], S[1:, 0])
+    rss = float(S[0, 0] - S[1:, 0] @ b)
+    return float(-0.5 * (n * _LOG2PI + (n - 1) * v[0] + rss * np.exp(-v[0]) + sum_log_f))
+
+
+def mle_covariance(x: np.ndarray, beta: float, theta: dict[str, float]) -> np.ndarray:
+    """Covariance ``(4, 4)`` of the MLE of ``PARAM_KEYS`` at ``theta`` from the observed information.
+
+    The Hessian of the exact log-likelihood (sinusoid coefficients concentrated out, which leaves
+    the inverse Hessian of the variance parameters unchanged) is taken by central differences in
+    coordinates whitened by the Whittle information (steps of 0.1 standard error; 33 filter
+    passes) and mapped to the natural parameters by the delta method. NaN if the Hessian is not
+    negative definite (e.g. an estimate on a boundary).
+    """
+    x = _check_input(x, beta)
+    n = x.size
+    Y = np.ascontiguousarray(np.column_stack([x, _regressors(n, beta)]))
+    s2 = theta["WN[1].sigma2"]
+    g2, s2ar, phi = theta["RW[1].gamma2"], theta["AR1[1].sigma2"], theta["AR1[1].phi"]
+    if not (min(s2, g2, s2ar) > 0 and abs(phi) < 1):
+        return np.full((4, 4), np.nan)
+    v0 = np.array([np.log(s2), np.log(g2 / s2), np.log(s2ar / s2), np.arctanh(phi)])
+    M = np.eye(4)
+    M[1, 0] = M[2, 0] = 1.0  # (log s2, log g2, log s2ar, atanh phi) = M v
+    info4 = _whittle_info(np.r_[M @ v0, 0.0, 0.0], n, beta)[:4, :4]
+    R = _whitening(M.T @ info4 @ M)
+    h = _HESS_STEP
+
+    def f(z: np.ndarray) -> float:
+        return _full_loglike(Y, v0 + R @ z)
+
+    f0 = f(np.zeros(4))
+    E = np.eye(4) * h
+    H = np.empty((4, 4))
+    for i in range(4):
+        H[i, i] = (f(E[i]) - 2.0 * f0 + f(-E[i])) / h**2
+        for k in range(i):
+            H[i, k] = H[k, i] = (f(E[i] + E[k]) - f(E[i] - E[k]) - f(E[k] - E[i])
+                                 + f(-E[i] - E[k])) / (4.0 * h**2)
+    try:
+        np.linalg.cholesky(-H)
+    except np.linalg.LinAlgError:
+        return np.full((4, 4), np.nan)
+    cov_v = R @ np.linalg.inv(-H) @ R.T
+    # d(sigma2, gamma2, phi, sigma2_AR) / d v, rows in PARAM_KEYS order
+    J = np.array([[s2, 0.0, 0.0, 0.0],
+                  [g2, g2, 0.0, 0.0],
+                  [0.0, 0.0, 0.0, 1.0 - phi**2],
+                  [s2ar, 0.0, s2ar, 0.0]])
+    return J @ cov_v @ J.T
+
+
+def _padded(cov4: np.ndarray) -> np.ndarray:
+    """``(5, 5)`` covariance in ``PARAM_NAMES`` order, NaN for the amplitude."""
+    out = np.full((len(PARAM_NAMES),) * 2, np.nan)
+    out[:4, :4] = cov4
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
 # public
 
 
 def fit_mle(x: np.ndarray, beta: float, start: dict[str, float] | None = None, *, n_starts: int = 2,
-            maxiter: int = 200, backend: str = "kalman", own_starts: str = "variogram"
-            ) -> MLEResult:
+            maxiter: int = 200, backend: str = "kalman", own_starts: str = "variogram",
+            se: bool = False) -> MLEResult:
     """Exact Gaussian MLE of WN + RW + AR1 + deterministic sinusoid of known frequency ``beta``.
 
     Parameters
@@ -635,13 +742,15 @@ def fit_mle(x: np.ndarray, beta: float, start: dict[str, float] | None = None, *
         ``'variogram'`` (best AR1 on a grid fitted by NNLS to the empirical variogram, a moment
         method), ``'grid-1'``, ... (other grid values), then ``'default'`` (statsmodels' start
         values); ``"default"`` gives ``'default'`` first. The highest log-likelihood wins.
+    se : also compute standard errors (:func:`mle_covariance`, for a converged fit), timed
+        separately in ``seconds_se``.
 
     Never raises for non-convergence: ``converged`` is False (with ``message``) when the optimiser
     did not meet its gradient tolerance, the log-likelihood is not finite, ``|phi| >= 0.9999`` or a
     variance is below ``1e-6 * Var(diff x)``. Raises :class:`InputError` for unusable input and
     :class:`ModelError` for a start missing a parameter.
     """
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     x = _check_input(x, beta)
     if n_starts < 1:
         raise InputError(f"n_starts must be >= 1, got {n_starts}")
@@ -699,5 +808,85 @@ def fit_mle(x: np.ndarray, beta: float, start: dict[str, float] | None = None, *
     else:
         message = f"converged from start {name} ({msg})"
     params = [theta.get(k, np.nan) for k in PARAM_KEYS] + [float(np.hypot(*b))]
+    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
+    cov, seconds_se, cpu_se = None, 0.0, 0.0
+    if se:
+        t1, c1 = time.perf_counter(), time.process_time()
+        if converged:
+            with np.errstate(all="ignore"):
+                cov = _padded(mle_covariance(x, beta, theta))
+        seconds_se, cpu_se = time.perf_counter() - t1, time.process_time() - c1
     return MLEResult(params=np.array(params), converged=converged, loglike=float(ll), start=name,
-                     n_starts=len(starts), seconds=time.perf_counter() - t0, message=message)
+                     n_starts=len(starts), seconds=seconds, message=message, cov=cov,
+                     seconds_se=seconds_se, cpu_seconds=cpu, cpu_seconds_se=cpu_se)
+
+
+def fit_statsmodels(x: np.ndarray, beta: float, *, maxiter: int = 50, se: bool = False
+                    ) -> MLEResult:
+    """statsmodels' own MLE of WN + RW + AR1 + deterministic sinusoid of known frequency ``beta``.
+
+    ``UnobservedComponents(x, level="llevel", autoregressive=1, exog=[cos(beta t), sin(beta t)],
+    use_exact_diffuse=True).fit(maxiter=maxiter, cov_type="none")``: statsmodels' start values,
+    its L-BFGS and (by default) its iteration cap of 50; the sinusoid coefficients are estimated
+    with the variances (``mle_regression``), the exact diffuse start matches :func:`fit_mle`'s
+    likelihood, so ``loglike`` is comparable. ``converged`` is statsmodels' own verdict (its
+    optimiser's flag, a finite log-likelihood, no exception); a solution on the boundary is named
+    in ``message`` but not counted as a failure. ``seconds`` times model construction and fit; with
+    ``se=True`` the covariance by statsmodels' default for a fit (outer product of gradients, one
+    more filter pass) is added, timed in ``seconds_se``. Needs statsmodels (extra "pipeline").
+    """
+    x = _check_input(x, beta)
+    if maxiter < 1:
+        raise InputError(f"maxiter must be >= 1, got {maxiter}")
+    try:
+        from statsmodels.tsa.statespace.structural import UnobservedComponents
+    except ImportError:
+        raise InputError("the statsmodels baseline needs statsmodels: "
+                         "pip install 'gmwm[pipeline]'") from None
+    n = x.size
+    X = _regressors(n, beta)
+    nan = np.full(len(PARAM_NAMES), np.nan)
+    t0, c0 = time.perf_counter(), time.process_time()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            model = UnobservedComponents(x, level="llevel", autoregressive=1, exog=X,
+                                         use_exact_diffuse=True)
+            res = model.fit(disp=False, maxiter=int(maxiter), cov_type="none")
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
+            return MLEResult(params=nan, converged=False, loglike=np.nan, start="statsmodels",
+                             n_starts=1, seconds=time.perf_counter() - t0,
+                             message=f"not converged: statsmodels raised {type(exc).__name__}: "
+                                     f"{exc}", cpu_seconds=time.process_time() - c0)
+    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
+    est = dict(zip(model.param_names, np.asarray(res.params, dtype=float), strict=True))
+    theta = {ours: est[sm] for sm, ours in _SM_NAMES.items()}
+    b = np.array([est["beta.x1"], est["beta.x2"]])
+    ll = float(res.llf)
+    info = res.mle_retvals or {}
+    ok = bool(info.get("converged", False)) and np.isfinite(ll)
+    notes = sorted({str(w.message).splitlines()[0] for w in caught
+                    if issubclass(w.category, Warning)})
+    detail = f"statsmodels {res.mle_settings.get('optimizer', 'lbfgs')}, " \
+             f"{info.get('iterations', '?')} iterations"
+    boundary = _boundary_problem(theta, float(np.var(np.diff(x))))
+    message = (f"converged ({detail})" if ok else f"not converged ({detail})")
+    message += "".join(f"; {m}" for m in [boundary, *notes] if m)
+    cov, seconds_se, cpu_se = None, 0.0, 0.0
+    if se:
+        t1, c1 = time.perf_counter(), time.process_time()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                full = np.asarray(model.filter(res.params, cov_type="opg").cov_params(),
+                                  dtype=float)
+                order = [model.param_names.index(sm) for sm in
+                         ("sigma2.irregular", "sigma2.level", "ar.L1", "sigma2.ar")]
+                cov = _padded(full[np.ix_(order, order)])
+            except (np.linalg.LinAlgError, ValueError):
+                cov = None
+        seconds_se, cpu_se = time.perf_counter() - t1, time.process_time() - c1
+    params = [theta[k] for k in PARAM_KEYS] + [float(np.hypot(*b))]
+    return MLEResult(params=np.array(params), converged=ok, loglike=ll, start="statsmodels",
+                     n_starts=1, seconds=seconds, message=message, cov=cov,
+                     seconds_se=seconds_se, cpu_seconds=cpu, cpu_seconds_se=cpu_se)

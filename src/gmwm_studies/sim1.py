@@ -1,17 +1,31 @@
-"""Simulation 1 of the vibration-noise paper: GMWM against the Kalman-filter MLE (SPEC 4.1, 5.7).
+"""Simulation 1 of the vibration-noise paper ([Vibration] Sec. 4, Figs 1, 2, 9): GMWM against
+maximum likelihood (docs/METHODS.md §12.1-§12.2).
 
 Per replicate one WN + RW + AR1 + SIN signal is simulated from
 :func:`seeds.replicate_rng` ``(study, T, r, seed)`` (so results do not depend on chunking), the
-GMWM is fitted to the signal (timed as one call, WV computation included) and, for the first
-``n_mle`` replicates of each sample size, the MLE of :func:`gmwm_studies.mle.fit_mle` (sinusoid frequency
-known) once per configured *variant*, i.e. per starting rule:
+GMWM is fitted to the signal and, for the first ``n_mle`` replicates of each sample size, the
+project's Kalman-filter MLE (:func:`gmwm_studies.mle.fit_mle`, sinusoid frequency known) once per
+configured *variant*, i.e. per starting rule:
 
 * ``moment``: the MLE's own data-driven start (NNLS fit of the model to the empirical variogram
   on a grid of phi), no GMWM information: the MLE as a user would run it;
-* ``default``: statsmodels' own start values (``UnobservedComponents(...).start_params``);
+* ``default``: statsmodels' start values (``UnobservedComponents(...).start_params``), still the
+  project's filter and optimiser;
 * ``gmwm``: started at the GMWM estimate (labelled; not a like-for-like comparison).
 
-The first variant is the headline. Raw signals are never stored.
+The first variant is the headline. Separately (:func:`run_baseline_chunk`, its own pipeline rule,
+on a smaller subset of the same signals because it is slow) the general-purpose baseline
+``statsmodels``: statsmodels' own estimator (:func:`gmwm_studies.mle.fit_statsmodels`), merged
+in by :func:`add_baseline`. Raw signals are never stored.
+
+Two clocks per fit: ``seconds``, the point estimate alone (GMWM: its WV and search,
+``GMWMResult.seconds_wv + seconds_fit``; MLE: the optimisation), and ``seconds_se``, the point
+estimate with its standard errors (GMWM: the whole ``gmwm.fit`` call, which adds the sandwich SEs
+under the model-based WV covariance and the fit diagnostics; Kalman MLE: plus the observed
+information by a finite-difference Hessian; statsmodels: plus its default OPG covariance). Both
+in wall time and (``cpu_seconds``, ``cpu_seconds_se``) in process CPU time, which other load on
+the machine barely affects; the GMWM's point-estimate CPU time is its call's CPU time split in the
+proportion of its wall-clock parts (``gmwm.fit`` times its parts by wall clock only).
 
 Results are xarray Datasets with dims ``(estimator, replicate, parameter)``; ``estimator`` is
 ``['gmwm', <variant names>]``. The methods are compared on WN sigma2, AR1 phi, AR1 innovation
@@ -25,6 +39,7 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -41,11 +56,13 @@ __all__ = [
     "PARAM_LABELS",
     "SHORT_NAMES",
     "START_RULES",
+    "add_baseline",
     "comparison_table",
     "counts_text",
     "gmwm_text",
     "method_label",
     "paired_mask",
+    "run_baseline_chunk",
     "run_chunk",
     "run_replicate",
     "standardized_by_method",
@@ -58,10 +75,15 @@ __all__ = [
 COMPARED = ("WN[1].sigma2", "AR1[1].phi", "AR1[1].sigma2", "RW[1].gamma2")
 SHORT_NAMES = {"WN[1].sigma2": "sigma2", "AR1[1].phi": "phi", "AR1[1].sigma2": "ar1_sigma2",
                "RW[1].gamma2": "gamma2"}
-#: Starting rules of the MLE variants and their display names.
-START_RULES = {"moment": "own moment start", "default": "statsmodels' start",
-               "gmwm": "GMWM start"}
+#: Starting rules of the MLE variants and their display names; ``statsmodels`` is the baseline
+#: estimator (statsmodels' own fit), run by :func:`run_baseline_chunk`, not a variant.
+START_RULES = {"moment": "own moment start", "default": "statsmodels' start, own filter",
+               "gmwm": "GMWM start", "statsmodels": "statsmodels' own fit"}
+VARIANT_RULES = ("moment", "default", "gmwm")
+#: Estimator name (and rule) of the statsmodels baseline in the results.
+BASELINE = "statsmodels"
 MLE_KEYS = ("backend", "maxiter", "wrong_optimum_ll", "variants")
+BASELINE_KEYS = ("maxiter",)
 #: Settings used when the config leaves them out.
 DEFAULT_MLE: dict[str, Any] = {"backend": "kalman", "maxiter": 200, "wrong_optimum_ll": 1.0,
                                "variants": {"mle": "moment", "mle_gmwm": "gmwm"}}
@@ -84,11 +106,11 @@ def _mle_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
     if not variants:
         raise InputError("the MLE needs at least one variant (name: start rule)")
     for name, rule in variants.items():
-        if rule not in START_RULES:
+        if rule not in VARIANT_RULES:
             raise InputError(f"MLE variant {name!r}: unknown start rule {rule!r}; "
-                             f"use one of {list(START_RULES)}")
-        if name == "gmwm":
-            raise InputError("an MLE variant cannot be called 'gmwm'")
+                             f"use one of {list(VARIANT_RULES)}")
+        if name in ("gmwm", BASELINE):
+            raise InputError(f"an MLE variant cannot be called {name!r}")
     out["variants"] = variants
     if not float(out["wrong_optimum_ll"]) > 0:
         raise InputError(f"wrong_optimum_ll must be > 0, got {out['wrong_optimum_ll']}")
@@ -120,26 +142,52 @@ def _check_model(model: Any, truth: Mapping[str, float]) -> float:
     return float(truth["SIN[1].beta"])
 
 
+def _empty_fit(n: int, ran: bool = False, message: str = "") -> dict[str, Any]:
+    return {"estimate": np.full(n, np.nan), "se": np.full(n, np.nan), "converged": False,
+            "start": "", "loglike": np.nan, "seconds": np.nan, "seconds_se": np.nan,
+            "cpu_seconds": np.nan, "cpu_seconds_se": np.nan, "ran": ran, "message": message}
+
+
+def _mle_record(res: Any, names: Sequence[str]) -> dict[str, Any]:
+    """Fit record of an :class:`~gmwm_studies.mle.MLEResult` (estimates and SEs by name)."""
+    est, se = res.as_dict(), dict(zip(res.param_names, res.se, strict=True))
+    return {"estimate": np.array([est.get(n, np.nan) for n in names]),
+            "se": np.array([se.get(n, np.nan) for n in names]),
+            "converged": bool(res.converged), "start": res.start, "loglike": float(res.loglike),
+            "message": res.message, "seconds": float(res.seconds),
+            "seconds_se": float(res.seconds + res.seconds_se),
+            "cpu_seconds": float(res.cpu_seconds),
+            "cpu_seconds_se": float(res.cpu_seconds + res.cpu_seconds_se)}
+
+
 def _fit_variant(x: np.ndarray, beta: float, rule: str, gmwm_start: dict[str, float] | None,
                  settings: Mapping[str, Any], names: Sequence[str]) -> dict[str, Any]:
     from gmwm_studies.mle import fit_mle
 
-    out: dict[str, Any] = {"estimate": np.full(len(names), np.nan), "converged": False,
-                           "start": "", "loglike": np.nan}
     if rule == "gmwm" and gmwm_start is None:
-        return {**out, "seconds": np.nan, "message": "not run: the GMWM fit failed"}
+        return _empty_fit(len(names), True, "not run: the GMWM fit failed")
     kw = {"maxiter": int(settings["maxiter"]), "backend": str(settings["backend"]), "n_starts": 1,
-          "own_starts": "default" if rule == "default" else "variogram"}
-    t0 = time.perf_counter()
+          "own_starts": "default" if rule == "default" else "variogram", "se": True}
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
-        res = fit_mle(x, beta, gmwm_start if rule == "gmwm" else None, **kw)
-        out.update(estimate=np.array([res.as_dict().get(n, np.nan) for n in names]),
-                   converged=bool(res.converged), start=res.start, loglike=float(res.loglike),
-                   message=res.message)
+        return {**_mle_record(fit_mle(x, beta, gmwm_start if rule == "gmwm" else None, **kw),
+                              names), "ran": True}
     except _FAILURES as exc:
-        out["message"] = f"{type(exc).__name__}: {exc}"
-    out["seconds"] = time.perf_counter() - t0
-    return out
+        return {**_empty_fit(len(names), True, f"{type(exc).__name__}: {exc}"),
+                **_failed_clocks(t0, c0)}
+
+
+def _failed_clocks(t0: float, c0: float) -> dict[str, float]:
+    """Both clocks of a fit that raised: the time it cost, as point estimate and with SEs."""
+    secs, cpu = time.perf_counter() - t0, time.process_time() - c0
+    return {"seconds": secs, "seconds_se": secs, "cpu_seconds": cpu, "cpu_seconds_se": cpu}
+
+
+def _signal(model: Any, theta: np.ndarray, n_samples: int, replicate: int, study: str,
+            base_seed: int) -> np.ndarray:
+    """Replicate ``replicate``'s signal (the same in every rule that fits it)."""
+    return model.simulate(theta, int(n_samples),
+                          replicate_rng(study, n_samples, replicate, base_seed))
 
 
 def run_replicate(
@@ -156,9 +204,11 @@ def run_replicate(
     MLE variant.
 
     Returns ``{'mle_ran': bool, 'fits': {estimator: {...}}}`` where each fit has ``estimate``
-    (canonical parameter order of the model; the MLE's known frequency is NaN), ``converged``,
-    ``seconds`` (wall time of the whole fit call [s]; the GMWM's includes its WV), ``message``,
-    ``start`` (the MLE's start name) and ``loglike`` (the MLE's exact log-likelihood).
+    and ``se`` (canonical parameter order of the model; the MLE's known frequency is NaN),
+    ``converged``, ``seconds`` (wall time of the point estimate [s]; the GMWM's includes its WV),
+    ``seconds_se`` (wall time with the standard errors [s]; the GMWM's whole ``fit`` call),
+    ``message``, ``start`` (the MLE's start name), ``loglike`` (the MLE's exact log-likelihood)
+    and ``ran``.
     """
     from gmwm import fit
     from gmwm.model import Model
@@ -170,19 +220,25 @@ def run_replicate(
     gmwm_fit = estimator_settings(gmwm_settings)
     settings = None if mle_settings is None else _mle_settings(mle_settings)
     names = list(model.param_names)
-    x = model.simulate(theta, int(n_samples), replicate_rng(study, n_samples, replicate, base_seed))
-    g: dict[str, Any] = {"estimate": np.full(len(names), np.nan), "converged": False, "start": "",
-                         "loglike": np.nan}
+    x = _signal(model, theta, n_samples, replicate, study, base_seed)
+    g = _empty_fit(len(names), True)
     seed = replicate_seed(study, n_samples, replicate, base_seed, stream=1)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         res = fit(x, model, settings=gmwm_fit, seed=seed)
+        g["seconds_se"] = time.perf_counter() - t0
+        g["cpu_seconds_se"] = time.process_time() - c0
+        # the point estimate's clock: the WV and the search, without the SEs and diagnostics;
+        # its CPU time is the call's, split like its wall time
+        g["seconds"] = float(res.seconds_wv + res.seconds_fit)
+        g["cpu_seconds"] = g["cpu_seconds_se"] * min(1.0, g["seconds"] / g["seconds_se"])
         gmwm_theta = model.canonical(np.asarray(res.params, dtype=float))
-        g.update(estimate=gmwm_theta, converged=bool(res.converged), message=str(res.message))
+        g.update(estimate=gmwm_theta, se=np.asarray(res.se, dtype=float),
+                 converged=bool(res.converged), message=str(res.message))
     except _FAILURES as exc:
+        g.update(_failed_clocks(t0, c0))
         gmwm_theta = None
         g["message"] = f"{type(exc).__name__}: {exc}"
-    g["seconds"] = time.perf_counter() - t0
     fits = {"gmwm": g}
     if settings is None:
         return {"mle_ran": False, "fits": fits}
@@ -192,18 +248,30 @@ def run_replicate(
     return {"mle_ran": True, "fits": fits}
 
 
-def _warm_up(model_spec: str, backend: str) -> None:
-    """Compile the WV and filter kernels and load the libraries before timing anything."""
+def _warm_up(model_spec: str, backend: str | None, truth: Mapping[str, float] | None = None,
+             gmwm_settings: Any = None) -> None:
+    """Compile the WV, GMWM and filter kernels and load the libraries before timing anything, so
+    that no replicate's clock includes a one-off cost (``backend`` None: the statsmodels baseline
+    only; ``truth`` None: no GMWM fit)."""
+    from gmwm import fit
     from gmwm.model import Model
-    from gmwm.wv import wvar
-    from gmwm_studies.mle import fit_mle
+    from gmwm_studies.mle import fit_mle, fit_statsmodels, mle_covariance
 
     rng = np.random.default_rng(0)
-    wvar(rng.normal(size=1024))
-    Model(model_spec)
-    fit_mle(rng.normal(size=256), 0.35, n_starts=1, maxiter=2, backend=backend)
-    fit_mle(rng.normal(size=256), 0.35, n_starts=1, maxiter=2, backend=backend,
-            own_starts="default")
+    model = Model(model_spec)
+    x = np.cumsum(rng.normal(size=256)) * 0.1 + rng.normal(size=256)
+    if backend is None:
+        fit_statsmodels(x, 0.35, maxiter=2, se=True)
+        return
+    if truth is not None:
+        theta = np.array([float(truth[n]) for n in model.param_names])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            fit(model.simulate(theta, 4096, rng), model, settings=gmwm_settings)
+    fit_mle(x, 0.35, n_starts=1, maxiter=2, backend=backend)
+    fit_mle(x, 0.35, n_starts=1, maxiter=2, backend=backend, own_starts="default")
+    mle_covariance(x, 0.35, {"WN[1].sigma2": 1.0, "RW[1].gamma2": 0.01, "AR1[1].phi": 0.5,
+                             "AR1[1].sigma2": 0.1})
 
 
 def run_chunk(
@@ -224,6 +292,7 @@ def run_chunk(
     the reason in ``message``. Timings exclude one-off start-up costs (numba compilation, imports).
     """
     from gmwm.model import Model
+    from gmwm_studies.montecarlo import estimator_settings
 
     progress = progress or _noop
     reps = [int(r) for r in replicates]
@@ -235,7 +304,7 @@ def run_chunk(
     methods = ["gmwm", *settings["variants"]]
     model = Model(model_spec)
     names = list(model.param_names)
-    _warm_up(model_spec, settings["backend"])
+    _warm_up(model_spec, settings["backend"], truth, estimator_settings(gmwm_settings))
     rows = []
     for i, rep in enumerate(reps):
         row = run_replicate(model_spec, truth, n_samples, rep, study, base_seed, gmwm_settings,
@@ -244,44 +313,157 @@ def run_chunk(
         done = "; ".join(f"{m} {f['seconds']:.2f} s conv={f['converged']}"
                          for m, f in row["fits"].items())
         progress(f"{study} T={n_samples}: replicate {i + 1}/{len(reps)} (id {rep}): {done}")
-    truth_vec = np.array([float(truth[n]) for n in names])
-    not_run = {"estimate": np.full(len(names), np.nan), "converged": False, "seconds": np.nan,
-               "message": "not run (beyond the MLE replicate cap)", "start": "",
-               "loglike": np.nan}
+    not_run = _empty_fit(len(names), False, "not run (beyond the MLE replicate cap)")
+    ds = _dataset(rows, methods, reps, names, truth, not_run)
+    ds["mle_ran"] = ("replicate", np.array([r["mle_ran"] for r in rows], dtype=bool))
+    ds.attrs.update({
+        "study": study,
+        "model": model_spec,
+        "n_samples": int(n_samples),
+        "base_seed": int(base_seed),
+        "estimator": "+".join(methods),
+        "n_mle": int(n_mle),
+        "variants": json.dumps(settings["variants"]),
+        "wrong_optimum_ll": float(settings["wrong_optimum_ll"]),
+        "gmwm_settings": json.dumps(dict(gmwm_settings), sort_keys=True),
+        "mle_settings": json.dumps(settings, sort_keys=True),
+    })
+    return ds
+
+
+def _dataset(rows: Sequence[Mapping[str, Any]], methods: Sequence[str], reps: Sequence[int],
+             names: Sequence[str], truth: Mapping[str, float],
+             not_run: Mapping[str, Any]) -> xr.Dataset:
+    """Stack per-replicate fit records into ``(estimator, replicate[, parameter])`` arrays."""
 
     def stack(key: str, dtype: Any = float) -> np.ndarray:
         return np.array([[r["fits"].get(m, not_run)[key] for r in rows] for m in methods],
                         dtype=dtype)
 
+    per_fit = ("estimator", "replicate")
     return xr.Dataset(
         {
-            "estimate": (("estimator", "replicate", "parameter"), stack("estimate")),
-            "converged": (("estimator", "replicate"), stack("converged", bool)),
-            "seconds": (("estimator", "replicate"), stack("seconds")),
-            "message": (("estimator", "replicate"), stack("message", object)),
-            "start": (("estimator", "replicate"), stack("start", object)),
-            "loglike": (("estimator", "replicate"), stack("loglike")),
-            "mle_ran": ("replicate", np.array([r["mle_ran"] for r in rows], dtype=bool)),
+            "estimate": ((*per_fit, "parameter"), stack("estimate")),
+            "se": ((*per_fit, "parameter"), stack("se")),
+            "converged": (per_fit, stack("converged", bool)),
+            "ran": (per_fit, stack("ran", bool)),
+            "seconds": (per_fit, stack("seconds")),
+            "seconds_se": (per_fit, stack("seconds_se")),
+            "cpu_seconds": (per_fit, stack("cpu_seconds")),
+            "cpu_seconds_se": (per_fit, stack("cpu_seconds_se")),
+            "message": (per_fit, stack("message", object)),
+            "start": (per_fit, stack("start", object)),
+            "loglike": (per_fit, stack("loglike")),
         },
         coords={
             "estimator": np.array(methods, dtype=object),
             "replicate": np.asarray(reps, dtype=np.int64),
             "parameter": np.asarray(names, dtype=object),
-            "truth": ("parameter", truth_vec),
-        },
-        attrs={
-            "study": study,
-            "model": model_spec,
-            "n_samples": int(n_samples),
-            "base_seed": int(base_seed),
-            "estimator": "+".join(methods),
-            "n_mle": int(n_mle),
-            "variants": json.dumps(settings["variants"]),
-            "wrong_optimum_ll": float(settings["wrong_optimum_ll"]),
-            "gmwm_settings": json.dumps(dict(gmwm_settings), sort_keys=True),
-            "mle_settings": json.dumps(settings, sort_keys=True),
+            "truth": ("parameter", np.array([float(truth[n]) for n in names])),
         },
     )
+
+
+def _baseline_settings(settings: Mapping[str, Any] | None) -> dict[str, Any]:
+    out = {"maxiter": 50, **dict(settings or {})}  # 50: statsmodels' own default
+    unknown = sorted(set(out) - set(BASELINE_KEYS))
+    if unknown:
+        raise InputError(f"unknown statsmodels baseline setting(s) {unknown}; "
+                         f"allowed: {list(BASELINE_KEYS)}")
+    if not int(out["maxiter"]) >= 1:
+        raise InputError(f"statsmodels maxiter must be >= 1, got {out['maxiter']}")
+    return out
+
+
+def run_baseline_chunk(
+    model_spec: str,
+    truth: Mapping[str, float],
+    n_samples: int,
+    replicates: Sequence[int],
+    study: str,
+    base_seed: int,
+    settings: Mapping[str, Any] | None = None,
+    progress: Progress | None = None,
+) -> xr.Dataset:
+    """statsmodels' own MLE (:func:`gmwm_studies.mle.fit_statsmodels`, with its SEs) on the
+    signals of ``replicates`` (the same signals as :func:`run_chunk`'s), estimator
+    :data:`BASELINE`; merge into the study's results with :func:`add_baseline`.
+    ``settings``: ``maxiter`` (default 50, statsmodels' own)."""
+    from gmwm.model import Model
+    from gmwm_studies.mle import fit_statsmodels
+    from gmwm_studies.montecarlo import check_truth
+
+    progress = progress or _noop
+    reps = [int(r) for r in replicates]
+    if not reps:
+        raise InputError("a chunk needs at least one replicate")
+    opts = _baseline_settings(settings)
+    model = Model(model_spec)
+    theta = check_truth(model_spec, truth)
+    beta = _check_model(model, truth)
+    names = list(model.param_names)
+    _warm_up(model_spec, None)
+    rows = []
+    for i, rep in enumerate(reps):
+        x = _signal(model, theta, n_samples, rep, study, base_seed)
+        t0, c0 = time.perf_counter(), time.process_time()
+        try:
+            rec = {**_mle_record(fit_statsmodels(x, beta, maxiter=int(opts["maxiter"]), se=True),
+                                 names), "ran": True}
+        except _FAILURES as exc:
+            rec = {**_empty_fit(len(names), True, f"{type(exc).__name__}: {exc}"),
+                   **_failed_clocks(t0, c0)}
+        rows.append({"fits": {BASELINE: rec}})
+        progress(f"{study} T={n_samples} statsmodels: replicate {i + 1}/{len(reps)} (id {rep}): "
+                 f"{rec['seconds']:.2f} s (+SE {rec['seconds_se']:.2f} s) "
+                 f"conv={rec['converged']}")
+    ds = _dataset(rows, [BASELINE], reps, names, truth, {})
+    ds.attrs.update({"study": study, "model": model_spec, "n_samples": int(n_samples),
+                     "base_seed": int(base_seed), "estimator": BASELINE,
+                     "baseline_settings": json.dumps(opts, sort_keys=True)})
+    return ds
+
+
+def add_baseline(ds: xr.Dataset, baseline: xr.Dataset) -> xr.Dataset:
+    """``ds`` (:func:`run_chunk`'s, gathered) with the statsmodels baseline's fits as one more
+    estimator, :data:`BASELINE`, appended to the variants (rule ``statsmodels``).
+
+    The baseline must come from the same study, seed and T, and have run only on replicates where
+    the Kalman-filter variants ran too (its wrong optima are judged against their
+    log-likelihoods); its other replicates are marked not run.
+    """
+    for key in ("study", "n_samples", "base_seed", "model"):
+        if ds.attrs.get(key) != baseline.attrs.get(key):
+            raise InputError(f"statsmodels baseline and study results differ in {key}: "
+                             f"{baseline.attrs.get(key)!r} vs {ds.attrs.get(key)!r}")
+    if BASELINE in ds["estimator"].values:
+        raise InputError("the results already hold the statsmodels baseline")
+    b = baseline.sel(estimator=[BASELINE])
+    reps = b["replicate"].values
+    missing = np.setdiff1d(reps, ds["replicate"].values)
+    if missing.size:
+        raise InputError(f"statsmodels baseline replicates {missing.tolist()} are not in the "
+                         "study results")
+    no_mle = reps[~ds["mle_ran"].sel(replicate=reps).values]
+    if no_mle.size:
+        raise InputError(f"statsmodels baseline ran on replicates {no_mle.tolist()} where the "
+                         "Kalman-filter MLE did not: raise the MLE cap or lower the baseline's")
+    fill = {"estimate": np.nan, "se": np.nan, "converged": False, "ran": False,
+            "seconds": np.nan, "seconds_se": np.nan, "cpu_seconds": np.nan,
+            "cpu_seconds_se": np.nan, "message": "not run (beyond the "
+            "statsmodels baseline's subset)", "start": "", "loglike": np.nan}
+    b = b.reindex(replicate=ds["replicate"].values, fill_value=fill)
+    for var in ("converged", "ran"):
+        b[var] = b[var].astype(bool)
+    out = xr.concat([ds, b[list(fill)]], dim="estimator", data_vars="minimal",
+                    coords="minimal", compat="override", join="outer")
+    out["mle_ran"] = ds["mle_ran"]
+    out.attrs = dict(ds.attrs)
+    out.attrs["variants"] = json.dumps({**variants_of(ds), BASELINE: BASELINE})
+    out.attrs["estimator"] = "+".join(str(e) for e in out["estimator"].values)
+    out.attrs["baseline_settings"] = baseline.attrs.get("baseline_settings", "{}")
+    out.attrs["n_baseline"] = int(baseline.sizes["replicate"])
+    return out
 
 
 # ---------------------------------------------------------------------------------------------
@@ -300,10 +482,19 @@ def wrong_optimum(ds: xr.Dataset) -> xr.DataArray:
     return wrong & (ds["estimator"] != "gmwm")
 
 
+def _ran(ds: xr.Dataset, estimator: str) -> np.ndarray:
+    """Replicates where ``estimator`` was run (results without a ``ran`` record: the MLE cap)."""
+    if "ran" in ds:
+        return ds["ran"].sel(estimator=estimator).values.astype(bool)
+    return ds["mle_ran"].values.copy() if estimator != "gmwm" else np.ones(ds.sizes["replicate"],
+                                                                           bool)
+
+
 def _status(ds: xr.Dataset, variant: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(ran, not converged, wrong optimum) per replicate for one MLE variant."""
-    ran = ds["mle_ran"].values & np.isfinite(ds["seconds"].sel(estimator=variant).values)
-    failed = ds["mle_ran"].values & ~ds["converged"].sel(estimator=variant).values
+    """(ran and timed, not converged, wrong optimum) per replicate for one MLE variant."""
+    attempted = _ran(ds, variant)
+    ran = attempted & np.isfinite(ds["seconds"].sel(estimator=variant).values)
+    failed = attempted & ~ds["converged"].sel(estimator=variant).values
     wrong = wrong_optimum(ds).sel(estimator=variant).values
     return ran, failed, wrong
 
@@ -330,10 +521,18 @@ def _stats(x: np.ndarray, truth: float) -> dict[str, float]:
             "z_bias": (mean - truth) / (sd / np.sqrt(n)) if n > 1 and sd > 0 else np.nan}
 
 
-def _times(secs: np.ndarray) -> dict[str, float]:
+def _times(secs: np.ndarray, suffix: str = "") -> dict[str, float]:
     secs = secs[np.isfinite(secs)]
-    return {"mean_seconds": float(np.mean(secs)) if secs.size else np.nan,
-            "median_seconds": float(np.median(secs)) if secs.size else np.nan}
+    return {f"mean_seconds{suffix}": float(np.mean(secs)) if secs.size else np.nan,
+            f"median_seconds{suffix}": float(np.median(secs)) if secs.size else np.nan}
+
+
+def _mean_se(ds: xr.Dataset, method: str, param: str, subset: np.ndarray) -> float:
+    if "se" not in ds:
+        return np.nan
+    se = ds["se"].sel(estimator=method, parameter=param).values[subset]
+    se = se[np.isfinite(se)]
+    return float(np.mean(se)) if se.size else np.nan
 
 
 def summarize_comparison(ds: xr.Dataset) -> pd.DataFrame:
@@ -342,38 +541,50 @@ def summarize_comparison(ds: xr.Dataset) -> pd.DataFrame:
     ``set = 'paired'`` rows, one pair per MLE ``variant`` (methods ``gmwm`` and the variant): the
     replicates of :func:`paired_mask` for that variant, identical for both methods; run times are
     over every replicate where the MLE ran (converged or not: a failed fit costs time too), the
-    same signals for both methods. ``set = 'all'`` rows (``gmwm`` only, variant ``''``): every
-    replicate with a converged GMWM fit, including those beyond the MLE cap.
+    same signals for both methods: ``mean_seconds`` / ``median_seconds`` of the point estimate,
+    ``*_seconds_se`` with the standard errors, ``*_seconds_cpu`` / ``*_seconds_cpu_se`` the same
+    in CPU time. ``mean_se`` is the mean reported SE over the
+    paired replicates (compare with ``sd``). ``n_mle_run``: replicates where that variant ran.
+    ``set = 'all'`` rows (``gmwm`` only, variant ``''``): every replicate with a converged GMWM
+    fit, including those beyond the MLE cap.
     """
     gmwm_ok = ds["converged"].sel(estimator="gmwm").values
-    base = {"n_samples": int(ds.attrs["n_samples"]), "n_replicates": int(ds.sizes["replicate"]),
-            "n_mle_run": int(ds["mle_ran"].values.sum())}
+    base = {"n_samples": int(ds.attrs["n_samples"]), "n_replicates": int(ds.sizes["replicate"])}
     rows = []
     jobs = []
     for variant, rule in variants_of(ds).items():
         ran, failed, wrong = _status(ds, variant)
-        counts = {"variant": variant, "start_rule": rule,
-                  "n_not_converged": int(failed.sum()), "n_wrong_optimum": int(wrong.sum())}
+        counts = {"n_mle_run": int(_ran(ds, variant).sum()), "variant": variant,
+                  "start_rule": rule, "n_not_converged": int(failed.sum()),
+                  "n_wrong_optimum": int(wrong.sum())}
         mask = paired_mask(ds, variant)
         jobs += [("paired", "gmwm", mask, ran, counts), ("paired", variant, mask, ran, counts)]
     jobs.append(("all", "gmwm", gmwm_ok, np.ones_like(gmwm_ok),
-                 {"variant": "", "start_rule": "", "n_not_converged": int((~gmwm_ok).sum()),
-                  "n_wrong_optimum": 0}))
+                 {"n_mle_run": int(ds["mle_ran"].values.sum()), "variant": "", "start_rule": "",
+                  "n_not_converged": int((~gmwm_ok).sum()), "n_wrong_optimum": 0}))
     for set_name, method, subset, timed, counts in jobs:
-        times = _times(ds["seconds"].sel(estimator=method).values[timed])
+        times: dict[str, float] = {}
+        for var, suffix in (("seconds", ""), ("seconds_se", "_se"), ("cpu_seconds", "_cpu"),
+                            ("cpu_seconds_se", "_cpu_se")):
+            secs = (ds[var].sel(estimator=method).values[timed] if var in ds
+                    else np.full(int(timed.sum()), np.nan))
+            times.update(_times(secs, suffix))
         for p in COMPARED:
             truth = float(ds["truth"].sel(parameter=p))
             x = ds["estimate"].sel(estimator=method, parameter=p).values[subset]
             x = x[np.isfinite(x)]
             rows.append({**base, **counts, "set": set_name, "method": method, "parameter": p,
-                         "truth": truth, **_stats(x, truth), **times})
+                         "truth": truth, **_stats(x, truth),
+                         "mean_se": _mean_se(ds, method, p, subset), **times})
     return pd.DataFrame(rows)
 
 
 def comparison_table(summary: pd.DataFrame) -> pd.DataFrame:
     """One row per sample size and MLE variant: counts, mean and median times, speed-ups (MLE /
-    GMWM time on the same signals, ratio of means and ratio of medians) and the RMSE ratio
-    MLE / GMWM per compared parameter (that variant's paired replicates)."""
+    GMWM time on the same signals, ratio of means and ratio of medians) of the point estimates
+    and (``*_se``) of the fits with their standard errors, in wall time and (``*_cpu*``, ratio of
+    means) CPU time, and the RMSE ratio MLE / GMWM per
+    compared parameter (that variant's paired replicates)."""
     paired = summary[summary["set"] == "paired"]
     rows = []
     for (T, variant), g in paired.groupby(["n_samples", "variant"], sort=False):
@@ -395,6 +606,14 @@ def comparison_table(summary: pd.DataFrame) -> pd.DataFrame:
             "gmwm_median_s": float(gm["median_seconds"]),
             "mle_median_s": float(ml["median_seconds"]),
             "speedup_median": _ratio(ml["median_seconds"], gm["median_seconds"]),
+            "gmwm_se_mean_s": float(gm["mean_seconds_se"]),
+            "mle_se_mean_s": float(ml["mean_seconds_se"]),
+            "speedup_se_mean": _ratio(ml["mean_seconds_se"], gm["mean_seconds_se"]),
+            "speedup_se_median": _ratio(ml["median_seconds_se"], gm["median_seconds_se"]),
+            "gmwm_cpu_mean_s": float(gm["mean_seconds_cpu"]),
+            "mle_cpu_mean_s": float(ml["mean_seconds_cpu"]),
+            "speedup_cpu_mean": _ratio(ml["mean_seconds_cpu"], gm["mean_seconds_cpu"]),
+            "speedup_cpu_se_mean": _ratio(ml["mean_seconds_cpu_se"], gm["mean_seconds_cpu_se"]),
         }
         for p in COMPARED:
             row[f"rmse_ratio_{SHORT_NAMES[p]}"] = _ratio(by.loc[(variant, p), "rmse"],
@@ -458,12 +677,14 @@ def gmwm_text(gmwm_settings: Mapping[str, Any]) -> str:
 
 
 def counts_text(comp: pd.DataFrame, mle_settings: Mapping[str, Any],
-                gmwm_settings: Mapping[str, Any] | None = None) -> str:
+                gmwm_settings: Mapping[str, Any] | None = None,
+                baseline_settings: Mapping[str, Any] | None = None) -> str:
     """Plain sentences (valid reStructuredText) with the GMWM's settings (if given), the MLE cap,
-    the variants, the dropped replicates and the used counts per T, for the figure captions and
-    the tables."""
+    the variants, the statsmodels baseline (if in ``comp``), the dropped replicates and the used
+    counts per T, for the figure captions and the tables."""
     settings = _mle_settings(mle_settings)
     first = comp[comp["variant"] == comp["variant"].iloc[0]]
+    base = comp[comp["variant"] == BASELINE]
 
     def per_t(df: pd.DataFrame, col: str) -> str:
         return "; ".join(f"T = {int(r.n_samples):,}: {getattr(r, col)}" for r in df.itertuples())
@@ -478,6 +699,21 @@ def counts_text(comp: pd.DataFrame, mle_settings: Mapping[str, Any],
         f"signal. Replicates whose MLE did not converge or stopped at a wrong optimum are dropped "
         f"from both methods' statistics for that variant (as in the paper)."
     )]
+    lines.append(
+        "Clocks (same signals for all methods): point estimate (GMWM: WV and search; "
+        "MLE: the optimisation) and, separately, with standard errors (GMWM: the whole fit call, "
+        "with its sandwich SEs and diagnostics; own-filter MLE: plus a finite-difference Hessian; "
+        "statsmodels: plus its default OPG covariance); wall time, and CPU time of the process "
+        "(cpu columns; the GMWM's point-estimate share of its call's CPU time taken in the "
+        "proportion of the wall clock).")
+    if len(base):
+        opts = _baseline_settings(baseline_settings)
+        lines.append(
+            f"General-purpose baseline [{BASELINE}]: statsmodels' own estimator, "
+            f"UnobservedComponents(level='llevel', autoregressive=1, exog=[cos, sin] at the "
+            f"known frequency, exact diffuse start).fit(maxiter={int(opts['maxiter'])}) with its "
+            f"start values and L-BFGS, on the first replicates only: {per_t(base, 'n_mle')}; "
+            f"'not converged' is statsmodels' own verdict.")
     for variant, df in comp.groupby("variant", sort=False):
         rule = str(df["start_rule"].iloc[0])
         dropped = "; ".join(

@@ -156,6 +156,10 @@ CASES = {
     "case2": Case("case2", np.diag(R_DIAG), ar1=tuple(zip(PHI_CASE2, (P1, P2, P3)))),
 }
 
+#: Input covariances drawn by [SVO] Fig. 1 (Case 1, the RW innovations Q, App. C1) and Fig. 6
+#: (Case 2, the AR1 innovations P_1..P_3, App. C2), per case.
+INPUT_MATRICES = {"case1": {"Q": Q_CASE1}, "case2": {"P1": P1, "P2": P2, "P3": P3}}
+
 #: Paper omega vectors (J = 19) by the pipeline's names.
 OMEGAS = {"w1": PAPER_OMEGA_LONG, "w2": PAPER_OMEGA_SHORT}
 
@@ -308,9 +312,72 @@ def wilson(k: int, n: int, conf: float = 0.95) -> tuple[float, float]:
     return mid - h, mid + h
 
 
+# --- input matrices ([SVO] Figs. 1 and 6) ---------------------------------------------------------
+def abs_correlation(cov: np.ndarray) -> np.ndarray:
+    """``|corr|`` of a covariance matrix (symmetric, positive definite, else :class:`InputError`)."""
+    cov = np.asarray(cov, dtype=np.float64)
+    if cov.ndim != 2 or cov.shape[0] != cov.shape[1] or not np.allclose(cov, cov.T):
+        raise InputError(f"a covariance matrix must be square and symmetric, got {cov.shape}")
+    if np.linalg.eigvalsh(cov)[0] <= 0:
+        raise InputError("covariance matrix is not positive definite")
+    d = 1.0 / np.sqrt(np.diag(cov))
+    return np.clip(np.abs(cov * d[:, None] * d[None, :]), 0.0, 1.0)  # 1 + 1 ulp on the diagonal
+
+
+def input_table(case_name: str) -> list[dict[str, Any]]:
+    """The case's input covariances ([SVO] App. C) entry by entry (upper triangle): covariance
+    [deg^2/s^2 per sample], correlation, and per matrix its smallest eigenvalue (positive
+    definiteness) and the largest off-diagonal |correlation|."""
+    if case_name not in INPUT_MATRICES:
+        raise InputError(f"unknown SVO case {case_name!r}; known: {', '.join(INPUT_MATRICES)}")
+    rows = []
+    for name, cov in INPUT_MATRICES[case_name].items():
+        r = abs_correlation(cov)
+        off = r[~np.eye(len(r), dtype=bool)]
+        d = np.sqrt(np.diag(cov))
+        for i in range(len(cov)):
+            for k in range(i, len(cov)):
+                rows.append({"matrix": name, "gyro_i": i + 1, "gyro_k": k + 1,
+                             "covariance": float(cov[i, k]),
+                             "correlation": float(cov[i, k] / (d[i] * d[k])),
+                             "abs_correlation": float(r[i, k]),
+                             "min_eigenvalue": float(np.linalg.eigvalsh(cov)[0]),
+                             "max_offdiag_abs_correlation": float(off.max())})
+    return rows
+
+
+def figure_inputs(case_name: str) -> Any:
+    """[SVO] Fig. 1 (Case 1: Q) / Fig. 6 (Case 2: P_1, P_2, P_3): absolute correlation matrices of
+    the innovation covariances of App. C, one heat map per matrix on the common scale [0, 1],
+    entries printed."""
+    from gmwm.plots import subplots
+
+    mats = INPUT_MATRICES[case(case_name).name]
+    fig, axes = subplots(1, len(mats), figsize=(3.3 * len(mats) + 0.8, 3.4))
+    axes = np.atleast_1d(axes)
+    im = None
+    for ax, (name, cov) in zip(axes, mats.items(), strict=True):
+        r = abs_correlation(cov)
+        im = ax.imshow(r, vmin=0.0, vmax=1.0, cmap="viridis")
+        p = len(r)
+        for i in range(p):
+            for k in range(p):
+                ax.text(k, i, f"{r[i, k]:.2f}", ha="center", va="center", fontsize=6,
+                        color="white" if r[i, k] < 0.6 else "black")
+        ax.set_xticks(range(p), [str(g + 1) for g in range(p)])
+        ax.set_yticks(range(p), [str(g + 1) for g in range(p)])
+        ax.set_xlabel("gyro")
+        ax.set_title(f"|corr| of {name}", fontsize=9)
+        ax.grid(False)
+    axes[0].set_ylabel("gyro")
+    fig.colorbar(im, ax=list(axes), shrink=0.8, label="absolute correlation")
+    return fig
+
+
 # --- tables and figures ----------------------------------------------------------------------------
 def coef_table(res: Mapping[str, np.ndarray], case_name: str, levels: int) -> list[dict[str, Any]]:
-    """Per method and gyro: mean and SD of the 50 estimated coefficients, true value (if known)."""
+    """Per method and gyro: mean, SD, minimum and maximum of the 50 estimated coefficients, true
+    value (if known)."""
     truth = true_coefs(case_name, levels)
     rows = []
     for b, m in enumerate(METHODS):
@@ -318,25 +385,64 @@ def coef_table(res: Mapping[str, np.ndarray], case_name: str, levels: int) -> li
             c = res["coef"][:, b, i]
             rows.append({"method": m, "gyro": i + 1, "mean": float(c.mean()),
                          "sd": float(c.std(ddof=1)) if c.size > 1 else float("nan"),
+                         "min": float(c.min()), "max": float(c.max()),
                          "true": float(truth[m][i]) if m in truth else float("nan")})
     return rows
 
 
-def wv_table(res: Mapping[str, np.ndarray], freq: float) -> list[dict[str, Any]]:
+def gmwm_table(res: Mapping[str, np.ndarray]) -> list[dict[str, Any]]:
+    """[SVO] Fig. 3 in numbers: per method and parameter (WN ``sigma2``, RW ``gamma2``, per
+    sample) the median, quartiles, maximum, mean and SD of the WN+RW GMWM estimates of the
+    out-of-sample virtual signals, the median relative to the equal-weights one, and
+    ``share_lowest``: the share of test signals on which this method's estimate is the lowest of
+    the four (the methods are applied to the same test arrays, so this is a paired comparison)."""
+    par = res["gmwm"].reshape(-1, len(METHODS), 2)
+    eq = METHODS.index("equal")
+    rows = []
+    for k, name in enumerate(("sigma2", "gamma2")):
+        ref = float(np.median(par[:, eq, k]))
+        lowest = np.argmin(par[:, :, k], axis=1)
+        for b, m in enumerate(METHODS):
+            v = par[:, b, k]
+            q25, med, q75 = (float(q) for q in np.percentile(v, [25, 50, 75]))
+            rows.append({"method": m, "parameter": name, "median": med, "q25": q25, "q75": q75,
+                         "max": float(v.max()),
+                         "iqr_over_median": (q75 - q25) / med if med > 0 else float("nan"),
+                         "mean": float(v.mean()),
+                         "sd": float(v.std(ddof=1)) if v.size > 1 else float("nan"),
+                         "median_to_equal": med / ref if ref > 0 else float("nan"),
+                         "share_lowest": float(np.mean(lowest == b)),
+                         "n_signals": int(v.size)})
+    return rows
+
+
+def wv_table(res: Mapping[str, np.ndarray], freq: float,
+             case_name: str | None = None) -> list[dict[str, Any]]:
     """Average WV of the out-of-sample virtual signals per method and level, its 95 % CI (normal,
-    over all test signals) and the ratio of averages to equal weights."""
+    over all test signals) and the ratio of averages to equal weights; with ``case_name`` also
+    ``true_ratio_to_equal``, the same ratio for the method's population coefficients (c0(omega),
+    c_RDVG from the true Q: Case 1 only) on the true WCCV, i.e. without estimation error."""
     wv = res["wv"].reshape(-1, len(METHODS), res["wv"].shape[-1])
-    n = wv.shape[0]
+    n, J = wv.shape[0], wv.shape[-1]
     mean = wv.mean(axis=0)
     half = 1.96 * wv.std(axis=0, ddof=1) / math.sqrt(n) if n > 1 else np.zeros_like(mean)
+    true_ratio: dict[str, np.ndarray] = {}
+    if case_name is not None:
+        A = case(case_name).wccv(2.0 ** np.arange(1, J + 1))
+        nu = {m: np.einsum("i,jik,k->j", c, A, c) for m, c in true_coefs(case_name, J).items()}
+        true_ratio = {m: v / nu["equal"] for m, v in nu.items()}
     rows = []
     for b, m in enumerate(METHODS):
         for j in range(mean.shape[1]):
-            rows.append({"method": m, "level": j + 1, "scale_s": 2.0 ** (j + 1) / freq,
-                         "mean_wv": float(mean[b, j]), "ci_low": float(mean[b, j] - half[b, j]),
-                         "ci_high": float(mean[b, j] + half[b, j]),
-                         "ratio_to_equal": float(mean[b, j] / mean[METHODS.index("equal"), j]),
-                         "n_signals": n})
+            row = {"method": m, "level": j + 1, "scale_s": 2.0 ** (j + 1) / freq,
+                   "mean_wv": float(mean[b, j]), "ci_low": float(mean[b, j] - half[b, j]),
+                   "ci_high": float(mean[b, j] + half[b, j]),
+                   "ratio_to_equal": float(mean[b, j] / mean[METHODS.index("equal"), j]),
+                   "n_signals": n}
+            if case_name is not None:
+                row["true_ratio_to_equal"] = (float(true_ratio[m][j]) if m in true_ratio
+                                              else float("nan"))
+            rows.append(row)
     return rows
 
 

@@ -1,7 +1,9 @@
 # Simulation 1 of the vibration-noise paper (kind: mle_comparison): GMWM against the Kalman-filter
 # MLE on WN + RW + AR1 + SIN signals. Per chunk of replicates: simulate, fit GMWM (always) and each
 # MLE variant (own start, statsmodels' start, GMWM start; only replicates below the study's MLE cap
-# at that T) -> gather per T -> tables -> figures.
+# at that T) -> gather per T -> tables -> figures. Beside it, on the first `statsmodels.replicates`
+# of the same signals (slow: ~1e-3 T s per fit), statsmodels' own estimator as the general-purpose
+# baseline (sim1_baseline_chunk -> sim1_baseline_gather), merged into the tables.
 # The statistics live in gmwm_studies.sim1; raw signals are never stored.
 
 
@@ -20,6 +22,45 @@ def sim1_mle_caps(name):
 
 def sim1_mle_settings(name):
     return {k: v for k, v in STUDIES[name].get("mle", {}).items() if k != "replicates"}
+
+
+def sim1_baseline_caps(name):
+    """{T: replicates with the statsmodels baseline}; at most the MLE cap at that T, since its
+    wrong optima are judged against the Kalman-filter variants' log-likelihoods."""
+    s = STUDIES[name]
+    cap = s.get("statsmodels", {}).get("replicates", 0)
+    caps = cap if isinstance(cap, list) else [cap] * len(s["n_samples"])
+    if len(caps) != len(s["n_samples"]):
+        raise WorkflowError(
+            f"config: study {name!r}: statsmodels.replicates has {len(caps)} entries for "
+            f"{len(s['n_samples'])} sample sizes"
+        )
+    mle = sim1_mle_caps(name)
+    out = {int(T): int(c) for T, c in zip(s["n_samples"], caps)}
+    for T, c in out.items():
+        if c > mle[T]:
+            raise WorkflowError(
+                f"config: study {name!r}: statsmodels.replicates ({c}) exceeds the MLE cap "
+                f"({mle[T]}) at T = {T}"
+            )
+    return out
+
+
+def sim1_baseline_settings(name):
+    return {k: v for k, v in STUDIES[name].get("statsmodels", {}).items()
+            if k not in ("replicates", "chunk_size")}
+
+
+def sim1_baseline_chunks(name, T):
+    n = sim1_baseline_caps(name)[int(T)]
+    size = int(STUDIES[name].get("statsmodels", {}).get("chunk_size", 5))
+    return [(a, min(n, a + size)) for a in range(0, n, size)]
+
+
+def sim1_baselines(name):
+    """Gathered baseline results, one per T where it runs ({T: path})."""
+    return {T: f"results/{name}/statsmodels/all_T{T}.nc"
+            for T, n in sim1_baseline_caps(name).items() if n > 0}
 
 
 def sim1_gmwm_settings(name):
@@ -54,6 +95,11 @@ def sim1_benchmarks(name):
             for c in range(n_chunks(name))
         ],
         *[f"{BENCH}/sim1_gather/{name}/T{T}.tsv" for T in s["n_samples"]],
+        *[
+            f"{BENCH}/sim1_baseline_chunk/{name}/T{T}_r{a}_{b}.tsv"
+            for T in sim1_baselines(name)
+            for a, b in sim1_baseline_chunks(name, T)
+        ],
         f"{BENCH}/sim1_table/{name}/table.tsv",
         f"{BENCH}/sim1_figures/{name}/figures.tsv",
     ]
@@ -101,6 +147,54 @@ rule sim1_chunk:
         "../scripts/sim1_chunk.py"
 
 
+def sim1_baseline_runtime(w):
+    # measured (statsmodels 0.15, one core): 2.4 s CPU at T = 1e4 (13 L-BFGS iterations, wrong
+    # optimum), 137 s at T = 1.6e5 (50 iterations, the cap); ~1e-3 T s per fit, x3 margin
+    return max(10, int((int(w.b) - int(w.a)) * 3e-3 * int(w.T) / 60) + 5)
+
+
+rule sim1_baseline_chunk:
+    output:
+        "results/{study}/statsmodels/T{T}_r{a}_{b}.nc",
+    params:
+        model=lambda w: study(w)["model"],
+        truth=lambda w: study(w)["truth"],
+        n_samples=lambda w: int(w.T),
+        replicates=lambda w: list(range(int(w.a), int(w.b))),
+        seed=lambda w: study(w)["seed"],
+        settings=lambda w: sim1_baseline_settings(w.study),
+    log:
+        "logs/{study}/sim1_baseline_chunk/T{T}_r{a}_{b}.log",
+    benchmark:
+        f"{BENCH}/sim1_baseline_chunk/{{study}}/T{{T}}_r{{a}}_{{b}}.tsv"
+    wildcard_constraints:
+        a="[0-9]+",
+        b="[0-9]+",
+    threads: 1
+    resources:
+        runtime=sim1_baseline_runtime,
+        mem_mb=1500,
+    script:
+        "../scripts/sim1_baseline_chunk.py"
+
+
+rule sim1_baseline_gather:
+    input:
+        lambda w: [
+            f"results/{w.study}/statsmodels/T{w.T}_r{a}_{b}.nc"
+            for a, b in sim1_baseline_chunks(w.study, w.T)
+        ],
+    output:
+        "results/{study}/statsmodels/all_T{T}.nc",
+    log:
+        "logs/{study}/sim1_baseline_gather/T{T}.log",
+    resources:
+        runtime=10,
+        mem_mb=1000,
+    script:
+        "../scripts/gather.py"
+
+
 rule sim1_gather:
     input:
         lambda w: [
@@ -121,7 +215,8 @@ rule sim1_gather:
 
 rule sim1_table:
     input:
-        lambda w: sim1_estimates(w.study),
+        estimates=lambda w: sim1_estimates(w.study),
+        baselines=lambda w: list(sim1_baselines(w.study).values()),
     output:
         comparison=report(
             "reports/{study}/comparison.csv",
@@ -142,6 +237,8 @@ rule sim1_table:
         mle_caps=lambda w: sim1_mle_caps(w.study),
         mle=lambda w: sim1_mle_settings(w.study),
         gmwm=lambda w: sim1_gmwm_settings(w.study),
+        baseline=lambda w: sim1_baseline_settings(w.study),
+        baseline_T=lambda w: list(sim1_baselines(w.study)),
     log:
         "logs/{study}/sim1_table.log",
     benchmark:
@@ -189,5 +286,6 @@ rule sim1_figures:
 
 localrules:
     sim1_gather,
+    sim1_baseline_gather,
     sim1_table,
     sim1_figures,

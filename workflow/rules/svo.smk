@@ -6,8 +6,10 @@
 #                 arrays (WV of every virtual signal, WN+RW GMWM fit)
 #   svo_coverage  coverage replicates [a, b): c_hat(omega_2) with MBB 95 % CIs against c0
 #   svo_report    per case: Fig. 2/7 (mean WV + ratio), Fig. 4/8 (coefficient boxplots), Fig. 3
-#                 (GMWM WN+RW of the virtual signals), coefficient and WV tables, coverage table and
-#                 figure (Wilson MC intervals)
+#                 (GMWM WN+RW of the virtual signals) and their tables (coefficients, WV, GMWM
+#                 estimates); svo_coverage_report: coverage table and figure (Wilson MC intervals)
+#   svo_inputs    per case: Fig. 1 (Case 1: |corr| of Q) / Fig. 6 (Case 2: |corr| of P_1..P_3),
+#                 drawn from the App. C matrices the simulations use, and their table
 # Every array has its own SeedSequence keyed by (svo, case, role, replicate[, k]) under `seed`.
 # Paths are relative to the workdir (config `outdir`), like every other rule file.
 
@@ -34,7 +36,10 @@ def svo_coverage_files(case):
 def svo_report_files(case):
     files = [f"reports/svo/{case}/{stem}.{fmt}" for stem in ("fig_wv", "fig_coefs", "fig_gmwm")
              for fmt in FIG_FORMATS]
-    files += [f"reports/svo/{case}/{t}.{ext}" for t in ("coefficients", "wv") for ext in ("csv", "md")]
+    files += [f"reports/svo/{case}/{t}.{ext}" for t in ("coefficients", "wv", "gmwm_estimates")
+              for ext in ("csv", "md")]
+    files += [f"reports/svo/{case}/fig_input_correlation.{fmt}" for fmt in FIG_FORMATS]
+    files += [f"reports/svo/{case}/input_correlation.{ext}" for ext in ("csv", "md")]
     if case in SVO_COV["cases"]:
         files += [f"reports/svo/{case}/coverage.{ext}" for ext in ("csv", "md")]
         files += [f"reports/svo/{case}/fig_coverage.{fmt}" for fmt in FIG_FORMATS]
@@ -132,7 +137,6 @@ rule svo_coverage:
 rule svo_report:
     input:
         train=lambda wc: svo_train_files(wc.svo_case),
-        coverage=lambda wc: svo_coverage_files(wc.svo_case),
     output:
         report(
             "reports/svo/{svo_case}/fig_wv.png",
@@ -161,6 +165,8 @@ rule svo_report:
         coefs_md="reports/svo/{svo_case}/coefficients.md",
         wv_csv="reports/svo/{svo_case}/wv.csv",
         wv_md="reports/svo/{svo_case}/wv.md",
+        gmwm_csv="reports/svo/{svo_case}/gmwm_estimates.csv",
+        gmwm_md="reports/svo/{svo_case}/gmwm_estimates.md",
     params:
         levels=int(SVO["levels"]),
         freq=float(SVO["freq"]),
@@ -200,9 +206,34 @@ rule svo_coverage_report:
         "../scripts/svo_coverage_report.py"
 
 
+rule svo_inputs:
+    output:
+        report(
+            "reports/svo/{svo_case}/fig_input_correlation.png",
+            caption="../report/svo_inputs.rst",
+            category="Virtual gyroscope (SVO)",
+            subcategory="{svo_case}",
+            labels={"figure": "absolute correlation of the input covariances"},
+        ),
+        *[f"reports/svo/{{svo_case}}/fig_input_correlation.{fmt}" for fmt in FIG_FORMATS
+          if fmt != "png"],
+        csv="reports/svo/{svo_case}/input_correlation.csv",
+        md="reports/svo/{svo_case}/input_correlation.md",
+    params:
+        formats=FIG_FORMATS,
+    log:
+        "logs/svo/{svo_case}/inputs.log",
+    resources:
+        runtime=5,
+        mem_mb=500,
+    script:
+        "../scripts/svo_inputs.py"
+
+
 localrules:
     svo_report,
     svo_coverage_report,
+    svo_inputs,
 
 
 rule svo_all:

@@ -8,13 +8,20 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+import numpy as np
 import pandas as pd
 from wflog import get_logger
 
 from gmwm.atomic import save_figure
 from gmwm.plots import style
 from gmwm_studies.figures import boxplot_grouped, plot_rmse_curves, plot_runtime
-from gmwm_studies.sim1 import COMPARED, PARAM_LABELS, method_label, standardized_by_method
+from gmwm_studies.sim1 import (
+    BASELINE,
+    COMPARED,
+    PARAM_LABELS,
+    method_label,
+    standardized_by_method,
+)
 from gmwm_studies.store import read_dataset
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
@@ -42,6 +49,7 @@ note = (f"T = ({sizes}) x 1e4; MLE on {per_t(by_variant[head], 'n_mle')} of "
         f"+ wrong optimum): " + "; ".join(
             f"{label[v]} " + "/".join(f"{int(a)}+{int(b)}" for a, b in
                                      zip(df["not_converged"], df["wrong_optimum"], strict=True))
+            + (f" of {per_t(df, 'n_mle')}" if v == BASELINE else "")
             for v, df in by_variant.items()))
 
 
@@ -55,9 +63,10 @@ def save(fig, stem):
 
 
 def rmse_of(variant, method):
+    """RMSE per compared parameter at every T (NaN where the variant did not run)."""
     sub = paired[(paired.variant == variant) & (paired.method == method)]
-    return {p: sub[sub.parameter == p].sort_values("n_samples")["rmse"].to_numpy()
-            for p in COMPARED}
+    return {p: sub[sub.parameter == p].set_index("n_samples")["rmse"].reindex(T)
+            .to_numpy(dtype=float) for p in COMPARED}
 
 
 def restyle(fig):
@@ -85,15 +94,40 @@ fig.suptitle(f"{name}: RMSE against T (GMWM on the replicates of {label[head]})\
              + textwrap.fill(note, 140), fontsize=7)
 save(fig, "fig1_rmse")
 
-# Figure 2: mean run time against T, speed-up of the headline MLE over the GMWM annotated
+# Figure 2: mean run time against T; left the point estimates, right with standard errors. The
+# headline MLE / GMWM speed-up is annotated by plot_runtime; statsmodels / GMWM above its points.
+# Every MLE line is over the replicates where that MLE ran (statsmodels: its subset), the GMWM's
+# over the headline's replicates (its mean over the statsmodels subset is in the table).
+base = BASELINE if BASELINE in by_variant else None
+
+
+def series(df, col):
+    """``col`` of one variant's rows at every T of the headline (NaN where it did not run)."""
+    return df.set_index("n_samples")[col].reindex(T).to_numpy(dtype=float)
+
+
 with style():  # the package style for the whole figure, as in Figure 1
-    fig, ax = plt.subplots(figsize=(6.0, 4.5), layout="constrained")
-    times = {"GMWM": by_variant[head]["gmwm_mean_s"].to_numpy(),
-             **{label[v]: df["mle_mean_s"].to_numpy() for v, df in by_variant.items()}}
-    plot_runtime(T, times, ax=ax, ratio=(label[head], "GMWM"),
-                 ylabel="Mean run time per replicate [s]")
-    ax.set_title(f"{name}: mean run time (GMWM incl. its WV; same signals)\n"
-                 + textwrap.fill(note, 110), fontsize=7)
+    fig, axes = plt.subplots(1, 2, figsize=(10.0, 5.4), layout="constrained", sharey=True)
+    for ax, (gcol, mcol, what) in zip(axes, (("gmwm_mean_s", "mle_mean_s", "point estimates"),
+                                            ("gmwm_se_mean_s", "mle_se_mean_s",
+                                             "with standard errors")), strict=True):
+        times = {"GMWM": series(by_variant[head], gcol),
+                 **{label[v]: series(df, mcol) for v, df in by_variant.items()}}
+        plot_runtime(T, times, ax=ax, ratio=(label[head], "GMWM"),
+                     ylabel="Mean run time per replicate [s]")
+        if base is not None:
+            sm, gm = series(by_variant[base], mcol), series(by_variant[base], gcol)
+            for t, a, g in zip(T, sm, gm, strict=True):
+                if np.isfinite(a) and np.isfinite(g) and g > 0:
+                    ax.annotate(f"×{a / g:,.0f}", (t, a), textcoords="offset points",
+                                xytext=(0, 6), ha="center", fontsize=7, color="#444444")
+            ax.plot([], [], " ", label=f"× above: {label[base]} / GMWM (same replicates)")
+        ax.get_legend().remove()
+        ax.set_title(what, fontsize=8)
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncol=3,
+               fontsize=7, frameon=False)
+    fig.suptitle(f"{name}: mean run time (same signals for all methods)\n"
+                 + textwrap.fill(note, 150), fontsize=7)
     save(fig, "fig2_runtime")
 plt.close(fig)
 

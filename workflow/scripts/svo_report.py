@@ -8,14 +8,23 @@ from wflog import get_logger
 
 from gmwm.atomic import save_figure, write_text_atomic
 from gmwm_studies.montecarlo import format_markdown_table
-from gmwm_studies.svo_study import coef_table, figure_coefs, figure_gmwm, figure_wv, merge, wv_table
+from gmwm_studies.svo_study import (
+    coef_table,
+    figure_coefs,
+    figure_gmwm,
+    figure_wv,
+    gmwm_table,
+    merge,
+    wv_table,
+)
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)
 p, out, case = snakemake.params, snakemake.output, snakemake.wildcards.svo_case
 res = merge([dict(np.load(f)) for f in snakemake.input.train])
 for rows, csv, md in ((coef_table(res, case, p.levels), out.coefs_csv, out.coefs_md),
-                      (wv_table(res, p.freq), out.wv_csv, out.wv_md)):
+                      (wv_table(res, p.freq, case), out.wv_csv, out.wv_md),
+                      (gmwm_table(res), out.gmwm_csv, out.gmwm_md)):
     df = pd.DataFrame(rows)
     write_text_atomic(csv, df.to_csv(index=False))  # atomic: a killed job leaves no half file
     write_text_atomic(md, format_markdown_table(df) + "\n")
