@@ -8,6 +8,7 @@ pytest builds it once, on first use.
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import shutil
 import subprocess
@@ -37,6 +38,36 @@ def c_toolchain() -> bool:
 needs_c_kernel = pytest.mark.skipif(not c_toolchain(),
                                     reason="no C compiler or Python.h: gmwm._haar is not built "
                                            "and gmwm.wv uses the Numba kernel")
+
+
+def load_benchmark(name: str):
+    """The module ``benchmarks/<name>.py``, loaded from its path (the tests of a benchmark's logic
+    use it; ``sys.path`` is left alone)."""
+    path = REPO / "benchmarks" / f"{name}.py"
+    mod_name = f"gmwm_benchmarks_{name}"
+    if mod_name in sys.modules:
+        return sys.modules[mod_name]
+    spec = importlib.util.spec_from_file_location(mod_name, path)
+    assert spec is not None and spec.loader is not None, path
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[mod_name] = module  # dataclasses and pickling look the module up by name
+    spec.loader.exec_module(module)
+    return module
+
+
+#: set by .ci/run: CI has every optional package and ../shared, so a skipped test there is a
+#: test that did not run for a reason CI should not have; it fails instead of passing silently
+NO_SKIPS = os.environ.get("GMWM_TEST_NO_SKIPS") == "1"
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    report = outcome.get_result()
+    if NO_SKIPS and report.skipped and not hasattr(report, "wasxfail"):
+        reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
+        report.outcome = "failed"
+        report.longrepr = f"skipped in CI (GMWM_TEST_NO_SKIPS=1), which must run it: {reason}"
 
 
 def snakemake_cmd(*args: str) -> list[str]:

@@ -4,19 +4,16 @@ exception of the stated type whose one-line message names the problem, never a w
 from __future__ import annotations
 
 import gzip
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from _ulog_writer import write_ulog
 from gmwm.datasheet import parse_unit
 from gmwm.errors import GMWMError, InputError
 from gmwm.readers.recording import read_recording
 from gmwm.readers.timebase import decide_gaps, segments_wv, time_base
-
-sys.path.insert(0, str(Path(__file__).parent))
-from _ulog_writer import write_ulog
 from test_recordings import T0, _sensor_combined, _signals, _stamps, write_bag
 
 pytest.importorskip("rosbags")

@@ -5,15 +5,15 @@ from __future__ import annotations
 
 import json
 import struct
-import sys
 import zlib
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import check_unchanged as cu
+from conftest import load_benchmark
+
+cu = load_benchmark("check_unchanged")
 
 
 def test_readme_commands_run_the_examples_and_skip_install_tests_and_pipeline():

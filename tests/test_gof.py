@@ -4,19 +4,16 @@ as white noise, boundary components and the degenerate cases."""
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 from scipy import stats
 
 import gmwm
+from conftest import load_benchmark
 from gmwm.gof import gof_test, objective_test, weighted_chi2_sf
 from gmwm.model import Model
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from bench_selection import calibrate
+calibrate = load_benchmark("bench_selection").calibrate
 
 AR1_RW = {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.99, "AR1[1].sigma2": 1e-3, "RW[1].gamma2": 1e-6}
 

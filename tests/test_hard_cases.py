@@ -3,17 +3,16 @@ exhaustive search, benchmarks/hard_cases.py --update), and nested models are mon
 
 import itertools
 import json
-import sys
 from pathlib import Path
 
 import pytest
 
 import gmwm
+from conftest import load_benchmark
 from gmwm.model import Model
 
 BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
-sys.path.insert(0, str(BENCH))
-import hard_cases as hc
+hc = load_benchmark("hard_cases")
 
 BEST = json.loads((BENCH / "hard_cases_best.json").read_text())
 FAST = [cid for cid in BEST if not cid.startswith("navchip")]

@@ -13,13 +13,11 @@ import numpy as np
 import pytest
 import yaml
 
+from _ulog_writer import write_ulog
 from gmwm import Model
 from gmwm.errors import InputError
 from gmwm.readers.recording import read_recording
 from gmwm.readers.timebase import decide_gaps, segments_wv, time_base
-
-sys.path.insert(0, str(Path(__file__).parent))
-from _ulog_writer import write_ulog
 
 pytest.importorskip("rosbags")
 pytest.importorskip("pyulog")

@@ -5,14 +5,14 @@ R = 60 replicates give the ratio a Monte Carlo SD of about 1/sqrt(2R) = 0.09, so
 about 3 MC SDs wide on either side of 1; the old Gaussian diagonal V fails it (0.34 for SIN beta).
 """
 
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from bench_se_calibration import CASES, calibration, ratio
+from conftest import load_benchmark
+
+_bench = load_benchmark("bench_se_calibration")
+CASES, calibration, ratio = _bench.CASES, _bench.calibration, _bench.ratio
 
 
 @pytest.mark.parametrize("spec", sorted(CASES))

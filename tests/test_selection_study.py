@@ -6,19 +6,17 @@ on, with z-values."""
 from __future__ import annotations
 
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from conftest import load_benchmark
 from gmwm.criteria import CRITERIA, DEFAULT, factor, near_ties, ranking_notes
 from gmwm.errors import InputError
 from gmwm.select import rank_models, rerank, select_model
 from gmwm.wv import wvar
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import bench_selection as bs
+bs = load_benchmark("bench_selection")
 
 
 def test_factors():

@@ -8,19 +8,18 @@ named by $GMWM_EXTERNAL_DATA); those tests skip when it is absent."""
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from _ulog_writer import write_ulog
+from conftest import load_benchmark
 from gmwm.cli import main
 from gmwm.readers.recording import read_recording, sample_range, select_samples
 from gmwm.stationarity import check_stationarity
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import bench_stationarity as bs
+bs = load_benchmark("bench_stationarity")
 
 EXTERNAL = bs.EXTERNAL
 needs_external = pytest.mark.skipif(not EXTERNAL.is_dir(),
