@@ -1,5 +1,5 @@
 """End-to-end CLI timings: `gmwm --help` and `gmwm wv x.npy --json` on 1e7 samples against a plain
-NumPy script computing a naive cumulative-sum WV of the same file (issue 11 part 6).
+NumPy script computing a naive cumulative-sum WV of the same file.
 
     python benchmarks/bench_cli.py [--n 10000000] [--runs 5] [--workdir /tmp/gmwm_bench_cli]
 

@@ -2,7 +2,7 @@
 
 Run: ``python benchmarks/bench_fit.py [--reps 20] [--big]``. Prints, per model and length,
 the median (and 90 % quantile) wall time of simulation, WV and fit (the fit timed after the WV
-is computed, as in issue 2's target "a fit of the Simulation 1 model takes at most 50 ms median").
+is computed, as in the project's target "a fit of the Simulation 1 model takes at most 50 ms median").
 Measure on an idle machine: wall times scale with whatever else runs on the cores; the fit's
 process CPU time (single-threaded) is the steadier number on a shared machine.
 """

@@ -1,4 +1,4 @@
-"""Benchmark gmwm.wvcov.wv_covariance on the paper-000 Simulation 1-3 models (SPEC 4.1).
+"""Benchmark gmwm.wvcov.wv_covariance on the paper-000 Simulation 1-3 models (docs/METHODS.md §12.5).
 
 Usage: python benchmarks/bench_wvcov.py [--T 10000000] [--levels 22] [--repeat 7]
 Prints, per model: median and min wall and CPU seconds of one call after a warm-up call (JIT cache

@@ -1,4 +1,4 @@
-"""Diagnostic: where the Simulation 1 GMWM's gamma2 bias comes from (issue 12); prints a table.
+"""Diagnostic: where the Simulation 1 GMWM's gamma2 bias comes from; prints a table.
 
 Usage: python benchmarks/diag_sim1_gamma2.py [--T 160000] [--reps 100] [--first 0] [--paired]
 

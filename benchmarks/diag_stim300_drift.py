@@ -1,6 +1,6 @@
 """Why does the closed-form GMWM put the STIM-300 accelerometer's rate ramp R at 0 so often at the
 short length (T = 2.5e6 at 250 Hz)? Fits the same simulated WVs with the study's gmwm_cf (CI
-weights, 2 re-weightings), the same with efficient weights, and ARMAV, and counts R = 0 (issue 12).
+weights, 2 re-weightings), the same with efficient weights, and ARMAV, and counts R = 0.
 
     python benchmarks/diag_stim300_drift.py [--replicates 60]
 

@@ -1,4 +1,4 @@
-"""AVSM on noise-free theoretical wavelet variances (SPEC 2.1 formulas via gmwm.model)."""
+"""AVSM on noise-free theoretical wavelet variances (docs/METHODS.md §3 formulas via gmwm.model)."""
 
 from dataclasses import dataclass
 
@@ -83,7 +83,7 @@ def test_stim300_accel_q_read_from_wn_scales():
     err = _rel_table_errors(res, truth, "accel")
     assert res.param_names == list(truth)
     assert res.regions["QN[1]"].method == "tangent"
-    assert 10 < err["QN[1].Q2"] + 1 < 25  # SPEC 5.4: Q about x16
+    assert 10 < err["QN[1].Q2"] + 1 < 25  # docs/METHODS.md §9.2: Q about x16
     assert abs(err["WN[1].sigma2"]) < 0.02
     assert abs(err["RW[1].gamma2"]) < 0.10
     assert res.params[-1] > 0  # omega returned non-negative

@@ -167,7 +167,7 @@ def test_load_navchip_av_level_shift():
     wv = data.load_navchip_wv(_wv_csv(), "accelerometer", "Z")
     assert np.array_equal(av.clusters, 2 ** np.arange(1, 21))
     assert np.array_equal(av.levels, np.arange(2, 22))  # cluster 2^j = WV level j+1
-    # AV = 2 WV at the same M_j terms; avar divides a (T - 2m)-term sum by T - 2m + 1 (SPEC 1.3)
+    # AV = 2 WV at the same M_j terms; avar divides a (T - 2m)-term sum by T - 2m + 1 (docs/METHODS.md §2.4)
     assert np.allclose(av.avar[:19] / 2, wv.variance[1:], rtol=1e-3)
     assert np.all(av.ci_low >= 0) and np.all(av.ci_high > av.avar)
 

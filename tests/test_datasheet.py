@@ -27,7 +27,7 @@ def fake_result(spec: str, values: dict[str, float], se: dict[str, float] | None
 
 
 def test_gyro_coefficients_in_datasheet_units():
-    # ARW 0.15 deg/sqrt(h), RRW 10 deg/h/sqrt(h), Q 2e-4 deg, rate ramp 30 deg/h/h (SPEC 3)
+    # ARW 0.15 deg/sqrt(h), RRW 10 deg/h/sqrt(h), Q 2e-4 deg, rate ramp 30 deg/h/h (docs/METHODS.md §10)
     n, k, q, r = 0.15 / 60, 10 / 216000, 2e-4, 30 / 1.296e7
     res = fake_result("QN+WN+RW+DR", {"QN[1].Q2": (q * FS) ** 2, "WN[1].sigma2": n * n * FS,
                                        "RW[1].gamma2": k * k / FS, "DR[1].omega": r / FS})

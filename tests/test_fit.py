@@ -37,7 +37,7 @@ def test_simulation1_recovers_truth_without_bias():
     assert conv.all()
     z = _z(est, theta)
     assert np.all(np.abs(z) < 3.5), dict(zip(model.param_names, z, strict=True))
-    # precision comparable to SPEC 5.1's check (relative SD sigma2 0.4 %, phi 0.1 %, alpha 0.5 %)
+    # precision comparable to docs/METHODS.md §5.1's check (relative SD sigma2 0.4 %, phi 0.1 %, alpha 0.5 %)
     rel_sd = est.std(0) / theta
     assert rel_sd[model.param_names.index("AR1[1].phi")] < 0.003
     assert rel_sd[model.param_names.index("SIN[1].alpha")] < 0.01
@@ -85,7 +85,7 @@ def test_linear_model_uses_closed_form_equal_to_weighted_least_squares():
     wv = wvar(model.simulate(theta, 2**20, 2), freq=250.0)
     res = gmwm.fit(wv, model)
     assert res.diagnostics["closed_form"] and res.converged
-    # unconstrained WLS (paper 004 eq. 5) with the same weights
+    # unconstrained WLS ([GMWFM] eq. 5) with the same weights
     X = np.column_stack([6 / wv.scales**2, 1 / wv.scales, (wv.scales**2 + 2) / (12 * wv.scales)])
     W = res.weights
     wls = np.linalg.solve(X.T @ W @ X, X.T @ W @ wv.variance)

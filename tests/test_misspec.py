@@ -1,4 +1,4 @@
-"""Misspecification study (paper 000, Table 5, Fig. 6): nested fits on cached WVs, table, figure."""
+"""Misspecification study ([Vibration], Table 5, Fig. 6): nested fits on cached WVs, table, figure."""
 
 from __future__ import annotations
 

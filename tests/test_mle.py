@@ -1,4 +1,4 @@
-"""Tests for the Kalman-filter MLE baseline (gmwm_studies.mle, SPEC 5.7)."""
+"""Tests for the Kalman-filter MLE baseline (gmwm_studies.mle, docs/METHODS.md §12.1)."""
 
 from __future__ import annotations
 
@@ -234,7 +234,7 @@ def test_backends_reach_the_same_optimum():
 
 
 def test_default_start_can_stop_at_a_wrong_optimum():
-    # SPEC 5.7: statsmodels' own start values lead to a local optimum with the AR1 absorbed
+    # docs/METHODS.md §12.1: statsmodels' own start values lead to a local optimum with the AR1 absorbed
     # (phi ~ 0). Seeded case at T = 1e4: the log-likelihood there is far below the one reached
     # from the moment (variogram) start, which is what the study counts as a wrong optimum.
     x = simulate(10_000, np.random.default_rng([10_000, 1]))

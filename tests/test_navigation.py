@@ -1,4 +1,4 @@
-"""Navigation emulation (paper 000 sec. 5): trajectory/IMU consistency, rate conversion, filter
+"""Navigation emulation ([Vibration] sec. 5): trajectory/IMU consistency, rate conversion, filter
 consistency (NEES against the Monte Carlo spread of the errors), ratio statistics."""
 
 from __future__ import annotations

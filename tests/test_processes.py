@@ -27,7 +27,7 @@ def test_ar1_wv_and_derivative_match_60_digit_arithmetic(phi):
     exact = np.array([float(_ar1_exact(phi, int(t))) for t in tau])
     dexact = np.array([float(mp.diff(lambda p, t=int(t): _ar1_exact(p, t), mp.mpf(phi)))
                        for t in tau])
-    # SPEC 2.2: stable recipe <= 2.5e-12 (WV) and <= 1.7e-9 (d/dphi) against mpmath
+    # docs/METHODS.md §3.6: stable recipe <= 2.5e-12 (WV) and <= 1.7e-9 (d/dphi) against mpmath
     np.testing.assert_allclose(nu, exact, rtol=5e-12)
     np.testing.assert_allclose(dnu, dexact, rtol=5e-9)
 
@@ -83,7 +83,7 @@ MC_MODELS = [
 def test_theoretical_wv_matches_simulation(spec, truth):
     """Mean empirical WV over R seeded replicates vs theory, level by level.
 
-    The estimator is unbiased (SPEC 1.2), so (mean - theory) / (SD / sqrt(R)) is ~N(0, 1) at each
+    The estimator is unbiased (docs/METHODS.md §2.5), so (mean - theory) / (SD / sqrt(R)) is ~N(0, 1) at each
     level; over 10 levels and 7 models a bound of 4.5 is crossed by chance with probability < 1e-3.
     """
     model = Model(spec, freq=100.0)
@@ -105,7 +105,7 @@ def test_drift_wv_is_exact():
 
 
 def test_sin_wv_matches_simulation_exactly_in_expectation():
-    # SIN: E nu_hat = nu exactly over U; the error is O(1/T) (SPEC Lemma 1), so 200 reps of
+    # SIN: E nu_hat = nu exactly over U; the error is O(1/T) ([Vibration] Lemma 1), so 200 reps of
     # T = 2^15 pin the mean to ~1e-4 relative at the first levels
     model = Model("SIN")
     theta = np.array([0.85, 0.35])

@@ -54,7 +54,7 @@ def test_gmwm_and_armav_recover_a_noise_free_wv_exactly():
         params, se, conv, _, _ = ac.fit_wv(wv, GYRO, ESTIMATORS[name])
         assert conv and np.all(np.isfinite(se))
         np.testing.assert_allclose(params, theta, rtol=1e-6, err_msg=name)
-    # AVSM reads N off the -1/2 line: +0.5 % on the noise-free WV (SPEC 5.4 / gmwm.avsm docstring)
+    # AVSM reads N off the -1/2 line: +0.5 % on the noise-free WV (docs/METHODS.md §9.2 / gmwm.avsm docstring)
     params, se, conv, obj, _ = ac.fit_wv(wv, GYRO, ESTIMATORS["avsm"])
     assert conv and np.isnan(obj) and np.all(np.isnan(se))
     n_rel = np.sqrt(params[0] / theta[0]) - 1
@@ -111,7 +111,7 @@ def test_table_units_and_summary(accel_fits):
     n = table["n_used"]
     np.testing.assert_allclose(table["rmse"] ** 2,
                                table["bias"] ** 2 + (n - 1) / n * table["sd"] ** 2, rtol=1e-9)
-    # AVSM reads Q off white-noise scales: about x16 (SPEC 5.4). GMWM's relative SD of Q is
+    # AVSM reads Q off white-noise scales: about x16 (docs/METHODS.md §9.2). GMWM's relative SD of Q is
     # ~0.9 here, so the MC SE of its relative bias over 6 replicates is ~0.37: |.| < 2 is ~5 SE.
     q = table[table["symbol"] == "Q"].set_index("method")["rel_bias"]
     assert q["AVSM"] > 5 and abs(q["GMWM"]) < 2

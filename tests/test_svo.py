@@ -1,4 +1,4 @@
-"""Virtual gyroscope (gmwm.virtual, exported as gmwm.svo): WCCV, SVO estimator, MBB covariance, RDVG; SPEC 6.4 values."""
+"""Virtual gyroscope (gmwm.virtual, exported as gmwm.svo): WCCV, SVO estimator, MBB covariance, RDVG; docs/METHODS.md §11.6 values."""
 
 import json
 
@@ -26,7 +26,7 @@ from gmwm_studies.svo_study import case, true_coefs
 
 
 def _naive_wccv(X: np.ndarray, J: int) -> np.ndarray:
-    """Partial-sum form of SPEC 1.1 on demeaned data (fine for short, offset-free signals)."""
+    """Partial-sum form of docs/METHODS.md §2.1 on demeaned data (fine for short, offset-free signals)."""
     T, p = X.shape
     S = np.vstack([np.zeros(p), np.cumsum(X - X.mean(axis=0), axis=0)])
     out = []
@@ -118,7 +118,7 @@ def test_wccv_input_errors():
         wccv(np.ones((100, 2)), levels=9)
 
 
-# --- SPEC 6.4 reference values --------------------------------------------------------------------
+# --- docs/METHODS.md §11.6 reference values --------------------------------------------------------------------
 def test_true_coefficients_match_spec_6_4():
     c1, c2 = true_coefs("case1"), true_coefs("case2")
     ref = {
@@ -468,7 +468,7 @@ def test_simulate_recursions_match_numpy_and_lfilter_bit_for_bit():
 
 
 def test_input_correlation_figures_data():
-    """Paper 003 Figs 1 and 6: |corr| of Q (Case 1) and P_1..P_3 (Case 2) from App. C; the
+    """[SVO] Figs 1 and 6: |corr| of Q (Case 1) and P_1..P_3 (Case 2) from App. C; the
     diagonals are the values printed in the text (eq. (12), Sec. V-B p_i)."""
     from gmwm_studies.svo_study import (
         INPUT_MATRICES,
@@ -529,8 +529,8 @@ def test_report_tables_coefficient_range_and_fig3_numbers():
 
 
 def test_wv_table_population_ratios():
-    """true_ratio_to_equal: the methods' population coefficients on the true WCCV (Case 1: SPEC
-    6.4's 0.235 for omega_1 at j = 19, and RDVG with the true Q just below it, as paper 003
+    """true_ratio_to_equal: the methods' population coefficients on the true WCCV (Case 1:
+    docs/METHODS.md §11.6's 0.235 for omega_1 at j = 19, and RDVG with the true Q just below it, as [SVO]
     Fig. 2 says); Case 2 has no population RDVG."""
     from gmwm_studies.svo_study import wv_table
 

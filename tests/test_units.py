@@ -10,7 +10,7 @@ from gmwm import units as u
 from gmwm.errors import InputError, ModelError
 from gmwm_studies import sensors as s
 
-# SPEC 4.2, "discrete (from Table I)" column (rounded to 5 significant digits there)
+# docs/METHODS.md §12.5, "discrete (from Table I)" column (rounded to 5 significant digits there)
 EXPECTED = {
     "gyroscope": {"WN[1].sigma2": 1.7118e-3, "RW[1].gamma2": 1.5394e-13},
     "accelerometer": {"QN[1].Q2": 2.0026e-7, "WN[1].sigma2": 1.5340e-4,
@@ -24,7 +24,7 @@ def test_stim300_truth_matches_spec_table(sensor):
     exp = EXPECTED[s.canonical_sensor(sensor)]
     assert list(truth) == list(exp)  # canonical order QN, WN, RW, DR
     for k, v in exp.items():
-        assert truth[k] == pytest.approx(v, rel=6e-5)  # 5 significant digits in SPEC
+        assert truth[k] == pytest.approx(v, rel=6e-5)  # 5 significant digits, METHODS §12.5
 
 
 @pytest.mark.parametrize("sensor", ["gyroscope", "accelerometer"])
@@ -74,7 +74,7 @@ def test_bad_inputs_raise():
 
 
 def _av_quadrature(b, f0, tau):
-    """AV(tau) = 4 int_0^f0 S(f) sin^4(pi f tau)/(pi f tau)^2 df, S = B^2/(2 pi f) (SPEC 1.3)."""
+    """AV(tau) = 4 int_0^f0 S(f) sin^4(pi f tau)/(pi f tau)^2 df, S = B^2/(2 pi f) (docs/METHODS.md §2.4)."""
     def integrand(f):
         x = np.pi * f * tau
         return 4.0 * b * b / (2.0 * np.pi * f) * np.sin(x) ** 4 / x ** 2

@@ -39,7 +39,7 @@ def exact_wv(x: np.ndarray, J: int) -> np.ndarray:
 
 
 def direct_wv(x: np.ndarray, J: int) -> np.ndarray:
-    """Slow direct filter sums of the definition (SPEC 1.1), O(T tau) per level."""
+    """Slow direct filter sums of the definition (docs/METHODS.md §2.1), O(T tau) per level."""
     out = []
     for j in range(1, J + 1):
         tau, m = 2**j, 2 ** (j - 1)
@@ -267,7 +267,7 @@ def test_avar_is_twice_wv_and_matches_definition() -> None:
     np.testing.assert_array_equal(av.clusters, 2 ** np.arange(10))
     np.testing.assert_allclose(av.tau, 2.0 ** np.arange(10) / freq, rtol=0)
     np.testing.assert_allclose(av.adev, np.sqrt(av.avar), rtol=0)
-    # maximal-overlap AV straight from its definition (SPEC 1.3), independent of the WV code
+    # maximal-overlap AV straight from its definition (docs/METHODS.md §2.4), independent of the WV code
     for m, value in zip(av.clusters, av.avar):
         means = sliding_window_view(x, m).mean(axis=1)          # cluster mean ending at k
         d = means[m:] - means[:-m]

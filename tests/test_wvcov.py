@@ -131,7 +131,7 @@ def test_white_noise_diagonal_closed_form() -> None:
         M = T - tau + 1
         exact = 2 * sigma2**2 * np.sum((M - np.abs(h)) * c**2) / M**2
         assert V[j, j] == pytest.approx(exact, rel=1e-10)
-    # and the chi-square approximation 2 nu^2 / eta_3 is conservative (SPEC 1.2)
+    # and the chi-square approximation 2 nu^2 / eta_3 is conservative (docs/METHODS.md §2.5)
     eta = (T - scales + 1) / scales
     assert np.all(np.diag(V) < 2 * (sigma2 / scales) ** 2 / eta)
 
@@ -175,7 +175,7 @@ def test_monte_carlo(spec: str, values: dict) -> None:
 
 def test_monte_carlo_sinusoid_interaction() -> None:
     """WN + AR1 + SIN (Simulation 1 values, T = 2^12): with the SIN x noise term the MC agrees;
-    without it (SPEC 5.5's V) the variance at the SIN-dominated scales is far too small."""
+    without it (docs/METHODS.md §5.9's V) the variance at the SIN-dominated scales is far too small."""
     model = Model("WN+AR1+SIN")
     theta = model.theta({"WN[1].sigma2": 1.0, "AR1[1].phi": 0.975, "AR1[1].sigma2": 0.03,
                          "SIN[1].alpha": 0.85, "SIN[1].beta": 0.35})

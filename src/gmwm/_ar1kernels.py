@@ -3,7 +3,7 @@ derivative, one fused loop over the scales instead of ~25 NumPy calls on 20-elem
 search evaluates it thousands of times per fit). Imported lazily (``processes._kernels``), so
 that importing the library or computing a WV never loads Numba.
 
-Formulas: SPEC 2.2 in terms of ``a = -ln(phi)`` for ``phi > 0`` (cancellation-free when
+Formulas: docs/METHODS.md §3.6 in terms of ``a = -ln(phi)`` for ``phi > 0`` (cancellation-free when
 phi -> 1; a 5-term series in ``a`` where ``m a < SERIES_SWITCH``, ``m = tau / 2``) and the
 plain closed form for ``phi <= 0`` (no cancellation there). ``tau`` = filter lengths in samples.
 """

@@ -1,4 +1,4 @@
-"""Automated Allan-variance slope method (AVSM, SPEC 5.4), the classical baseline for GMWM.
+"""Automated Allan-variance slope method (AVSM, docs/METHODS.md §9.2), the classical baseline for GMWM.
 
 Rule (applied to a Haar wavelet variance; no tuning beyond these constants):
 
@@ -12,13 +12,13 @@ Rule (applied to a Haar wavelet variance; no tuning beyond these constants):
    such levels the intercept is the fixed-slope fit ``b = mean(log10 AD - s log10 tau)`` over the
    region; otherwise the tangent (lower envelope) ``b = min_j (log10 AD_j - s log10 tau_j)`` over all
    kept levels.
-4. Read the continuous coefficient off the line ``log10 AD = b + s log10 tau`` at the SPEC 3 points:
+4. Read the continuous coefficient off the line ``log10 AD = b + s log10 tau`` at the docs/METHODS.md §10 points:
    Q at tau = sqrt(3) s, N at 1 s, K at 3 s, R at sqrt(2) s; B = 10^b / 0.6643 (flat floor).
 5. Convert to discrete per-sample parameters (gmwm.units): Q2 = (Q f_s)^2, sigma2 = N^2 f_s,
    gamma2 = K^2 / f_s, omega = R / f_s (the WV only sees omega^2: the sign is not identified and
    omega >= 0 is returned).
 
-Known bias (SPEC 5.4; 40 replicates, T = 2.5e6, STIM-300, relative bias / SD in Table I units):
+Known bias (docs/METHODS.md §9.2; 40 replicates, T = 2.5e6, STIM-300, relative bias / SD in Table I units):
 gyro N +0.4 % / 1.2 %, K +17 % / 28 %; accel N +0.7 %, K +3.7 % / 8 %, R +91 % / 53 %, Q about x16
 (no slope -1 region exists, so Q is read from WN-dominated scales). With eta_j >= 4 or 8 the gyro K
 bias grows to +71 % because the RW region is cut off. Noise-free theoretical WV (measured here,
@@ -227,8 +227,8 @@ def fit_avsm(wv, model, *, min_edof: float = 2.0, slope_tol: float = 0.1) -> AVS
     ----------
     wv : WaveletVariance (needs ``scales`` = 2^j samples, ``variance``, ``n`` = M_j, ``freq`` Hz).
     model : model string (e.g. ``"WN+RW"``) or Model; parameters named as in docs/API.md.
-    min_edof : keep levels with eta_j >= min_edof (SPEC 5.4: 2).
-    slope_tol : half-width of the slope window defining a term's region (SPEC 5.4: 0.1).
+    min_edof : keep levels with eta_j >= min_edof (docs/METHODS.md §9.2: 2).
+    slope_tol : half-width of the slope window defining a term's region (docs/METHODS.md §9.2: 0.1).
 
     Returns
     -------

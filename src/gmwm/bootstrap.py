@@ -1,4 +1,4 @@
-"""Parametric bootstrap of a GMWM fit (SPEC 5.6): WV covariance, refits, confidence intervals.
+"""Parametric bootstrap of a GMWM fit (docs/METHODS.md §7): WV covariance, refits, confidence intervals.
 
 Draw ``b`` simulates a signal of the fitted length ``T`` from ``F_theta_hat`` with its own stream,
 ``SeedSequence(seed, spawn_key=(b,))`` (equal to ``SeedSequence(seed).spawn(B)[b]``), so a draw
@@ -419,7 +419,7 @@ def parametric_bootstrap(result: GMWMResult, B: int = 100, *, seed: SeedLike = 0
                          weights: str | np.ndarray | None = None, reweight: int | None = None,
                          draws: Iterable[int] | None = None,
                          progress: Progress | None = None) -> BootstrapResult:
-    """Parametric bootstrap of a GMWM fit (SPEC 5.6).
+    """Parametric bootstrap of a GMWM fit (docs/METHODS.md §7).
 
     Each draw ``b`` simulates ``T = result.wv.n_samples`` samples from ``result.params`` (stream
     :func:`draw_seed` ``(seed, b)``), computes its WV on the same J levels and, if ``refit``,

@@ -7,7 +7,7 @@ and dispatches on the method: GMWM and ARMAV minimise the objective of :mod:`gmw
 the global search of :mod:`gmwm.search`; AVSM reads the Allan-variance slopes
 (:mod:`gmwm.avsm`). Warnings use the thresholds of :mod:`gmwm.diagnostics`.
 
-Standard errors use the sandwich of paper 000 (``(A'WA)^-1 A'W V W A (A'WA)^-1``) with ``V`` the
+Standard errors use the sandwich of [Vibration] (``(A'WA)^-1 A'W V W A (A'WA)^-1``) with ``V`` the
 covariance of the WV estimate under the fitted model (between-scale correlation included, SIN only
 through its cross term with the noise; :func:`gmwm.inference.model_wv_cov`), or the caller's
 covariance. ``weights="efficient"`` is the two-step efficient GMWM: a first fit with CI weights,

@@ -4,17 +4,17 @@ Jacobian, the bounded solve, the covariance of the WV estimate and the sandwich 
 Every estimator path (:func:`gmwm.fit`, :mod:`gmwm.identify`, :mod:`gmwm.bootstrap`, the paper
 studies) builds a :class:`Problem` and calls it; nothing else re-implements these formulas.
 
-Conventions. ``f(x) = x`` (GMWM) or ``f = log10`` (ARMAV, the GMWFM class of paper 004). The
+Conventions. ``f(x) = x`` (GMWM) or ``f = log10`` (ARMAV, the GMWFM class of [GMWFM]). The
 objective is ``Q(theta) = (f(nu_hat) - f(nu(theta)))' Omega (f(nu_hat) - f(nu(theta)))``. The
 covariance ``V`` of ``nu_hat`` (not of ``sqrt(T) nu_hat``) feeds the finite-sample sandwich of
-SPEC 5.5, ``(A'WA)^-1 A'W V_f W A (A'WA)^-1`` with ``A = d f(nu) / d theta`` and
+docs/METHODS.md §5.9, ``(A'WA)^-1 A'W V_f W A (A'WA)^-1`` with ``A = d f(nu) / d theta`` and
 ``V_f = F V F'``, ``F = d f / d nu``.
 
 Kinds of ``V`` (``se_cov``):
 
 * ``"model"`` (default): the covariance of the boundary-free Haar WV estimator under the fitted
   model (:func:`gmwm.wvcov.wv_covariance`) with the correlation between scales. SIN components
-  enter only through their cross term with the noise (their own term is O(T^-2), paper 000
+  enter only through their cross term with the noise (their own term is O(T^-2), [Vibration]
   Theorem 1).
 * ``"gaussian"``: the diagonal ``2 nu_hat_j^2 / eta_j`` (ignores the between-scale correlation
   and counts the SIN's WV; kept for comparison).
@@ -169,7 +169,7 @@ def model_wv_cov(model: Model, theta: np.ndarray, wv: WaveletVariance) -> np.nda
     """Covariance of the boundary-free Haar WV estimate at ``wv``'s scales and length under the
     model at ``theta`` (:func:`gmwm.wvcov.wv_covariance`): the random components' exact
     finite-sample covariance, between-scale correlation included, plus each SIN's cross term
-    with them (a SIN's own term is O(T^-2), paper 000 Theorem 1). Components at the boundary 0
+    with them (a SIN's own term is O(T^-2), [Vibration] Theorem 1). Components at the boundary 0
     contribute nothing."""
     from .wvcov import wv_covariance
 
@@ -367,7 +367,7 @@ class Problem:
     # covariance of the estimate
     def sandwich(self, theta: np.ndarray, V: np.ndarray,
                  fixed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float]:
-        """Sandwich covariance of theta_hat (SPEC 5.5) for a covariance V of nu_hat, its SEs and
+        """Sandwich covariance of theta_hat (docs/METHODS.md §5.9) for a covariance V of nu_hat, its SEs and
         the condition number of the whitened Jacobian in free coordinates
         (:func:`gmwm.diagnostics.free_jacobian`). Parameters flagged in ``fixed`` (at the
         boundary) are held fixed: their rows/columns are NaN."""

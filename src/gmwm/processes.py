@@ -1,6 +1,6 @@
 """Latent error processes: theoretical Haar wavelet variance, its Jacobian, simulation, transforms.
 
-Conventions (see SPEC.md section 2): parameters are discrete-time, per sample, except GM, whose
+Conventions (see docs/METHODS.md §3): parameters are discrete-time, per sample, except GM, whose
 ``beta`` is an inverse correlation time in 1/s and needs the sampling frequency ``freq`` [Hz].
 Scales ``tau`` are Haar filter lengths ``2**j`` in samples. Every process maps its own parameter
 vector ``p`` (in the order of ``param_names``) to the WV ``nu_j = E[W_{j,t}^2]``.
@@ -354,7 +354,7 @@ class Drift(Process):
 
 
 # --- AR1 ---------------------------------------------------------------------------------------
-# Evaluated in terms of a = -ln(phi) (phi in (0,1)) with the cancellation-free form of SPEC 2.2;
+# Evaluated in terms of a = -ln(phi) (phi in (0,1)) with the cancellation-free form of docs/METHODS.md §3.6;
 # the textbook formula loses up to all digits when phi -> 1 (Simulation 2 uses phi = 0.999995).
 # The loops are Numba kernels (gmwm._ar1kernels), loaded on first use.
 
@@ -400,7 +400,7 @@ def ar1_unit_wv_many(phi: np.ndarray, tau: np.ndarray) -> np.ndarray:
 
 def sin_unit_wv(beta: np.ndarray | float, tau: np.ndarray) -> np.ndarray:
     """Unit-amplitude SIN WV ``2 sin^4(beta tau / 4) / (tau^2 sin^2(beta / 2))`` (the stable
-    form of SPEC 2.3); ``beta`` broadcasts against ``tau`` (e.g. beta (G, 1) x tau (J,))."""
+    form of docs/METHODS.md §3.8); ``beta`` broadcasts against ``tau`` (e.g. beta (G, 1) x tau (J,))."""
     beta = np.asarray(beta, dtype=float)
     tau = np.asarray(tau, dtype=float)
     # squares by multiplication: ** 4 goes through pow() and doubles the cost of VP grid scans

@@ -5,7 +5,7 @@ nested submodels, and the refinement of the best starts (no user starting values
    gamma2, omega^2, the AR1 innovation variance, the GM variance, alpha^2) once its "shape"
    (AR1 phi, GM beta, SIN beta) is fixed. For fixed shapes the best non-negative scale
    parameters solve a small non-negative least-squares problem (NNLS) on the whitened system;
-   for models made only of QN, WN, RW and DR that *is* the closed-form GMWM of paper 004.
+   for models made only of QN, WN, RW and DR that *is* the closed-form GMWM of [GMWFM].
 2. Shapes are searched in coordinates where a uniform grid is natural (each process's
    :meth:`~gmwm.processes.Process.shape_bounds`): AR1 ``xi = 2 atanh(phi)`` over the whole
    domain phi in (-1, 1) (log-spaced towards both ends), GM ``log(beta / freq)``, SIN

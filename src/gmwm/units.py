@@ -1,6 +1,6 @@
 """Datasheet (continuous) coefficients <-> discrete per-sample parameters.
 
-Conventions (SPEC sections 3, 4.2, 7). ``u`` is the measurement unit (deg/s, rad/s, m/s^2); ``f_s`` = ``freq``
+Conventions (docs/METHODS.md §10, §10.5, §12.5). ``u`` is the measurement unit (deg/s, rad/s, m/s^2); ``f_s`` = ``freq``
 is the sampling frequency in Hz. Continuous coefficients are in SI seconds:
 
 * QN  Q [u s]          <-> ``QN[k].Q2``     Q2 = (Q f_s)^2

@@ -1,4 +1,4 @@
-"""Virtual gyroscope by Scale-wise Variance Optimisation (SVO, paper 003; SPEC section 6).
+"""Virtual gyroscope by Scale-wise Variance Optimisation (SVO, [SVO]; docs/METHODS.md §11).
 
 (The module is ``gmwm.virtual``; its main function is exported lazily as ``gmwm.svo``. The WCCV
 is :mod:`gmwm.wccv`; the Numba kernels are :mod:`gmwm._svokernels`, loaded on first use.)
@@ -11,7 +11,7 @@ coefficients, mean squares, never demeaned) and scale weights ``omega >= 0`` (re
 to 1), SVO chooses ``c = A^-1 1 / (1' A^-1 1)``, ``A = sum_j omega_j A_j`` (solved, not inverted):
 the ``c`` minimising the omega-weighted wavelet variance ``c' A c`` of the virtual signal.
 
-Uncertainty (SPEC 6.1-6.2): ``Cov(c_hat) = Sigma / T`` with ``Sigma = G V G'`` (delta method,
+Uncertainty (docs/METHODS.md §11.2-§11.4): ``Cov(c_hat) = Sigma / T`` with ``Sigma = G V G'`` (delta method,
 plug-in ``G``) and ``V`` from the moving-block bootstrap of the wavelet coefficients (Algorithm 1:
 trim every level to the last ``M_J`` times, resample blocks of ``l = a T^(1/3)`` consecutive times
 with starts shared by all signals and levels, refill level ``j`` with one random original stretch
@@ -20,7 +20,7 @@ of ``D_j = M_j - M_J`` coefficients, centre at the original estimate, scale by `
 (``O(p)`` numbers per time instead of ``J p^2``); ``mbb_wccv`` returns the full draws
 ``gamma*_h`` for small problems (and tests).
 
-RDVG (SPEC 6.5, Vaccaro & Zaki 2017 as described in paper 003): ``c = Q^-1 1 / (1'Q^-1 1)`` with
+RDVG (docs/METHODS.md §11.5, Vaccaro & Zaki 2017 as described in [SVO]): ``c = Q^-1 1 / (1'Q^-1 1)`` with
 the random-walk innovation covariance ``Q`` estimated, per pair ``(i, k)``, by closed-form
 weighted least squares of ``A_j[i, k]`` on the Haar WN and RW columns ``1/tau_j`` and
 ``(tau_j^2 + 2) / (12 tau_j)`` (weights ``eta_j / (A_j[i,i] A_j[k,k] + A_j[i,k]^2)``).
@@ -47,7 +47,7 @@ __all__ = ["PAPER_OMEGA_LONG", "PAPER_OMEGA_SHORT", "SVOResult", "block_length",
            "mbb_svo_draws", "mbb_svo_draws_schemes", "mbb_wccv", "rdvg", "svo", "svo_coef",
            "svo_jacobian", "svo_schemes", "svo_weights"]
 
-#: Paper 003 App. C1 scale weights for J = 19 (printed, sums 0.998 and 1.002; renormalised on use).
+#: [SVO] App. C1 scale weights for J = 19 (printed, sums 0.998 and 1.002; renormalised on use).
 #: omega_1 ("long": random-walk scales) and omega_2 ("short": white-noise scales).
 PAPER_OMEGA_LONG = (0.0,) * 7 + (0.001, 0.003, 0.007, 0.018, 0.041, 0.077, 0.112, 0.135, 0.147,
                                  0.151, 0.153, 0.153)
@@ -77,7 +77,7 @@ def _pass_buffers(T: int, p: int, q: int, time_scheme: bool) -> tuple[np.ndarray
 def _mbb_kernel(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
                 starts: np.ndarray, block: int, last: int, refill: np.ndarray,
                 out: np.ndarray) -> None:
-    """Moving-block bootstrap sums (SPEC 6.2) for every draw ``h``, level by level on whole arrays.
+    """Moving-block bootstrap sums (docs/METHODS.md §11.4) for every draw ``h``, level by level on whole arrays.
 
     Feature of a time ``t`` at level ``j``: ``wf[j] * w (w'y)`` (``full=False``, p numbers) or
     ``wf[j] * w_i w_k`` packed (``full=True``, stored at columns ``j * npair``). ``out[h]`` gets the
@@ -179,7 +179,7 @@ def svo_coef(cov: Any, omega: Any) -> np.ndarray:
 
 
 def svo_jacobian(cov: Any, omega: Any) -> np.ndarray:
-    """``G`` (SPEC 6.1): ``d c / d gamma``, shape ``(p, J, p, p)`` (element ``[:, j, i, k]`` is the
+    """``G`` (docs/METHODS.md §11.2): ``d c / d gamma``, shape ``(p, J, p, p)`` (element ``[:, j, i, k]`` is the
     column of ``gamma_{ik,j}``; ``gamma_{ik}`` and ``gamma_{ki}`` are separate elements)."""
     cov = np.asarray(cov, dtype=np.float64)
     J, p, _ = cov.shape
@@ -196,7 +196,7 @@ def svo_jacobian(cov: Any, omega: Any) -> np.ndarray:
 
 
 def block_length(T: int, const: float = 1.0) -> int:
-    """MBB block length ``l = max(1, round(const * T^(1/3)))`` (SPEC 6.2)."""
+    """MBB block length ``l = max(1, round(const * T^(1/3)))`` (docs/METHODS.md §11.4)."""
     if not (np.isfinite(const) and const > 0):
         raise InputError(f"block constant must be positive, got {const}")
     return max(1, round(const * T ** (1.0 / 3.0)))
@@ -273,7 +273,7 @@ def _run_mbb_schemes(arr: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.
 
 def mbb_wccv(X: Any, levels: int | None = None, n_boot: int = 200, block: int | None = None,
              block_const: float = 1.0, rng: Any = 0, scheme: str = "paper") -> np.ndarray:
-    """Moving-block bootstrap draws ``gamma*_h`` of the WCCV (SPEC 6.2), ``(n_boot, J, p, p)``.
+    """Moving-block bootstrap draws ``gamma*_h`` of the WCCV (docs/METHODS.md §11.4), ``(n_boot, J, p, p)``.
     Memory ``~ 8 J p^2 T / 2`` bytes: meant for small problems; :func:`svo` uses the projected
     draws (:func:`mbb_svo_draws`)."""
     arr = _as_array(X)
@@ -296,7 +296,7 @@ def mbb_svo_draws(X: Any, cov: np.ndarray, omega: np.ndarray, n_boot: int, block
                   rng: np.random.Generator, scheme: str = "paper") -> np.ndarray:
     """Linearised bootstrap coefficient deviations ``G (gamma*_h - gamma_hat)``, ``(n_boot, p)``,
     for the data ``X``, its WCCV ``cov`` and renormalised weights ``omega``. ``scheme``:
-    ``"paper"`` (Algorithm 1, SPEC 6.2) or ``"time"`` (blocks on the common time axis, every level
+    ``"paper"`` (Algorithm 1, docs/METHODS.md §11.4) or ``"time"`` (blocks on the common time axis, every level
     resampled over its whole range; see :func:`svo`)."""
     return mbb_svo_draws_schemes(X, cov, omega, n_boot, block, [(scheme, rng)])[0]
 
@@ -404,7 +404,7 @@ class SVOResult:
         return np.sqrt(np.clip(np.diag(self.cov), 0.0, None))
 
     def conf_int(self, alpha: float | None = None) -> np.ndarray:
-        """Wald intervals ``c_i -/+ z_{1-alpha/2} se_i`` (SPEC 6.1 eq. 9), shape ``(p, 2)``; NaN
+        """Wald intervals ``c_i -/+ z_{1-alpha/2} se_i`` ([SVO] eq. 9; docs/METHODS.md §11.3), shape ``(p, 2)``; NaN
         without bootstrap. ``alpha`` None: the level the result was made with (``self.alpha``,
         0.05 unless chosen)."""
         alpha = self.alpha if alpha is None else float(alpha)
@@ -502,7 +502,7 @@ def svo(X: Any, weights: Any = "short", *, levels: int | None = None, n_boot: in
     ``weights``: ``J`` non-negative numbers, ``"short"``/``"long"``/``"equal"`` (see
     :func:`svo_weights`); renormalised. ``n_boot`` moving-block bootstrap draws (0 = no CI),
     block length ``block`` or ``block_const * T^(1/3)``, ``seed`` for the draws (int,
-    SeedSequence or Generator). ``mbb``: ``"paper"`` = Algorithm 1 of paper 003 (SPEC 6.2: blocks
+    SeedSequence or Generator). ``mbb``: ``"paper"`` = Algorithm 1 of [SVO] (docs/METHODS.md §11.4: blocks
     over the last ``M_J`` times, one random original stretch refills each level); ``"time"`` =
     blocks over the whole time axis, each level averaging the resampled coefficients it has (no
     refill stretch; at the default J the refill is about half of every low level and keeps little
@@ -554,7 +554,7 @@ def svo_schemes(X: Any, weights: Any = "short", *, levels: int | None = None, n_
 
 def rdvg(X: Any, *, levels: int | None = None, alpha: float = 0.05, freq: float = 1.0,
          names: Sequence[str] | None = None) -> SVOResult:
-    """RDVG virtual gyroscope (SPEC 6.5): ``c = Q^-1 1 / (1'Q^-1 1)`` with ``Q`` (random-walk
+    """RDVG virtual gyroscope (docs/METHODS.md §11.5): ``c = Q^-1 1 / (1'Q^-1 1)`` with ``Q`` (random-walk
     innovation covariance) from per-pair WLS fits of the WCCV; ``extra`` holds ``R`` and ``Q``."""
     _, W = _wccv_of(X, levels, alpha, freq, names)
     R, Q = _rdvg_q(W.cov, W.scales, W.edof)

@@ -1,4 +1,4 @@
-"""Haar wavelet cross-covariance (WCCV) of ``p`` signals of one axis (paper 003).
+"""Haar wavelet cross-covariance (WCCV) of ``p`` signals of one axis ([SVO]).
 
 ``X_t`` holds the signals as columns of a ``(T, p)`` array. ``A_j`` is the Haar WCCV matrix at
 level ``j`` (``A_j[i, k] = E[W_{i,j,t} W_{k,j,t}]``, lag 0), with the conventions of

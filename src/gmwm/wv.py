@@ -1,6 +1,6 @@
 """Haar (MODWT) wavelet variance and maximal-overlap Allan variance.
 
-Conventions (docs/API.md, SPEC 1.1-1.3): level ``j = 1..J``, scale = Haar filter length
+Conventions (docs/API.md, docs/METHODS.md §2.1-§2.4): level ``j = 1..J``, scale = Haar filter length
 ``tau_j = 2**j`` samples, ``M_j = T - tau_j + 1`` boundary-free coefficients, WV = mean square of the
 coefficients (never demeaned). The Allan variance at cluster length ``m_j = 2**(j-1)`` samples is
 exactly ``2 * nu_j``.
@@ -250,7 +250,7 @@ def _wv_ci(ci: str, variance: np.ndarray, scales: np.ndarray, n: np.ndarray, n_s
 def chi2_ci(variance: np.ndarray, edof: np.ndarray, alpha: float = 0.05
             ) -> tuple[np.ndarray, np.ndarray]:
     """Chi-square CI ``[eta nu / q(1-alpha/2), eta nu / q(alpha/2)]``, ``q`` the quantiles of a
-    chi-square with ``eta`` (non-integer) degrees of freedom (Percival's eta_3, SPEC 1.2)."""
+    chi-square with ``eta`` (non-integer) degrees of freedom (Percival's eta_3, docs/METHODS.md §2.5)."""
     from scipy.special import chdtri  # lazily: the CLI overlaps this import with the kernel load
 
     variance = np.asarray(variance, dtype=np.float64)

@@ -1,11 +1,11 @@
 """Model-based covariance of the Haar wavelet-variance estimator (finite sample, analytic).
 
 ``wv_covariance(model, theta, scales, n_samples)`` returns ``V[j, k] = Cov(nu_hat_j, nu_hat_k)`` of
-the boundary-free Haar MODWT WV estimator of ``gmwm.wv`` (SPEC 1.1-1.2: ``tau_j`` = filter length,
+the boundary-free Haar MODWT WV estimator of ``gmwm.wv`` (docs/METHODS.md §2.1-§2.5: ``tau_j`` = filter length,
 ``M_j = T - tau_j + 1`` coefficients ``t = tau_j..T``, ``nu_hat_j = mean W_{j,t}^2``, not demeaned)
 for a signal of ``T = n_samples`` samples drawn from ``model`` at ``theta``. Units: (signal unit)^4.
 
-Formula (components independent; SIN excluded by default, SPEC 5.5 / paper 000 Thm 1):
+Formula (components independent; SIN excluded by default, docs/METHODS.md §5.9 / [Vibration] Thm 1):
 
 * Gaussian part ``G`` (WN, RW, AR1, GM, and QN's second moments):
   ``Cov = 2/(M_j M_k) * sum_h N_jk(h) gamma_jk(h)^2`` with ``gamma_jk(h) = Cov(W_{j,t}, W_{k,t-h})``
@@ -17,7 +17,7 @@ Formula (components independent; SIN excluded by default, SPEC 5.5 / paper 000 T
 * SIN (``W = G + S``, ``S`` deterministic given the phase): its own term is O(T^-2) and omitted, but
   the cross term ``Var(2 mean(G S))`` is O(T^-1) and is added by default (``sin_interaction``):
   ``8/alpha^2 S_G(beta) nu_j^SIN nu_k^SIN min(M_j, M_k) / (M_j M_k)``, ``S_G`` the spectral density
-  of the random part. This contradicts SPEC 5.5 ("SIN does not enter V"): by Monte Carlo, without
+  of the random part. This contradicts docs/METHODS.md §5.9 ("SIN does not enter V"): by Monte Carlo, without
   it Var(nu_hat_j) is underestimated up to 8.7x at SIN-dominated scales (tests).
 
 ``gamma_jk`` is evaluated through the generalised covariance ``K`` of the partial-sum process
@@ -510,11 +510,11 @@ def wv_covariance(model: str | Model, theta: np.ndarray, scales: Iterable[float]
     ``tau_j = 2**j`` in samples (e.g. ``WaveletVariance.scales``).
 
     Components named in ``exclude`` have no own term (default SIN: given its phase a sinusoid's WV
-    varies only at O(T^-2), SPEC 5.5). ``sin_interaction`` adds, for every SIN component, the
+    varies only at O(T^-2), docs/METHODS.md §5.9). ``sin_interaction`` adds, for every SIN component, the
     cross term between the sinusoid and the random components, ``8/alpha^2 S(beta) nu_j^SIN
     nu_k^SIN min(M_j, M_k) / (M_j M_k)`` (``S`` = spectral density of the random part). It is
     O(T^-1), like the rest, and measured to raise Var(nu_hat_j) up to 8.7x at SIN-dominated scales
-    (WN + SIN of Simulation 1); set False for SPEC 5.5's V. That term is asymptotic in the lag
+    (WN + SIN of Simulation 1); set False for docs/METHODS.md §5.9's V. That term is asymptotic in the lag
     count (relative error O(tau_j / M_j)); everything else is exact for finite M_j."""
     model = as_model(model)
     theta = np.asarray(theta, dtype=float)

@@ -341,7 +341,7 @@ def load_navchip_av(path: str | os.PathLike, sensor: str, axis: str, *,
                     n_samples: int | None = None, freq: float | None = None):
     """AllanVariance of one Navchip channel from the AV CSV.
 
-    The file's cluster 2^level samples is WV level ``level + 1`` (SPEC 1.3 index trap). The file's
+    The file's cluster 2^level samples is WV level ``level + 1`` (docs/METHODS.md §2.4 index trap). The file's
     AD interval adev (1 -/+ 2 rel_error) is kept as the AV interval [max(low, 0)^2, high^2].
     """
     from gmwm.wv import AllanVariance

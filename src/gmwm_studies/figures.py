@@ -46,7 +46,7 @@ def plot_wv_replicates(
     units: str = "",
 ) -> Axes:
     """Empirical WVs of many replicates (light grey, shape (R, J)) with the true model WV and its
-    components (paper 000 Figure 3 style); ``scales`` in samples."""
+    components ([Vibration] Figure 3 style); ``scales`` in samples."""
     model, theta = _model_theta(model, theta, None)
     ax = new_axes(ax)
     scales = np.asarray(scales, dtype=float)
@@ -113,7 +113,7 @@ def boxplot_standardized(
     math_labels: bool = True,
 ) -> Axes:
     """Boxplots of standardized errors ((estimate - truth) / SD), one box per parameter, with a zero
-    line (paper 000 Figures 4 and 9). ``data``: ``{param: values}``, or ``{param: {"z": values,
+    line ([Vibration] Figures 4 and 9). ``data``: ``{param: values}``, or ``{param: {"z": values,
     "boundary": mask, "switched": mask}}`` (as the studies' ``standardized_errors`` gives with
     flags) to mark and count boundary and label-switched replicates, or a 2-D array (R, p) +
     ``labels``. ``math_labels``: tick labels in the papers' notation (:func:`param_label`)."""

@@ -34,8 +34,8 @@ __all__ = [
     "restrict_truth",
 ]
 
-#: Table 5 of paper 000 (canonical names; SIN[1] is the fast sinusoid). alpha2 is the OCR reading
-#: 1.359012e-1 (SPEC 4.4).
+#: Table 5 of [Vibration] (canonical names; SIN[1] is the fast sinusoid). alpha2 is the OCR reading
+#: 1.359012e-1 (docs/METHODS.md §13).
 TABLE5: dict[str, float] = {
     "AR1[1].phi": 1.851173e-1,
     "AR1[1].sigma2": 3.559081e-2,

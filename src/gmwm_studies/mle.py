@@ -1,4 +1,4 @@
-"""Kalman-filter maximum-likelihood baseline for Simulation 1 of the vibration-noise paper (SPEC 5.7).
+"""Kalman-filter maximum-likelihood baseline for Simulation 1 of the vibration-noise paper (docs/METHODS.md §12.1).
 
 Model (per-sample, discrete time): ``x_t = mu_t + c_t + e_t + b_1 cos(beta t) + b_2 sin(beta t)`` with
 ``mu_t`` a random walk (increment variance ``gamma2``, diffuse start), ``c_t`` an AR(1)
@@ -310,7 +310,7 @@ class _Likelihood:
         return float(model.loglike(np.array([theta[k] for k in self.order])))
 
     def default_start(self) -> dict[str, float]:
-        """statsmodels' own start values (known to lead to a wrong optimum, SPEC 5.7)."""
+        """statsmodels' own start values (known to lead to a wrong optimum, docs/METHODS.md §12.1)."""
         model = self._model(self.x - self.X @ _sin_ols(self.x, self.X))
         return dict(zip(self.order, (float(v) for v in model.start_params), strict=True))
 

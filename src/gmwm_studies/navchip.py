@@ -1,4 +1,4 @@
-"""Navchip real-data analysis (paper 004 Sec. V, SPEC 7): GMWM fits per axis, the datasheet model,
+"""Navchip real-data analysis ([GMWFM] Sec. V, docs/METHODS.md §10.5): GMWM fits per axis, the datasheet model,
 goodness of fit.
 
 Input: the public Navchip wavelet variance (Haar MODWT, 20 levels, 95 % chi-square CI; gyroscope in
@@ -6,7 +6,7 @@ rad/s, accelerometer in m/s^2, 250 Hz, T = 3,105,250), obtained by :func:`gmwm_s
 
 * Fit: ``QN + WN + 2*GM + RW + DR`` by :func:`gmwm.fit` on each axis (the WV is all there is: the
   raw signal is not public, so the drift sign is not identified and reported positive).
-* Standard errors: those of :func:`gmwm.fit` (sandwich of SPEC 5.5 with the model covariance of
+* Standard errors: those of :func:`gmwm.fit` (sandwich of docs/METHODS.md §5.9 with the model covariance of
   the WV estimate, :mod:`gmwm.inference`); the bootstrap CIs are a separate step reading the fits
   file written here. Components at the boundary 0 get no SE.
 * Datasheet model: WN + bias instability (:func:`gmwm_studies.sensors.navchip_datasheet`), BI drawn as
@@ -305,7 +305,7 @@ def _ax_for(axes: np.ndarray, sensors: list[str], cf: ChannelFit) -> Any:
 
 
 def figure_wv_datasheet(fits: Sequence[ChannelFit], threshold: float) -> Any:
-    """Figure 3 of paper 004 per axis: empirical WV with its 95 % CI, the GMWM model WV and the
+    """Figure 3 of [GMWFM] per axis: empirical WV with its 95 % CI, the GMWM model WV and the
     datasheet model WV (WN + band-limited BI; RW not given), with the GOF shares in the title."""
     from gmwm.plots import PALETTE, plot_wv
 
@@ -328,7 +328,7 @@ def figure_wv_datasheet(fits: Sequence[ChannelFit], threshold: float) -> Any:
 
 
 def figure_decomposition(fits: Sequence[ChannelFit]) -> Any:
-    """Figure 4 of paper 004 per axis: empirical WV with CI, GMWM model WV and its components
+    """Figure 4 of [GMWFM] per axis: empirical WV with CI, GMWM model WV and its components
     (components at the boundary 0 are not drawn)."""
     from gmwm.plots import plot_wv
 

@@ -1,6 +1,6 @@
 """Navigation emulation of the vibration-noise paper (000, section 5, Figs. 7-8).
 
-Per iteration b (paper protocol, SPEC 4.1): the AR1 + RW estimates of Model 1 (misspecified) and
+Per iteration b (paper protocol, docs/METHODS.md §12.5): the AR1 + RW estimates of Model 1 (misspecified) and
 Model 2 (true) fitted to a Table 5 signal (here: replicate b of the misspecification study, whose
 simulation and fits are exactly steps (i)-(ii)) tune two EKFs; a gyro error signal is simulated
 from the basic AR1 + RW part of Table 5, added to the ideal IMU of a fixed trajectory, and both

@@ -1,6 +1,6 @@
 """Datasheet values of the sensors the paper studies use, and the models built from them.
 
-* STIM-300 (paper 004, Table I): :data:`STIM300_TABLE_I`, its discrete-time parameters
+* STIM-300 ([GMWFM], Table I): :data:`STIM300_TABLE_I`, its discrete-time parameters
   (:func:`stim300_truth`) and the conversion of estimates back to the table's units
   (:func:`to_table_units`, :func:`table_unit`).
 * Navchip (product brief as quoted by gui4gmwm): :class:`DatasheetModel`,
@@ -54,9 +54,9 @@ def canonical_sensor(sensor: str) -> str:
     return _SENSORS[key]
 
 
-# --- STIM-300 (paper 004, Table I) ------------------------------------------------------------
+# --- STIM-300 ([GMWFM], Table I) ------------------------------------------------------------
 
-#: Table I of paper 004 in its own units (gyro u = deg/s, accel u = m/s^2).
+#: Table I of [GMWFM] in its own units (gyro u = deg/s, accel u = m/s^2).
 STIM300_TABLE_I = MappingProxyType({
     "gyroscope": MappingProxyType({"WN": (0.157, "deg/sqrt(h)"), "RW": (1.34, "deg/h/sqrt(h)")}),
     "accelerometer": MappingProxyType({
@@ -73,7 +73,7 @@ _TABLE_UNITS = MappingProxyType({
 
 
 def stim300_truth(sensor: str, freq: float = 250.0) -> dict[str, float]:
-    """Discrete STIM-300 parameters computed from paper 004 Table I (gyro in deg/s, accel in m/s^2).
+    """Discrete STIM-300 parameters computed from [GMWFM] Table I (gyro in deg/s, accel in m/s^2).
 
     Gyro (WN+RW): {'WN[1].sigma2', 'RW[1].gamma2'}; accel (QN+WN+RW+DR): {'QN[1].Q2', 'WN[1].sigma2',
     'RW[1].gamma2', 'DR[1].omega'}; keys in the canonical model order.
@@ -108,7 +108,7 @@ def table_unit(name: str, sensor: str) -> str:
 
 
 def to_table_units(name: str, value, sensor: str, freq: float = 250.0):
-    """Discrete parameter -> paper 004 Table I units (label from :func:`table_unit`).
+    """Discrete parameter -> [GMWFM] Table I units (label from :func:`table_unit`).
 
     The signal is assumed in deg/s (gyro) or m/s^2 (accel). Q2 -> Q [deg | m/s]; sigma2 -> N
     [deg/sqrt(h) | m/s/sqrt(h)]; gamma2 -> K [deg/h/sqrt(h) | m/s/h/sqrt(h)]; omega -> R [deg/h/h |
@@ -181,7 +181,7 @@ def bias_instability_wv_ideal(b: float, scales) -> np.ndarray:
     return np.full(np.shape(scales), BI_WV_FACTOR * b * b, dtype=float)
 
 
-# --- Navchip datasheet model (SPEC 7, data README) -----------------------------------------------
+# --- Navchip datasheet model (docs/METHODS.md §10.5, data README) -----------------------------------------------
 
 @dataclass(frozen=True)
 class DatasheetModel:

@@ -1,16 +1,16 @@
-"""STIM-300 Monte Carlo of paper 004 (SPEC 4.2): GMWM against the Allan-variance methods.
+"""STIM-300 Monte Carlo of [GMWFM] (docs/METHODS.md §12.5): GMWM against the Allan-variance methods.
 
 Per replicate the pipeline simulates the signal once, computes ONE wavelet variance (cached by
 :func:`montecarlo.simulate_wv_chunk`) and fits it with three cheap estimators, each named in the
 config (``estimators.<name>.method``):
 
-* ``gmwm``: GMWM, closed form (non-negative weighted least squares, SPEC 5.2) for these linear
-  models, optionally re-weighted with the fitted model's WV (``reweight``, SPEC 5.1);
-* ``armav``: the GMWFM estimator with ``f = log10`` on the Allan variance (SPEC 5.3), with the
+* ``gmwm``: GMWM, closed form (non-negative weighted least squares, docs/METHODS.md §5.4) for these linear
+  models, optionally re-weighted with the fitted model's WV (``reweight``, docs/METHODS.md §5.1);
+* ``armav``: the GMWFM estimator with ``f = log10`` on the Allan variance (docs/METHODS.md §5.3), with the
   delta-method weights ("ARMAV (weighted)", asymptotically the GMWM) or, with
   ``weights: identity``, equal weights ("ARMAV (OLS)", least squares on log10 AV, the usual reading
   of Jurado et al.'s regression); both can run side by side as differently named estimators;
-* ``avsm``: the automated Allan-variance slope method (:mod:`gmwm.avsm`, SPEC 5.4).
+* ``avsm``: the automated Allan-variance slope method (:mod:`gmwm.avsm`, docs/METHODS.md §9.2).
 
 Estimates are per-sample parameters (signal in deg/s for the gyroscope, m/s^2 for the
 accelerometer); summaries and figures convert them to the paper's Table I units with
@@ -173,7 +173,7 @@ def group_datasets(datasets: Iterable[xr.Dataset]) -> dict[tuple[str, int], xr.D
 
 
 def to_table_units(ds: xr.Dataset, sensor: str, freq: float) -> xr.Dataset:
-    """Copy of ``ds`` with ``estimate`` and ``truth`` in paper 004 Table I units.
+    """Copy of ``ds`` with ``estimate`` and ``truth`` in [GMWFM] Table I units.
 
     Adds the ``unit`` (parameter) coordinate and the ``Table I`` symbol (Q, N, K, R) coordinate.
     """
@@ -248,7 +248,7 @@ def _param_title(ds: xr.Dataset, k: int) -> str:
 
 def figure_boxplots(groups: Mapping[tuple[str, int], xr.Dataset], sensor: str, freq: float,
                     title: str = "") -> Any:
-    """Figure 1 of paper 004: per parameter one panel, boxes of the estimates (Table I units) per
+    """Figure 1 of [GMWFM]: per parameter one panel, boxes of the estimates (Table I units) per
     sample size and estimator (converged fits), the true value as a dashed line. A panel whose
     values span more than a factor 20 (none below truth / 1000) uses a log axis."""
     from gmwm.plots import PALETTE, subplots
@@ -309,7 +309,7 @@ def _clip_outliers(ax: Any, values: np.ndarray, truth: float) -> None:
 
 
 def figure_rmse(table: pd.DataFrame, title: str = "") -> Any:
-    """Figure 2 of paper 004: RMSE (Table I units) against T, one panel per parameter, one line
+    """Figure 2 of [GMWFM]: RMSE (Table I units) against T, one panel per parameter, one line
     per estimator (log-log)."""
     from matplotlib.ticker import NullFormatter
 
@@ -383,7 +383,7 @@ def report_markdown(table: pd.DataFrame, cost: pd.DataFrame, *, title: str, mode
     """Markdown report: settings, truth vs Table I, bias/SD/RMSE table, per-replicate cost."""
     from gmwm_studies.montecarlo import format_markdown_table
 
-    lines = [f"# {title}", "", (f"Model `{model}`; values in paper 004 Table I units. "
+    lines = [f"# {title}", "", (f"Model `{model}`; values in [GMWFM] Table I units. "
              "Statistics over the converged fits (non-converged ones are counted in "
              "`share_not_converged`); `mc_se_bias` = SD / sqrt(n_used)."), ""]
     lines += ["Estimators: " + "; ".join(f"`{k}` {json.dumps(dict(v), sort_keys=True)}"

@@ -1,4 +1,4 @@
-"""Paper 003 simulations (SPEC 6.3): virtual gyroscopes of 6-gyro arrays by SVO, RDVG and equal
+"""[SVO] simulations (docs/METHODS.md §11.6): virtual gyroscopes of 6-gyro arrays by SVO, RDVG and equal
 weights, Case 1 (WN + correlated RW) and Case 2 (WN + three correlated AR1).
 
 Units: discrete time, per sample, deg^2/s^2 at 10 Hz (paper App. C). Streams: every array comes
@@ -44,7 +44,7 @@ METHODS = ("svo_w1", "svo_w2", "rdvg", "equal")
 METHOD_LABELS = {"svo_w1": "SVO $\\omega_1$", "svo_w2": "SVO $\\omega_2$", "rdvg": "RDVG",
                  "equal": "Equal weights"}
 
-# --- paper 003 App. C (deg^2/s^2, discrete, 10 Hz) -----------------------------------------------
+# --- [SVO] App. C (deg^2/s^2, discrete, 10 Hz) -----------------------------------------------
 R_DIAG = np.array([2.805556, 1.977778, 1.361111, 1.063889, 1.069444, 2.538889]) * 1e-7
 Q_CASE1 = np.array([
     [0.255058, -0.008573, 0.102881, -0.162894, -0.240055, -0.055727],

@@ -1,4 +1,4 @@
-"""Uncertainty study of the GMWM papers (SPEC 5.6): Table 1 bootstrap CIs and the coverage study.
+"""Uncertainty study of the GMWM papers (docs/METHODS.md §7): Table 1 bootstrap CIs and the coverage study.
 
 Built on the core method :mod:`gmwm.bootstrap`; the Snakemake rules of
 ``workflow/rules/uncertainty.smk`` only wire these:

@@ -1,4 +1,4 @@
-# Allan-variance chapter (paper 001, [AV-chapter]; config key `allan`; library code
+# Allan-variance chapter ([AV-chapter], [AV-chapter]; config key `allan`; library code
 # gmwm_studies.allan_chapter). Not a Monte Carlo study of the usual kind: three small jobs.
 #
 #   allan_chapter  Figs 4.1 / 4.2 (AD of WN and WN + RW, theoretical lines, IEEE 952 readings,
@@ -41,7 +41,7 @@ if ALLAN["enabled"]:
     register_section("allan", {
         "model": "WN, WN+RW, MA(1), ARMA(1,1), MA(4) pair, WN+AR1",
         "description": (
-            "Allan-variance chapter (paper 001): AD of WN and WN + RW with the theoretical lines, "
+            "Allan-variance chapter ([AV-chapter]): AD of WN and WN + RW with the theoretical lines, "
             "IEEE 952 readings and GMWM (Figs 4.1-4.2); MA(1) AV (Example 4.2); Lemma 4.2 against "
             "the exact AV of ARMA(1,1); equal AV with different spectra (Sec. 4.2.2); Gaussian AV "
             "intervals below 0 (Remark 4.3); MLE of WN + AR1 vs GMWM at T = "

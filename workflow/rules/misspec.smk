@@ -1,4 +1,4 @@
-# Model misspecification study of the vibration-noise paper (kind: misspec; paper 000 Table 5,
+# Model misspecification study of the vibration-noise paper (kind: misspec; [Vibration] Table 5,
 # Fig. 6; library code gmwm_studies.misspec):
 #   simulate_wv (montecarlo.smk: per chunk, simulate the study model + one WV pass, HDF5 cache)
 #   -> misspec_fit (per chunk and fitted model: gmwm_studies.montecarlo.fit_chunk on the cached WVs)

@@ -1,4 +1,4 @@
-# Navchip real-data analysis (paper 004 Sec. V; config key `navchip`): not a Monte Carlo study.
+# Navchip real-data analysis ([GMWFM] Sec. V; config key `navchip`): not a Monte Carlo study.
 #   navchip_data   (obtain the WV file: local copy or public source; fails cleanly, naming the file
 #                   and its source, when neither is available)
 #   -> navchip_fit (GMWM per axis; results/navchip/fits.json is the hook for the bootstrap step)

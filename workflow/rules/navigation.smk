@@ -1,4 +1,4 @@
-# Navigation emulation of the vibration-noise paper (config key `navigation`; paper 000 sec. 5,
+# Navigation emulation of the vibration-noise paper (config key `navigation`; [Vibration] sec. 5,
 # Figs. 7-8; library code gmwm_studies.navigation and gmwm_studies.ekf):
 #   misspec study's gathered Model 1 / Model 2 fits (steps (i)-(ii) of the paper's protocol:
 #   iteration b uses replicate b, simulated from Table 5 at T = 2,879,999 and fitted by GMWM)

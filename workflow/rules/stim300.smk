@@ -1,4 +1,4 @@
-# STIM-300 Monte Carlo of paper 004 (kind: stim300): GMWM, ARMAV and AVSM fitted to the SAME
+# STIM-300 Monte Carlo of [GMWFM] (kind: stim300): GMWM, ARMAV and AVSM fitted to the SAME
 # simulated wavelet variances. One study per sensor (its model, Table I truth, sensor, freq):
 #   simulate_wv (montecarlo.smk: per chunk, simulate + one WV pass, HDF5 cache, raw signals never
 #   stored) -> stim300_fit (per chunk: all of the study's estimators on the same WVs, one NetCDF

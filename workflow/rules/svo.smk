@@ -1,4 +1,4 @@
-# Virtual gyroscope by Scale-wise Variance Optimisation (paper 003, SPEC 6; config key `svo`).
+# Virtual gyroscope by Scale-wise Variance Optimisation ([SVO], docs/METHODS.md §11; config key `svo`).
 # Statistics live in gmwm.virtual (library) and gmwm_studies.svo_study (protocol, tables, figures).
 #
 #   svo_train     training replicates [a, b) of a case: the 4 coefficient vectors (SVO omega_1,
@@ -66,9 +66,9 @@ def svo_benchmarks():
 
 if SVO["enabled"]:
     register_section("svo", {
-        "model": "6-gyro arrays: " + ", ".join(SVO["cases"]) + " (SPEC 6.3)",
+        "model": "6-gyro arrays: " + ", ".join(SVO["cases"]) + " (docs/METHODS.md §11.6)",
         "description": (
-            f"Virtual gyroscope (paper 003): {SVO['train']} training arrays x "
+            f"Virtual gyroscope ([SVO]): {SVO['train']} training arrays x "
             f"{SVO['test_per_train']} test arrays per case, SVO omega_1/omega_2, RDVG, equal "
             f"weights; coverage of MBB CIs ({SVO_COV['replicates']} replicates, "
             f"{SVO_COV['n_boot']} draws, l = {SVO_COV['block_const']:g} T^(1/3), schemes "

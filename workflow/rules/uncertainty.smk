@@ -1,4 +1,4 @@
-# Uncertainty and trust of the pipeline's fits (issue 6; config key `uncertainty`, study kind
+# Uncertainty and trust of the pipeline's fits (config key `uncertainty`, study kind
 # `bootstrap_coverage`). Statistics live in gmwm_studies.uncertainty (built on gmwm.bootstrap) and
 # gmwm.identify; scripts only wire.
 #

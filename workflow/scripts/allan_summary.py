@@ -19,5 +19,5 @@ with open(inp.mle) as fh:
     numbers["mle"] = json.load(fh)
 write_json_atomic(out.json, numbers)
 table = ac.summary_table(numbers)
-write_table(table, out.csv, out.md, "Allan-variance chapter (paper 001): key numbers")
+write_table(table, out.csv, out.md, "Allan-variance chapter ([AV-chapter]): key numbers")
 log.info("wrote %s (%d rows)", out.csv, len(table))

@@ -1,4 +1,4 @@
-"""Rule figure_wv: replicate WVs, model WV and component WVs, log-log (paper 000 Fig. 3 style)."""
+"""Rule figure_wv: replicate WVs, model WV and component WVs, log-log ([Vibration] Fig. 3 style)."""
 
 from pathlib import Path
 

@@ -1,4 +1,4 @@
-"""Rule navchip_report: Figures 3 and 4 of paper 004 per axis, the estimates table (with SEs) and
+"""Rule navchip_report: Figures 3 and 4 of [GMWFM] per axis, the estimates table (with SEs) and
 the goodness-of-fit table, from the data file and the fits file."""
 
 from pathlib import Path

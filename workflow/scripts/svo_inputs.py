@@ -1,4 +1,4 @@
-"""Rule svo_inputs: paper 003 Fig. 1 (Case 1) / Fig. 6 (Case 2), the absolute correlation matrices
+"""Rule svo_inputs: [SVO] Fig. 1 (Case 1) / Fig. 6 (Case 2), the absolute correlation matrices
 of the input innovation covariances (App. C), and their entries as a table."""
 
 from pathlib import Path
@@ -15,7 +15,7 @@ log = get_logger(snakemake)
 out, case = snakemake.output, snakemake.wildcards.svo_case
 df = pd.DataFrame(input_table(case))
 write_text_atomic(out.csv, df.to_csv(index=False))
-title = (f"# {case}: input innovation covariances of paper 003 App. C (deg^2/s^2 per sample, "
+title = (f"# {case}: input innovation covariances of [SVO] App. C (deg^2/s^2 per sample, "
          f"10 Hz) and their correlations, upper triangle\n\n")
 write_text_atomic(out.md, title + format_markdown_table(df) + "\n")
 written = save_figure(figure_inputs(case), Path(out[0]).with_suffix(""),
