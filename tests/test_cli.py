@@ -297,7 +297,7 @@ def test_bad_input_is_one_line_error(capsys, bad_files, case):
     assert "Traceback" not in err
 
 
-# ---- diagnostics a user sees -----------------------------------------------------
+# ---- diagnostics a user sees (issue 9 part 3) -----------------------------------------------------
 
 
 @pytest.fixture(scope="module")
@@ -342,7 +342,7 @@ def test_python_warnings_never_reach_stderr(capsys, white_noise, monkeypatch):
     assert all(line.startswith("gmwm: ") for line in err.splitlines())
 
 
-# ---- a whole IMU ---------------------------------------------------------------
+# ---- a whole IMU (issue 11 part 1) ---------------------------------------------------------------
 
 
 @pytest.fixture(scope="module")
@@ -431,7 +431,7 @@ def test_hdf5_attribute_gives_the_frequency(capsys, tmp_path, signal_files):
     assert code == 0 and json.loads(out)["freq"] == 25.0
 
 
-# ---- datasheet readings from av -------------------------------------------------
+# ---- datasheet readings from av (issue 11 part 2) -------------------------------------------------
 
 
 def test_av_readings_text_json_and_adev_plot(capsys, imu, tmp_path):
@@ -466,7 +466,7 @@ def test_report_writes_markdown_html_yaml(capsys, imu, tmp_path):
     assert html.startswith("<!DOCTYPE html>") and 'src="gx_wv.png"' in html
 
 
-# ---- tables that round-trip ---------------------------------------------------
+# ---- tables that round-trip (issue 11 part 3) ---------------------------------------------------
 
 
 def test_wv_table_refits_with_its_recorded_frequency(capsys, tmp_path):
@@ -498,7 +498,7 @@ def test_av_table_is_readable_by_fit(capsys, signal_files, tmp_path):
     assert code == 1 and "looks like a WV/AV table" in err
 
 
-# ---- edge cases found by a new user ----------------------------------------------
+# ---- edge cases found by a new user (issue 11 part 7) ----------------------------------------------
 
 
 @pytest.fixture(scope="module")
@@ -573,7 +573,7 @@ def test_wv_command_never_loads_numba(tmp_path):
     assert last == "0 []", last
 
 
-# ---- fast start and progress ---------------------------------------------------
+# ---- fast start and progress (issue 11 part 6) ---------------------------------------------------
 
 
 def test_cli_module_imports_nothing_heavy_at_top_level():
