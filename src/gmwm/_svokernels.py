@@ -159,9 +159,9 @@ def mbb_pass(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
     ``2 H`` refill rows as the pass reaches them (refill starts visited in sorted order); the time
     scheme stores ``cum`` (``(T+1, q)``, passed in with the pyramid's two level arrays, see
     :func:`gmwm.virtual._pass_buffers`) as its blocks start anywhere. Every floating-point
-    operation and its order are those of the separate kernels of commit af632e6
-    (``cum[m+1] = cum[m] + f_m``; a draw adds ``cum[hi] - cum[lo]`` per block in block order), so
-    the output is bit-identical to running the schemes one by one."""
+    operation and its order are those of running the two schemes one by one with separate
+    kernels (``cum[m+1] = cum[m] + f_m``; a draw adds ``cum[hi] - cum[lo]`` per block in block
+    order), so the output is bit-identical to that (tests/test_svo.py checks it)."""
     T, p = x.shape
     npair = p * (p + 1) // 2
     qj = npair if full else p

@@ -248,8 +248,8 @@ class Model:
                       rng: np.random.Generator | int | None = None,
                       block: int = 1 << 15, boundary_ok: bool = False) -> np.ndarray:
         """A realisation equal in distribution to :meth:`simulate`'s up to an additive constant,
-        at 1.5-2.5x less cost (float64, length ``n``; ``benchmarks/bench_simulate.py``: e.g. WN+RW
-        9.7 ns per sample instead of 21, 2*AR1+2*SIN 23 instead of 48 on the dev VM). For Monte Carlo
+        at a fraction of the cost (float64, length ``n``; the ratio per model is measured by
+        ``benchmarks/bench_simulate.py``, table in ``benchmarks/README.md``). For Monte Carlo
         studies of shift-invariant statistics: the WV, the Allan variance and every fit ignore the
         constant.
 

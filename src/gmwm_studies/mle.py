@@ -14,7 +14,7 @@ statsmodels' convention: the diffuse first observation contributes ``-0.5 log 2 
   depend on the data), so their coefficients are concentrated out by GLS, and so is the common
   scale of the three variances (the likelihood is maximised over the ratios ``gamma2/sigma2``,
   ``sigma2_AR/sigma2`` and ``phi`` only). Once the filter covariance has converged the steady-state
-  gain is reused. About 1 ms per evaluation at T = 1.6e5.
+  gain is reused (cost per evaluation: ``benchmarks/bench_mle.py``).
 * ``backend="statsmodels"``: statsmodels' ``UnobservedComponents(level="llevel", autoregressive=1)``
   filter on the de-sinusoided data, all six parameters free (the reference the Kalman backend is
   tested against).

@@ -113,9 +113,9 @@ SIMULATORS = ("fast", "reference")
 def simulate_replicate(model: Any, theta: np.ndarray, n_samples: int, rng: np.random.Generator,
                        simulator: str = "fast") -> np.ndarray:
     """One replicate signal: ``"fast"`` = :meth:`gmwm.model.Model.simulate_fast` (the same
-    distribution up to an additive constant, which the WV ignores; 1.5-2.5x cheaper), ``"reference"``
-    = :meth:`gmwm.model.Model.simulate` (the component-by-component stream of runs before
-    2026-11-23)."""
+    distribution up to an additive constant, which the WV ignores; cheaper), ``"reference"``
+    = :meth:`gmwm.model.Model.simulate` (the component-by-component stream of the earlier
+    runs)."""
     if simulator == "fast":
         return model.simulate_fast(theta, int(n_samples), rng)
     if simulator == "reference":

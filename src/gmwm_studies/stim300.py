@@ -90,8 +90,7 @@ def fit_wv(wv: Any, model: Any, settings: Mapping[str, Any], seed: int = 0
     Returns (params, se, converged, objective, message); AVSM has no SE or objective (NaN).
     The study reports estimates, not SEs, so GMWM/ARMAV fits take the diagonal (Gaussian) SEs
     (``se_cov="gaussian"``): the model-based covariance of the WV was 60-90 % of their fit time,
-    and the estimates do not depend on it (all four estimators per replicate in the full run of
-    2026-11-23: 6.6 ms gyroscope, 12.6 ms accelerometer; timings.csv of its archive).
+    and the estimates do not depend on it (per-job times: timings.csv of the run's archive).
     """
     from gmwm import fit
 

@@ -3,11 +3,11 @@
 #   simulate_wv (montecarlo.smk: per chunk, simulate + one WV pass, HDF5 cache, raw signals never
 #   stored) -> stim300_fit (per chunk: all of the study's estimators on the same WVs, one NetCDF
 #   group per estimator) -> stim300_report (table, Figures 1 and 2).
-# The four estimators together cost ~35 ms (accelerometer) and ~14 ms (gyroscope) of CPU per
-# replicate (2026-11-23, Intel Xeon 2.8 GHz dev box, with the diagonal SEs the study stores, see
-# gmwm_studies.stim300.fit_wv; ~104 / ~87 ms with the model-based SE covariance), ~7-18 s per
-# 500-replicate chunk against ~1-2 s of job start, hence one fit job per chunk rather than per
-# estimator; the estimator settings are its params, so changing them refits
+# The four estimators together cost tens of ms of CPU per replicate (with the diagonal SEs the
+# study stores, see gmwm_studies.stim300.fit_wv; per-job times in the run archive's
+# timings.csv), seconds per 500-replicate chunk against ~1-2 s of job start, hence one fit job
+# per chunk rather than per estimator; the estimator settings are its params, so changing them
+# refits
 # (cheaply) and reuses the WV cache.
 
 STIM300_DEFAULT_FREQ = 250.0
