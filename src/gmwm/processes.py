@@ -705,7 +705,8 @@ class Sinusoid(Process):
             period = 2 * np.pi / np.float64(p[1])
         return [(f"{label} has a period of {period:.3g} samples: its WV peaks beyond the longest "
                 f"scale ({tau_max:.0f} samples) and rises like a drift's over the observed scales "
-                f"(slope alpha * beta = {p[0] * p[1]:.3g}), so alpha and beta are not identified "
+                f"(like a drift of slope alpha * beta / sqrt(2) = {p[0] * p[1] / np.sqrt(2):.3g}, the "
+                "sinusoid's RMS slope), so alpha and beta are not identified "
                 "separately: confounded with a drift (DR)")]
 
     def fit_warnings(self, label, p, tau_max, freq):

@@ -45,7 +45,7 @@ rule index:
         # stops only their own jobs (navchip.smk)
         linked={"navchip": {
             "model": "QN+WN+2*GM+RW+DR per axis",
-            "description": ("Navchip IMU ([GMWFM] Table 1 layout, Figs 3-4): GMWM fits of the "
+            "description": ("Navchip IMU ([Vibration] Table 1 layout, Figs 3-4): GMWM fits of the "
                             "six axes, datasheet comparison and goodness of fit; bootstrap CIs "
                             "and identifiability in the uncertainty section. Built by the "
                             "navchip rules when the data file is available."),
