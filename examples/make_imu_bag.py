@@ -11,7 +11,7 @@ The noise, in datasheet units (what ``gmwm report`` should recover; ``--truth`` 
   as a first-order Gauss-Markov term (correlation time 100 s, standard deviation 8 deg/h) and a
   rate random walk 5 deg/h/sqrt(h);
 * accelerometer (each axis): velocity random walk 0.06 m/s/sqrt(h) (white noise) and an
-  acceleration random walk 1 m/s/h/sqrt(h).
+  acceleration random walk 3 m/s/h/sqrt(h).
 
 The sensor lies level and still: gravity (9.80665 m/s^2) on z and a constant bias per axis are
 added, which the wavelet variance does not see. Messages follow REP 103/145 (rad/s and m/s^2,
@@ -36,7 +36,7 @@ from gmwm import units as u
 TRUTH = {
     "gyroscope": {"ARW [deg/sqrt(h)]": 0.4, "GM correlation time [s]": 100.0,
                   "GM sigma [deg/h]": 8.0, "RRW [deg/h/sqrt(h)]": 5.0},
-    "accelerometer": {"VRW [m/s/sqrt(h)]": 0.06, "AccRW [m/s/h/sqrt(h)]": 1.0},
+    "accelerometer": {"VRW [m/s/sqrt(h)]": 0.06, "AccRW [m/s/h/sqrt(h)]": 3.0},
 }
 T0_NS = 1_700_000_000 * 10**9  # first stamp (2023-11-14), an arbitrary wall-clock epoch
 
