@@ -43,7 +43,8 @@ import numpy as np
 from gmwm.errors import InputError
 
 __all__ = ["STATIC_CEILING", "Flag", "NonStationaryError", "Segment", "StationarityReport",
-           "TemperatureCheck", "check_stationarity"]
+           "StationarityStream", "TemperatureCheck", "check_stationarity",
+           "check_stationarity_stream"]
 
 #: nominal family-wise false-alarm level of one recording (Bonferroni over all channels, window
 #: lengths and tests); the realised rate on simulated static recordings is measured by
@@ -377,18 +378,6 @@ def ceiling_sd(sensor: str, window_s: float) -> float:
     return math.sqrt(2.0 * av)
 
 
-def _block_means(x: np.ndarray, h: int) -> np.ndarray:
-    k = x.size // h
-    return x[: k * h].reshape(k, h).mean(axis=1)
-
-
-def _quantum(x: np.ndarray) -> float:
-    """The resolution of a quantised signal (smallest non-zero step), 0 for continuous data."""
-    d = np.abs(np.diff(x[: 1 << 16]))
-    d = d[d > 0]
-    return float(d.min()) if d.size else 0.0
-
-
 @dataclass
 class _Hits:
     """Flagged windows of one channel and test: sample spans, statistics and sizes."""
@@ -421,10 +410,10 @@ def _ladder(n: int, freq: float | None) -> list[int]:
     return out
 
 
-def _mean_diffs(x: np.ndarray, hs: list[int]) -> list[np.ndarray]:
-    """Per half-window h: d_k = mean(x[kh:(k+2)h]) - mean(x[(k-2)h:kh]), k = 2..K-2."""
+def _mean_diffs(B: np.ndarray, hs: list[int]) -> list[np.ndarray]:
+    """Per half-window h: d_k = mean(x[kh:(k+2)h]) - mean(x[(k-2)h:kh]), k = 2..K-2, from the
+    block means ``B`` of x over hs[0] samples (halved upwards by pairs)."""
     out = []
-    B = _block_means(x, hs[0]) if hs else np.empty(0)
     for i, _h in enumerate(hs):
         if i:
             m = B.size // 2
@@ -433,11 +422,9 @@ def _mean_diffs(x: np.ndarray, hs: list[int]) -> list[np.ndarray]:
     return out
 
 
-def _noise_levels(x: np.ndarray, w: int, q: float) -> np.ndarray:
-    """log of the mean square of first differences / 2 in windows of w samples, stride w/2."""
-    h = w // 2
-    d2 = np.diff(x) ** 2 * 0.5
-    b = _block_means(d2, h)
+def _noise_levels(b: np.ndarray, q: float) -> np.ndarray:
+    """log of the mean square of first differences / 2 in windows of w samples, stride w/2, from
+    the block means ``b`` of diff(x)^2 / 2 over w/2 samples."""
     v = 0.5 * (b[:-1] + b[1:]) + q * q / 12.0 + 1e-300
     return np.log(v)
 
@@ -475,15 +462,14 @@ class _Level:
     size: np.ndarray
 
 
-def _levels(x: np.ndarray, hs: list[int], w_noise: int, freq: float | None, sensor: str | None,
+def _levels(sm: _Summary, hs: list[int], w_noise: int, freq: float | None, sensor: str | None,
             si: float) -> list[_Level]:
-    """The standardised statistics of one channel: window-mean differences per window length
-    ('mean', or 'ceiling' where the static ceiling caps the robust scale) and the windowed
-    white-noise level ('noise', upper side only)."""
-    x = x - np.median(x[: 1 << 12])  # offset out before averaging (exactness of the means)
-    q = _quantum(x)
+    """The standardised statistics of one channel (from its summary): window-mean differences
+    per window length ('mean', or 'ceiling' where the static ceiling caps the robust scale) and
+    the windowed white-noise level ('noise', upper side only)."""
+    q = sm.quantum
     out = []
-    for h, d in zip(hs, _mean_diffs(x, hs), strict=True):
+    for h, d in zip(hs, _mean_diffs(sm.means, hs), strict=True):
         L = 2 * h
         med, s = _robust(d)
         s = max(s, q / math.sqrt(6.0 * L))  # rounding noise of a quantised signal
@@ -494,8 +480,8 @@ def _levels(x: np.ndarray, hs: list[int], w_noise: int, freq: float | None, sens
                 s, test = cap, "ceiling"
         dev = np.abs(d - med)
         out.append(_Level(test, L, h, 2, 2, 2, dev / max(s, np.finfo(float).tiny), dev))
-    if w_noise and x.size // (w_noise // 2) - 1 >= MIN_DIFFS:
-        u = _noise_levels(x, w_noise, q)
+    if w_noise and sm.n // (w_noise // 2) - 1 >= MIN_DIFFS:
+        u = _noise_levels(sm.noise, q)
         med, s = _robust(u)
         if s > 0:
             out.append(_Level("noise", w_noise, w_noise // 2, 0, 2, 0, (u - med) / s,
@@ -508,13 +494,13 @@ def _threshold(z0: float, k: int) -> float:
     return z0 * (1.0 + SMALL_SAMPLE / math.sqrt(k))
 
 
-def _channel_hits(x: np.ndarray, hs: list[int], w_noise: int, z0: float, freq: float | None,
+def _channel_hits(sm: _Summary, hs: list[int], w_noise: int, z0: float, freq: float | None,
                   sensor: str | None, si: float) -> tuple[dict[str, _Hits], list[tuple]]:
     """Flagged windows of one channel, for the tests 'mean', 'ceiling' and 'noise', and per
     test and window length (test, window, count, largest statistic, threshold)."""
     hits = {"mean": _Hits(), "ceiling": _Hits(), "noise": _Hits()}
     peaks = []
-    for lv in _levels(x, hs, w_noise, freq, sensor, si):
+    for lv in _levels(sm, hs, w_noise, freq, sensor, si):
         thr = _threshold(z0, lv.z.size)
         peaks.append((lv.test, lv.window, int(lv.z.size), float(lv.z.max()), thr))
         idx = np.flatnonzero(lv.z > thr)
@@ -545,42 +531,238 @@ def _merge(i0: np.ndarray, i1: np.ndarray) -> list[tuple[int, int, np.ndarray]]:
     return [(a, b, np.asarray(m)) for a, b, m in out]
 
 
-def _timeline(x: np.ndarray, t: np.ndarray, bins: int) -> tuple[np.ndarray, ...]:
-    """(time, mean, min, max) per bin of about n / ``bins`` samples (the last bin may be
-    shorter)."""
-    n = x.size
-    if n <= bins:
-        return t.copy(), x.copy(), x.copy(), x.copy()
-    w = -(-n // bins)
-    edges = np.arange(0, n, w)
-    cnt = np.diff(np.append(edges, n))
-    return (np.add.reduceat(t, edges) / cnt, np.add.reduceat(x, edges) / cnt,
-            np.minimum.reduceat(x, edges), np.maximum.reduceat(x, edges))
+# --------------------------------------------------------------------------------------------------
+# per-channel summaries: what the tests need of a channel, O(n / h0) values, built from the signal
+# pushed in consecutive pieces (one piece: the whole array)
+# --------------------------------------------------------------------------------------------------
+
+#: the offset removed before averaging (exactness of the means, docs/METHODS.md §2.3) is the
+#: median of this many first samples
+_OFFSET_SAMPLES = 1 << 12
+#: the quantum of a quantised signal is measured on this many first samples
+_QUANTUM_SAMPLES = 1 << 16
+#: temperature check: the recording in this many equal windows
+_TEMP_WINDOWS = 64
+#: interpolated temperature values generated at a time (bounded memory over a long gap)
+_EMIT = 1 << 20
 
 
-def _temperature_check(chans: Mapping[str, np.ndarray], temp: np.ndarray, t: np.ndarray,
-                       alpha: float, source: str) -> TemperatureCheck | None:
-    """Differenced window means of each axis against those of the temperature: Pearson r with a
-    t-test whose degrees of freedom are reduced by Bartlett's factor (both series are
-    autocorrelated), Bonferroni over the channels; 'follows' also needs |r| >= 0.5."""
+class _Blocks:
+    """Means of the first ``n_blocks`` consecutive blocks of ``h`` values of a series pushed in
+    pieces. Each block is reduced on its own (one row of a reshape), so the means have the bits of
+    one reshape-mean of the whole series whatever the pieces."""
+
+    def __init__(self, h: int, n_blocks: int) -> None:
+        self.h, self.out, self.k = h, np.empty(max(n_blocks, 0)), 0
+        self.rest = np.empty(0)
+
+    def push(self, v: np.ndarray) -> None:
+        if self.k >= self.out.size:
+            return
+        if self.rest.size:
+            v = np.concatenate((self.rest, v))
+        m = min(v.size // self.h, self.out.size - self.k)
+        if m:
+            self.out[self.k:self.k + m] = v[: m * self.h].reshape(m, self.h).mean(axis=1)
+            self.k += m
+        self.rest = v[m * self.h:].copy() if self.k < self.out.size else np.empty(0)
+
+
+class _Timeline:
+    """(time, mean, min, max) per bin of ``ceil(n / bins)`` samples (the last bin may be
+    shorter) of a series pushed in pieces; the series itself when ``n <= bins``."""
+
+    def __init__(self, n: int, bins: int) -> None:
+        self.w = 0 if n <= bins else -(-n // bins)
+        self.parts: list[tuple[np.ndarray, ...]] = []
+        self.rest = (np.empty(0), np.empty(0))
+
+    def push(self, x: np.ndarray, t: np.ndarray) -> None:
+        if not self.w:
+            self.parts.append((t.copy(), x.copy(), x.copy(), x.copy()))
+            return
+        if self.rest[0].size:
+            x, t = np.concatenate((self.rest[0], x)), np.concatenate((self.rest[1], t))
+        m = x.size // self.w * self.w
+        if m:
+            self.parts.append(self._bins(x[:m], t[:m]))
+        self.rest = (x[m:].copy(), t[m:].copy())
+
+    def _bins(self, x: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, ...]:
+        edges = np.arange(0, x.size, self.w)
+        cnt = np.diff(np.append(edges, x.size))
+        return (np.add.reduceat(t, edges) / cnt, np.add.reduceat(x, edges) / cnt,
+                np.minimum.reduceat(x, edges), np.maximum.reduceat(x, edges))
+
+    def finish(self) -> tuple[np.ndarray, ...]:
+        if self.w and self.rest[0].size:
+            self.parts.append(self._bins(*self.rest))
+            self.rest = (np.empty(0), np.empty(0))
+        if not self.parts:
+            return tuple(np.empty(0) for _ in range(4))
+        if len(self.parts) == 1:
+            return self.parts[0]
+        return tuple(np.concatenate([p[i] for p in self.parts]) for i in range(4))
+
+
+@dataclass(frozen=True)
+class _Summary:
+    """What the tests need of one channel of ``n`` samples: the ``offset`` (median of the first
+    4096 samples), the ``quantum`` (smallest non-zero step in the first 65536, 0: continuous),
+    the block ``means`` of the offset-free signal over h0 samples (the base half-window of the
+    window-mean test; empty when untested), the block means ``noise`` of diff(x)^2 / 2 over
+    w_noise / 2 samples, ``temp_means`` of the offset-free signal over n // 64 samples (the
+    temperature check; empty without temperature) and the plotting ``timeline``."""
+
+    n: int
+    offset: float
+    quantum: float
+    means: np.ndarray
+    noise: np.ndarray
+    temp_means: np.ndarray
+    timeline: tuple[np.ndarray, ...]
+
+
+class _ChannelAcc:
+    """Builds the :class:`_Summary` of one channel from its samples pushed in order."""
+
+    def __init__(self, n: int, h0: int, h_noise: int, w_temp: int) -> None:
+        self.n = n
+        self.head: list[np.ndarray] = []  # the first samples, until the offset is known
+        self.n_head = 0
+        self.offset: float | None = None
+        self.pos = 0  # offset-free samples processed
+        self.prev: np.ndarray | None = None  # the last offset-free sample (for differences)
+        self.qmin = math.inf
+        self.means = _Blocks(h0, n // h0 if h0 else 0)
+        self.noise = _Blocks(h_noise or 1, (n - 1) // h_noise if h_noise else 0)
+        self.temp = _Blocks(w_temp or 1, n // w_temp if w_temp else 0)
+        self.timeline = _Timeline(n, _TIMELINE_BINS)
+
+    def push(self, x: np.ndarray, t: np.ndarray) -> None:
+        self.timeline.push(x, t)
+        if self.offset is None:
+            self.head.append(x)
+            self.n_head += x.size
+            if self.n_head < min(_OFFSET_SAMPLES, self.n):
+                return
+            x = np.concatenate(self.head) if len(self.head) > 1 else self.head[0]
+            self.head = []
+            self.offset = np.median(x[:_OFFSET_SAMPLES])
+        self._centred(x - self.offset)
+
+    def _centred(self, xo: np.ndarray) -> None:
+        if xo.size == 0:
+            return
+        prev = () if self.prev is None else (self.prev,)
+        if self.pos < _QUANTUM_SAMPLES:
+            seg = xo[: _QUANTUM_SAMPLES - self.pos]
+            d = np.abs(np.diff(np.concatenate((prev, seg)) if prev else seg))
+            d = d[d > 0]
+            if d.size:
+                self.qmin = min(self.qmin, float(d.min()))
+        self.means.push(xo)
+        if self.noise.out.size:
+            self.noise.push(np.diff(np.concatenate((prev, xo)) if prev else xo) ** 2 * 0.5)
+        self.temp.push(xo)
+        self.prev = xo[-1]
+        self.pos += xo.size
+
+    def finish(self) -> _Summary:
+        if self.offset is None:  # fewer samples than the offset needs were announced
+            x = np.concatenate(self.head) if self.head else np.empty(0)
+            self.head = []
+            self.offset = np.median(x[:_OFFSET_SAMPLES]) if x.size else 0.0
+            self._centred(x - self.offset)
+        if self.pos != self.n:
+            raise InputError(f"{self.pos} samples pushed, {self.n} announced")
+        return _Summary(self.n, float(self.offset), 0.0 if self.qmin == math.inf else self.qmin,
+                        self.means.out, self.noise.out, self.temp.out, self.timeline.finish())
+
+
+class _TemperatureAcc:
+    """Temperature pushed in order: the count, minimum and maximum of its finite values, the block
+    means over ``w`` samples of the series with its non-finite values interpolated linearly
+    between their finite neighbours (held constant beyond the first and last finite ones; a
+    pending gap costs two numbers, not its length) and its timeline (non-finite -> NaN)."""
+
+    def __init__(self, n: int, w: int) -> None:
+        self.count, self.lo, self.hi = 0, math.inf, -math.inf
+        self.blocks = _Blocks(w or 1, n // w if w else 0)
+        self.timeline = _Timeline(n, _TIMELINE_BINS)
+        self.pos = 0
+        self.gap = 0  # non-finite values pending before self.pos
+        self.last: tuple[int, float] | None = None  # the last finite (index, value)
+
+    def push(self, v: np.ndarray, t: np.ndarray) -> None:
+        ok = np.isfinite(v)
+        self.timeline.push(np.where(ok, v, np.nan), t)
+        s = self.pos
+        self.pos += v.size
+        fi = np.flatnonzero(ok)
+        if not fi.size:
+            self.gap += v.size
+            return
+        fin = v[fi]
+        self.count += fi.size
+        self.lo, self.hi = min(self.lo, float(fin.min())), max(self.hi, float(fin.max()))
+        self._fill(s + int(fi[0]), self.gap + int(fi[0]), v[fi[0]])
+        seg = v[fi[0]: fi[-1] + 1]
+        if fi.size < seg.size:  # gaps inside this piece
+            seg = np.where(ok[fi[0]: fi[-1] + 1], seg,
+                           np.interp(np.arange(s + fi[0], s + fi[-1] + 1), s + fi, fin))
+        self.blocks.push(seg)
+        self.last = (s + int(fi[-1]), v[fi[-1]])
+        self.gap = v.size - 1 - int(fi[-1])
+
+    def _fill(self, a: int, k: int, va: Any) -> None:
+        """The ``k`` non-finite values before sample ``a`` (finite value ``va``), interpolated
+        from the last finite value (constant ``va`` when there is none)."""
+        for b in range(a - k, a, _EMIT):
+            e = min(a, b + _EMIT)
+            if self.last is None:
+                self.blocks.push(np.full(e - b, va, dtype=np.float64))
+            else:
+                self.blocks.push(np.interp(np.arange(b, e), [self.last[0], a],
+                                           [self.last[1], va]))
+
+    def finish(self) -> None:
+        if self.gap and self.last is not None:  # constant beyond the last finite value
+            for b in range(0, self.gap, _EMIT):
+                self.blocks.push(np.full(min(self.gap - b, _EMIT), self.last[1],
+                                         dtype=np.float64))
+            self.gap = 0
+
+
+class _Uniform:
+    """The times ``i / freq`` of ``n`` samples (seconds; samples without a rate), indexed like
+    the array they stand for."""
+
+    def __init__(self, n: int, freq: float | None) -> None:
+        self.size, self.f = n, freq or 1.0
+
+    def __getitem__(self, i: int) -> float:
+        return (i + self.size if i < 0 else i) / self.f
+
+
+def _temperature_check(axes: Mapping[str, np.ndarray], temp: _TemperatureAcc, n: int,
+                       window_s: float, alpha: float, source: str) -> TemperatureCheck | None:
+    """Differenced window means of each axis (``axes``: their block means over n // 64
+    samples) against those of the temperature: Pearson r with a t-test whose degrees of freedom
+    are reduced by Bartlett's factor (both series are autocorrelated), Bonferroni over the
+    channels; 'follows' also needs |r| >= 0.5."""
     from scipy.stats import t as student
 
-    n = temp.size
-    ok = np.isfinite(temp)
-    if ok.sum() < 0.5 * n:
+    if temp.count < 0.5 * n:
         return None
-    temp = np.where(ok, temp, np.interp(np.arange(n), np.flatnonzero(ok), temp[ok]))
-    K = 64
-    w = n // K
-    if w < 4:
+    if n // _TEMP_WINDOWS < 4:
         return None
-    rng = (float(temp.min()), float(temp.max()))
-    Tm = np.diff(_block_means(temp, w))
-    window_s = float(t[w] - t[0]) if t.size > w else float(w)
+    rng = (temp.lo, temp.hi)
+    Tm = np.diff(temp.blocks.out)
     res: dict[str, tuple[float, float, float, bool]] = {}
-    level = alpha / max(len(chans), 1)
-    for c, x in chans.items():
-        b = np.diff(_block_means(x - np.median(x[:4096]), w))
+    level = alpha / max(len(axes), 1)
+    for c, means in axes.items():
+        b = np.diff(means)
         if np.std(Tm) == 0 or np.std(b) == 0:
             res[c] = (0.0, 0.0, 1.0, False)
             continue
@@ -600,8 +782,206 @@ def _temperature_check(chans: Mapping[str, np.ndarray], temp: np.ndarray, t: np.
 
 
 # --------------------------------------------------------------------------------------------------
-# entry point
+# entry points
 # --------------------------------------------------------------------------------------------------
+
+
+class StationarityStream:
+    """The stationarity check (``docs/METHODS.md`` §16) of a recording read in consecutive pieces,
+    in bounded memory: :meth:`push` its rows in order, then :meth:`finish`.
+
+    ``names`` the channels of the rows, ``n`` their total number; ``freq``, ``units``, ``alpha``,
+    ``norm`` as in :func:`check_stationarity`; ``temperature`` the name of a column of the rows
+    holding the temperature in deg C (NaN where unknown; not tested as a channel), with
+    ``temperature_source`` naming it in messages; ``where`` names the recording in messages.
+    Times are ``i / freq``.
+
+    Each channel is reduced to its summary as it goes: the block means of the offset-free signal
+    over the base half-window h0 = max(8 samples, 0.1 s) / 2, of diff(x)^2 / 2 over half the
+    noise window, of the signal over n / 64 samples when there is a temperature, a 1500-bin
+    timeline, the offset and the quantum from the first samples: O(n / h0) values per channel
+    (8 / h0 bytes per sample), plus one piece. The report is that of :func:`check_stationarity`
+    on the whole recording, bit for bit, except the median |a| of the accelerometer-norm alert,
+    which is taken from the window means instead of the samples."""
+
+    def __init__(self, names: Sequence[str], n: int, *, freq: float | None = None,
+                 units: Mapping[str, str | None] | None = None, alpha: float = ALPHA,
+                 norm: bool = True, temperature: str | bool | None = None,
+                 temperature_source: str = "", time_s: np.ndarray | None = None,
+                 where: str = "signal") -> None:
+        names = [str(c) for c in names]
+        self.temp_col = None
+        if isinstance(temperature, str):
+            if temperature not in names:
+                raise InputError(f"temperature column '{temperature}' not among the channels "
+                                 f"({', '.join(names)})")
+            self.temp_col = names.index(temperature)
+            names = [c for c in names if c != temperature]
+        if not names:
+            raise InputError("the stationarity check needs at least one channel")
+        if not 0 < alpha < 1:
+            raise InputError(f"alpha must lie in (0, 1), got {alpha}")
+        self.n, self.freq, self.alpha, self.where = int(n), freq, alpha, where
+        self.n_src = len(names) + (self.temp_col is not None)
+        self.time_s = time_s
+        self.temperature_source = temperature_source
+        units = dict(units or {})
+        notes: list[str] = []
+        sensors = {c: _si_factor(units.get(c)) for c in names}  # unknown/missing unit: no ceiling
+        chans = list(names)
+        acc = [c for c in names if sensors[c][0] == "accelerometer"]
+        self.norm_idx: list[int] | None = None
+        if norm and len(acc) == 3 and len({units.get(c) for c in acc}) == 1:
+            self.norm_idx = [names.index(c) for c in acc]
+            chans.append(NORM)
+            units[NORM] = units.get(acc[0])
+            sensors[NORM] = sensors[acc[0]]
+        self.norm_g: float | None = None  # median |a| of the samples (set for a whole push)
+        self.names, self.chans, self.units, self.sensors = names, chans, units, sensors
+        no_ceiling = [c for c in chans if sensors[c][0] is None]
+        if freq is None:
+            notes.append("no sampling rate: windows in samples and no static ceiling")
+        elif no_ceiling and len(no_ceiling) == len(chans):
+            notes.append("no gyroscope/accelerometer unit: only relative tests (a recording that "
+                         "moves throughout can pass; give --units)")
+        n = self.n
+        self.hs = _ladder(n, freq)
+        w_noise = max(32, 2 * math.ceil(NOISE_WINDOW_S * freq / 2)) if freq else 32
+        self.w_noise = w_noise + w_noise % 2
+        if not self.hs:
+            notes.append(f"too short for a stationarity check ({n} samples; at least "
+                         f"{(MIN_DIFFS + 3) * ((MIN_WINDOW_SAMPLES + 1) // 2)} needed)")
+        self.notes = notes
+        half = self.w_noise // 2
+        self.noise_tests = (n // half - 1) if n // half - 1 >= MIN_DIFFS else 0
+        w_temp = n // _TEMP_WINDOWS if temperature is not None and temperature is not False else 0
+        h0 = self.hs[0] if self.hs else 0
+        self.accs = [_ChannelAcc(n, h0, half if self.noise_tests else 0,
+                                 w_temp if c != NORM else 0) for c in chans]
+        self.temp = None if temperature is None or temperature is False else \
+            _TemperatureAcc(n, w_temp)
+        self.pos = 0
+
+    @classmethod
+    def for_source(cls, source: Any, **kwargs: Any) -> StationarityStream:
+        """The check of a :class:`gmwm.stream.Source` (its names, length, rate unless ``freq``
+        is given, and its name in messages); ``kwargs`` as the constructor."""
+        kwargs.setdefault("freq", source.freq)
+        kwargs.setdefault("where", source.where)
+        return cls(source.names, source.n_samples, **kwargs)
+
+    def push(self, rows: Any) -> None:
+        """The next rows, shape ``(m, C)`` (1-D for one column), any numeric dtype, in order. A
+        NaN or inf in a tested channel is an :class:`InputError` naming the channel and
+        sample."""
+        rows = np.asarray(rows)
+        if rows.ndim == 1 and self.n_src == 1:
+            rows = rows[:, None]
+        if rows.ndim != 2 or rows.shape[1] != self.n_src:
+            raise InputError(f"{self.where}: rows must be (m, {self.n_src}) arrays, got shape "
+                             f"{rows.shape}")
+        if self.pos + rows.shape[0] > self.n:
+            raise InputError(f"{self.where}: more than the {self.n} samples announced")
+        cols, temp = [], None
+        for k in range(self.n_src):
+            col = np.ascontiguousarray(rows[:, k], dtype=np.float64)
+            if k == self.temp_col:
+                temp = col
+                continue
+            bad = ~np.isfinite(col)
+            if bad.any():
+                i = int(np.argmax(bad))
+                what = "NaN" if np.isnan(col[i]) else "infinite"
+                name = self.names[len(cols)]
+                raise InputError(f"channel '{name}' of {self.where} contains a {what} value at "
+                                 f"sample {self.pos + i}; clean or interpolate it first")
+            cols.append(col)
+        self._push(cols, None, temp)
+
+    def _push(self, cols: list[np.ndarray], t: np.ndarray | None,
+              temp: np.ndarray | None) -> None:
+        """Float64 columns in the order of ``names`` (and the temperature), times ``t`` (s since
+        the first sample; None: ``i / freq``)."""
+        m = cols[0].size
+        if t is None:
+            t = np.arange(self.pos, self.pos + m) / (self.freq or 1.0)
+        if self.norm_idx is not None:
+            a = np.sqrt(sum(cols[i] ** 2 for i in self.norm_idx))
+            if self.pos == 0 and m == self.n:  # the whole recording: the median of its samples
+                self.norm_g = float(np.median(a))
+            cols = [*cols, a]
+        for acc, x in zip(self.accs, cols, strict=True):
+            acc.push(x, t)
+        if self.temp is not None and temp is not None:
+            self.temp.push(temp, t)
+        self.pos += m
+
+    def finish(self) -> StationarityReport:
+        """The report of the recording pushed (all ``n`` samples)."""
+        if self.pos != self.n:
+            raise InputError(f"{self.where}: {self.pos} samples pushed, {self.n} announced")
+        n, freq, alpha, hs = self.n, self.freq, self.alpha, self.hs
+        sums = {c: acc.finish() for c, acc in zip(self.chans, self.accs, strict=True)}
+        self.accs = []
+        t: Any = self.time_s if self.time_s is not None else _Uniform(n, freq)
+        notes, alerts = list(self.notes), []
+        if self.norm_idx is not None:
+            g = self.norm_g
+            if g is None:  # pieces: the median of the window means (the samples when few)
+                sm = sums[NORM]
+                g = float(np.median(sm.means + sm.offset if sm.means.size else sm.timeline[1]))
+            g *= self.sensors[NORM][1]
+            if not 8.8 <= g <= 10.8:
+                alerts.append(f"the median accelerometer norm is {g:.4g} m/s^2, not 1 g (9.81 "
+                              "m/s^2) as at rest: wrong unit, or a platform that accelerates "
+                              "throughout?")
+        per_channel = sum(n // h - 3 for h in hs)
+        n_tests = len(self.chans) * (per_channel + self.noise_tests)
+        z0 = _z_quantile(alpha / (2.0 * n_tests)) if n_tests else float("inf")
+        flags: list[Flag] = []
+        peaks: list[tuple] = []
+        if hs:
+            for c, sm in sums.items():
+                sensor, si = self.sensors[c]
+                hits, pk = _channel_hits(sm, hs, self.w_noise if self.noise_tests else 0, z0,
+                                         freq, sensor, si)
+                peaks += [(c, *p) for p in pk]
+                for test, hh in hits.items():
+                    if not hh.i0:
+                        continue
+                    i0 = np.minimum(np.asarray(hh.i0), n)
+                    i1 = np.minimum(np.asarray(hh.i1), n)
+                    for a, b, members in _merge(i0, i1):
+                        ratio = np.asarray(hh.stat)[members] / np.asarray(hh.thr)[members]
+                        j = int(members[int(np.argmax(ratio))])
+                        size = float(np.max(np.asarray(hh.size)[members]))
+                        flags.append(Flag(c, test, a, b, float(t[a]), _end_time(t, b, freq),
+                                          float(t[min(hh.peak[j], n - 1)]),
+                                          hh.window[j] / (freq or 1.0), float(hh.stat[j]),
+                                          float(hh.thr[j]), size))
+        flags.sort(key=lambda f: (f.i0, f.channel, f.test))
+        segments = _segments(flags, t, freq, self.chans)
+        temp_check = None
+        temp_line = None
+        tp = self.temp
+        if tp is not None:
+            tp.finish()
+            if tp.count == 0 or tp.lo == tp.hi:
+                notes.append("temperature constant or absent: not compared with the bias")
+            else:
+                w = n // _TEMP_WINDOWS
+                window_s = float(t[w] - t[0]) if n > w else float(w)
+                axes = {c: sums[c].temp_means for c in self.names}
+                temp_check = _temperature_check(axes, tp, n, window_s, alpha,
+                                                self.temperature_source)
+                temp_line = tp.timeline.finish()[:2]
+        timeline = {c: sm.timeline for c, sm in sums.items()}
+        return StationarityReport(
+            channels=tuple(self.chans), units={c: self.units.get(c) for c in self.chans}, n=n,
+            freq=freq, duration_s=float(t[-1]) if n else 0.0, windows=tuple(2 * h for h in hs),
+            alpha=alpha, n_tests=n_tests, threshold=z0, flags=tuple(flags), segments=segments,
+            peaks=tuple(peaks), temperature=temp_check, notes=tuple(notes), alerts=tuple(alerts),
+            timeline=timeline, temperature_timeline=temp_line, time_s=self.time_s)
 
 
 def check_stationarity(data: Any, *, freq: float | None = None, time_s: Any = None,
@@ -616,7 +996,8 @@ def check_stationarity(data: Any, *, freq: float | None = None, time_s: Any = No
     ``units`` signal units (a known gyroscope/accelerometer unit marks the sensor type and
     enables the static ceiling); ``temperature`` deg C per
     sample (NaN where unknown); ``alpha`` the family-wise false-alarm level of one recording;
-    ``norm``: also test |a| when three accelerometer axes share a unit."""
+    ``norm``: also test |a| when three accelerometer axes share a unit. Recordings too large
+    for memory: :func:`check_stationarity_stream`."""
     if hasattr(data, "channels") and hasattr(data, "time"):
         rec = data
         chans = dict(rec.channels)
@@ -642,90 +1023,51 @@ def check_stationarity(data: Any, *, freq: float | None = None, time_s: Any = No
         np.asarray(time_s, dtype=np.float64) - float(np.asarray(time_s)[0])
     if t.size != n:
         raise InputError(f"{t.size} time stamps for {n} samples")
-    notes: list[str] = []
-    alerts: list[str] = []
-    sensors: dict[str, tuple[str | None, float]] = {}
-    for c in chans:
-        sensors[c] = _si_factor(units.get(c))  # an unknown or missing unit: no ceiling
-    chans = {c: np.asarray(x, dtype=np.float64) for c, x in chans.items()}
-    acc = [c for c in chans if sensors[c][0] == "accelerometer"]
-    if norm and len(acc) == 3 and len({units.get(c) for c in acc}) == 1:
-        a = np.sqrt(sum(chans[c] ** 2 for c in acc))
-        chans[NORM] = a
-        units[NORM] = units.get(acc[0])
-        sensors[NORM] = sensors[acc[0]]
-        g = float(np.median(a)) * sensors[acc[0]][1]
-        if not 8.8 <= g <= 10.8:
-            alerts.append(f"the median accelerometer norm is {g:.4g} m/s^2, not 1 g (9.81 m/s^2) "
-                         "as at rest: wrong unit, or a platform that accelerates throughout?")
-    no_ceiling = [c for c in chans if sensors[c][0] is None]
-    if freq is None:
-        notes.append("no sampling rate: windows in samples and no static ceiling")
-    elif no_ceiling and len(no_ceiling) == len(chans):
-        notes.append("no gyroscope/accelerometer unit: only relative tests (a recording that "
-                     "moves throughout can pass; give --units)")
-    hs = _ladder(n, freq)
-    w_noise = max(32, 2 * math.ceil(NOISE_WINDOW_S * freq / 2)) if freq else 32
-    w_noise += w_noise % 2
-    if not hs:
-        notes.append(f"too short for a stationarity check ({n} samples; at least "
-                     f"{(MIN_DIFFS + 3) * ((MIN_WINDOW_SAMPLES + 1) // 2)} needed)")
-    per_channel = sum(n // h - 3 for h in hs)
-    noise_tests = (n // (w_noise // 2) - 1) if n // (w_noise // 2) - 1 >= MIN_DIFFS else 0
-    n_tests = len(chans) * (per_channel + noise_tests)
-    z0 = _z_quantile(alpha / (2.0 * n_tests)) if n_tests else float("inf")
-    flags: list[Flag] = []
-    peaks: list[tuple] = []
-    if hs:
-        for c, x in chans.items():
-            sensor, si = sensors[c]
-            hits, pk = _channel_hits(x, hs, w_noise if noise_tests else 0, z0, freq, sensor, si)
-            peaks += [(c, *p) for p in pk]
-            for test, hh in hits.items():
-                if not hh.i0:
-                    continue
-                i0 = np.minimum(np.asarray(hh.i0), n)
-                i1 = np.minimum(np.asarray(hh.i1), n)
-                for a, b, members in _merge(i0, i1):
-                    ratio = np.asarray(hh.stat)[members] / np.asarray(hh.thr)[members]
-                    j = int(members[int(np.argmax(ratio))])
-                    size = float(np.max(np.asarray(hh.size)[members]))
-                    fl = Flag(c, test, a, b, float(t[a]), _end_time(t, b, freq),
-                              float(t[min(hh.peak[j], n - 1)]),
-                              hh.window[j] / (freq or 1.0), float(hh.stat[j]),
-                              float(hh.thr[j]), size)
-                    flags.append(fl)
-    flags.sort(key=lambda f: (f.i0, f.channel, f.test))
-    segments = _segments(flags, t, freq, list(chans))
-    temp_check = None
-    temp_line = None
+    temp = None
     if temperature is not None:
         temp = np.asarray(temperature, dtype=np.float64)
         if temp.size != n:
             raise InputError(f"{temp.size} temperature values for {n} samples")
-        fin = temp[np.isfinite(temp)]
-        if fin.size == 0 or np.ptp(fin) == 0:
-            notes.append("temperature constant or absent: not compared with the bias")
-            temperature = None
-    if temperature is not None:
-        axes = {c: x for c, x in chans.items() if c != NORM}
-        temp_check = _temperature_check(axes, temp, t, alpha, temperature_source)
-        if np.isfinite(temp).any():
-            temp_line = _timeline(np.where(np.isfinite(temp), temp, np.nan), t, _TIMELINE_BINS)[:2]
-    timeline = {c: _timeline(x, t, _TIMELINE_BINS) for c, x in chans.items()}
-    return StationarityReport(
-        channels=tuple(chans), units={c: units.get(c) for c in chans}, n=n, freq=freq,
-        duration_s=float(t[-1]) if n else 0.0, windows=tuple(2 * h for h in hs), alpha=alpha,
-        n_tests=n_tests, threshold=z0, flags=tuple(flags), segments=segments, peaks=tuple(peaks),
-        temperature=temp_check, notes=tuple(notes), alerts=tuple(alerts), timeline=timeline,
-        temperature_timeline=temp_line, time_s=t)
+    check = StationarityStream(list(chans), n, freq=freq, units=units, alpha=alpha, norm=norm,
+                               temperature=temp is not None,
+                               temperature_source=temperature_source, time_s=t)
+    if n:  # one piece: the whole recording
+        check._push([np.asarray(chans[c], dtype=np.float64) for c in check.names], t, temp)
+    return check.finish()
 
 
-def _end_time(t: np.ndarray, i1: int, freq: float | None) -> float:
+def check_stationarity_stream(source: Any, *, freq: float | None = None,
+                              units: Mapping[str, str | None] | None = None,
+                              alpha: float = ALPHA, norm: bool = True,
+                              temperature: str | None = None, temperature_source: str = "",
+                              memory: int | None = None, chunk: int | None = None
+                              ) -> StationarityReport:
+    """:func:`check_stationarity` of a :class:`gmwm.stream.Source` (a file larger than memory)
+    read once in chunks: the same report (see :class:`StationarityStream`). ``freq`` defaults
+    to the source's rate (None: windows in samples); ``temperature`` names a column of deg C;
+    ``chunk`` rows per read (default: from ``memory``, bytes, default
+    :data:`gmwm.stream.DEFAULT_MEMORY`). To check while the WV is computed, in the same read:
+    ``check = StationarityStream.for_source(src, units=...)``,
+    ``wvar_stream(src, observe=check.push)``, ``check.finish()``."""
+    from gmwm.stream import DEFAULT_MEMORY, iter_rows
+
+    check = StationarityStream.for_source(
+        source, **({} if freq is None else {"freq": freq}), units=units, alpha=alpha, norm=norm,
+        temperature=temperature, temperature_source=temperature_source)
+    if chunk is None:
+        C = len(source.names)
+        per_row = 2 * C * max(int(getattr(source, "itemsize", 8)), 1) + 32 * (C + 1)
+        chunk = max(_OFFSET_SAMPLES, int(memory or DEFAULT_MEMORY) // per_row)
+    for _, rows in iter_rows(source, int(chunk)):
+        check.push(rows)
+    return check.finish()
+
+
+def _end_time(t: Any, i1: int, freq: float | None) -> float:
     return float(t[i1]) if i1 < t.size else float(t[-1]) + 1.0 / (freq or 1.0)
 
 
-def _segments(flags: Sequence[Flag], t: np.ndarray, freq: float | None, order: Sequence[str]
+def _segments(flags: Sequence[Flag], t: Any, freq: float | None, order: Sequence[str]
               ) -> tuple[Segment, ...]:
     if not flags:
         return ()

@@ -26,11 +26,12 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
+import math
 import os
 import shutil
 import tempfile
 import time
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Self
@@ -51,7 +52,8 @@ from gmwm.wv import (
 )
 
 __all__ = ["DEFAULT_MEMORY", "ChannelWV", "HDF5Source", "NpySource", "RawSource", "Source",
-           "avar_stream", "open_source", "wvar_chunks", "wvar_stream"]
+           "avar_stream", "iter_rows", "open_source", "uniform_sample_range", "wvar_chunks",
+           "wvar_stream"]
 
 #: default memory budget of one streaming computation (all channels), bytes
 DEFAULT_MEMORY = 256 * 2**20
@@ -490,6 +492,67 @@ def _as_chunk(chunk: Any, n_ch: int, where: str) -> np.ndarray:
 # the computation
 
 
+def _row_range(source: Source, start: int, stop: int | None) -> tuple[int, int]:
+    n = int(source.n_samples)
+    stop = n if stop is None else int(stop)
+    start = int(start)
+    if not 0 <= start < stop <= n:
+        raise InputError(f"{source.where}: rows {start}:{stop} outside the {n} samples")
+    return start, stop
+
+
+def iter_rows(source: Source, chunk: int, start: int = 0, stop: int | None = None
+              ) -> Iterator[tuple[int, np.ndarray]]:
+    """``(t_a, rows)`` for consecutive chunks of at most ``chunk`` rows of ``source``, covering
+    rows ``[start, stop)`` (default: all) in order, ``t_a`` the index of the first row; the next
+    chunk is read in a background thread while the caller works on this one."""
+    start, stop = _row_range(source, start, stop)
+    chunk = max(1, int(chunk))
+    C = len(source.names)
+    with cf.ThreadPoolExecutor(max_workers=1) as reader:
+        ahead = reader.submit(source.read, start, min(stop, start + chunk))
+        for t_a in range(start, stop, chunk):
+            rows = ahead.result()
+            t_b = min(stop, t_a + chunk)
+            if rows.shape != (t_b - t_a, C):
+                raise InputError(f"{source.where}: read {rows.shape} at row {t_a}, expected "
+                                 f"{(t_b - t_a, C)}")
+            if t_b < stop:
+                ahead = reader.submit(source.read, t_b, min(stop, t_b + chunk))
+            yield t_a, rows
+
+
+def uniform_sample_range(n: int, freq: float, start_s: float | None, end_s: float | None,
+                         where: str = "the recording") -> tuple[int, int]:
+    """Samples ``(i0, i1)`` of a recording of ``n`` samples at ``freq`` Hz (sample ``i`` at
+    ``i / freq`` s) whose time lies in [``start_s``, ``end_s``), as
+    :func:`gmwm.readers.recording.sample_range` does with time stamps; None: from the first / to
+    the last sample. An empty or out-of-range request is an :class:`InputError`."""
+    last = (n - 1) / freq if n else 0.0
+    a = 0.0 if start_s is None else float(start_s)
+    b = math.inf if end_s is None else float(end_s)
+    if a < 0 or not b > a:
+        raise InputError(f"--start {a:g} / --end {b:g}: need 0 <= start < end (seconds since "
+                         "the first sample)")
+    if a > last:
+        raise InputError(f"--start {a:g} s is after the end of {where} ({last:.6g} s)")
+
+    def first_at(v: float) -> int:  # the first i with i / freq >= v (exact, as searchsorted)
+        if v == math.inf:
+            return n
+        i = min(max(math.ceil(v * freq), 0), n)
+        while i > 0 and (i - 1) / freq >= v:
+            i -= 1
+        while i < n and i / freq < v:
+            i += 1
+        return i
+
+    i0, i1 = first_at(a), first_at(b)
+    if i1 - i0 < 2:
+        raise InputError(f"--start/--end select {i1 - i0} sample(s) of {where}")
+    return i0, i1
+
+
 class _PanelFile:
     """Phase-2 store of one channel in a temporary file (panel-major, as the in-memory store)."""
 
@@ -672,9 +735,11 @@ def _check_disk(spill_dir: str | None, need: int) -> None:
 
 
 def _stream(source: Source, levels: int | None, alpha: float, freq: float, memory: int,
-            threads: int | None, spill_dir: str | None) -> dict[str, ChannelWV]:
+            threads: int | None, spill_dir: str | None, start: int = 0, stop: int | None = None,
+            observe: Callable[[np.ndarray], None] | None = None) -> dict[str, ChannelWV]:
     t_start = time.perf_counter()
-    T = int(source.n_samples)
+    start, stop = _row_range(source, start, stop)
+    T = stop - start
     J = _n_levels(T, levels)
     _check_alpha_freq(alpha, freq)
     names = list(source.names)
@@ -689,6 +754,8 @@ def _stream(source: Source, levels: int | None, alpha: float, freq: float, memor
     # memory per chunk row: the source rows twice (one read ahead), and per channel its float64
     # buffer and two panel-major parts of V_L (one being written to the file)
     per_row = 2 * C * max(source.itemsize, 1) + 24 * C
+    if observe is not None:  # the observer's float64 copies of a chunk (one per channel, |a|)
+        per_row += 24 * (C + 1)
     block = ws.block
     chunk = max(block, (max(memory // 2, per_row) // per_row) // block * block)
     chunk = min(chunk, -(-T // block) * block)
@@ -701,20 +768,12 @@ def _stream(source: Source, levels: int | None, alpha: float, freq: float, memor
     label = [nm if C > 1 else "" for nm in names]
     try:
         with cf.ThreadPoolExecutor(max_workers=workers) as pool, \
-                cf.ThreadPoolExecutor(max_workers=1) as reader, \
                 cf.ThreadPoolExecutor(max_workers=workers) as writer:
-            starts = list(range(0, T, chunk))
-            ahead = reader.submit(source.read, 0, min(T, chunk))
-            for i, t_a in enumerate(starts):
-                rows = ahead.result()
-                t_b = min(T, t_a + chunk)
-                if rows.shape != (t_b - t_a, C):
-                    raise InputError(f"{source.where}: read {rows.shape} at row {t_a}, expected "
-                                     f"{(t_b - t_a, C)}")
-                if i + 1 < len(starts):
-                    ahead = reader.submit(source.read, t_b, min(T, t_b + chunk))
-                jobs = [pool.submit(_phase1, chans[k], rows[:, k], t_a, per_channel,
+            for t_a, rows in iter_rows(source, chunk, start, stop):
+                jobs = [pool.submit(_phase1, chans[k], rows[:, k], t_a - start, per_channel,
                                     source.where, label[k], writer) for k in range(C)]
+                if observe is not None:  # e.g. the stationarity summaries, while phase 1 runs
+                    observe(rows)
                 for f in jobs:
                     f.result()
             group = max(1, (memory // 2) // (8 * workers))
@@ -733,19 +792,27 @@ def _stream(source: Source, levels: int | None, alpha: float, freq: float, memor
 def wvar_stream(source: Source | str | os.PathLike, levels: int | None = None,
                 alpha: float = 0.05, freq: float | None = None, *, columns: Any = None,
                 dataset: str | None = None, memory: int = DEFAULT_MEMORY,
-                threads: int | None = None, spill_dir: str | None = None
+                threads: int | None = None, spill_dir: str | None = None, start: int = 0,
+                stop: int | None = None, observe: Callable[[np.ndarray], None] | None = None
                 ) -> dict[str, ChannelWV]:
     """Haar WV of every channel of ``source`` (a :class:`Source` or a file path, opened with
     :func:`open_source` and ``columns``/``dataset``) in bounded memory, bit-identical to
     :func:`gmwm.wv.wvar` on each whole channel. ``freq`` [Hz] defaults to the file's rate, else
     1. ``memory`` is the budget in bytes for all channels together (the phase-2 store goes to a
     temporary file in ``spill_dir`` or TMPDIR beyond half of it); ``threads`` defaults to the
-    usable cores. A NaN or inf raises :class:`InputError` naming the channel and sample index."""
+    usable cores. A NaN or inf raises :class:`InputError` naming the channel and sample index.
+
+    ``start``/``stop``: the WV of rows ``[start, stop)`` only (bit-identical to
+    :func:`gmwm.wv.wvar` of that slice; sample indices in the messages count from ``start``).
+    ``observe(rows)`` is called with every chunk of rows read (source dtype, shape ``(m, C)``, in
+    order, in the calling thread while the WV works on it): a second computation in the same
+    read of the file, e.g. :meth:`gmwm.stationarity.StationarityStream.push`."""
     opened = not isinstance(source, Source)
     src = open_source(source, columns, dataset) if opened else source
     try:
         f = freq if freq is not None else (src.freq if src.freq is not None else 1.0)
-        return _stream(src, levels, alpha, float(f), int(memory), threads, spill_dir)
+        return _stream(src, levels, alpha, float(f), int(memory), threads, spill_dir, start, stop,
+                       observe)
     finally:
         if opened:
             src.close()
