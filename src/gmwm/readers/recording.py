@@ -17,6 +17,9 @@ HDF5                       HDF5 ``freq`` attribute, ``freq``
 Without stamps the rate is ``freq``; without either, :attr:`Recording.time` is None and
 :meth:`Recording.require_time` raises (a physical unit or a datasheet needs seconds: never
 1 Hz). A ``freq`` that contradicts the stamps by more than 1 % is an error.
+
+Several IMU streams of one bag or ULog: :func:`imu_topics` lists them, :func:`read_recordings`
+reads them with the file opened once.
 """
 
 from __future__ import annotations
