@@ -42,13 +42,15 @@ def _rostopic(rec: Any) -> str | None:
 
 def prepare_imu(rec: Any, *, units: Mapping[str, str | None] | None = None,
                 levels: int | None = None, gaps: str = "auto", start_s: float | None = None,
-                end_s: float | None = None, strict: bool = False) -> dict[str, Any]:
+                end_s: float | None = None, segment: str = "all", strict: bool = False
+                ) -> dict[str, Any]:
     """The stationarity check, the part used and the fit inputs of one recording.
 
     ``units``: channel -> signal unit replacing the recording's (e.g. for a Vector3Stamped
     topic); ``levels``: number of WV scales (None: all); ``gaps``: the gap policy
     (:meth:`gmwm.readers.recording.Recording.gaps`); ``start_s``/``end_s``: the part to use,
-    seconds since the first sample; ``strict``: a used part that moved is a
+    seconds since the first sample; ``segment``: ``"all"`` or ``"longest-static"`` (the longest
+    stretch of that part no flagged range touches); ``strict``: a used part that moved is a
     :class:`gmwm.stationarity.NonStationaryError`. Returns ``recording`` (the part used),
     ``stationarity``, ``gaps`` (the decision), ``data`` channel -> fit input (signal or pooled
     WV), ``units``, ``freq``, ``timing`` (report lines) and ``notes`` (warnings to show)."""
@@ -63,6 +65,23 @@ def prepare_imu(rec: Any, *, units: Mapping[str, str | None] | None = None,
     i0, i1 = (0, rec.n) if start_s is None and end_s is None else \
         sample_range(rec, start_s, end_s)
     how = "the whole recording" if (i0, i1) == (0, rec.n) else "--start/--end"
+    if segment == "longest-static":
+        free, at = [], i0
+        for s in st.segments:  # the stretches of the requested range no flagged segment touches
+            if s.i0 > at:
+                free.append((at, min(s.i0, i1)))
+            at = max(at, s.i1)
+        if at < i1:
+            free.append((at, i1))
+        free = [(a, b) for a, b in free if b > a]
+        if not free or max(b - a for a, b in free) < 64:
+            raise NonStationaryError(f"--segment longest-static: {where} has no static stretch "
+                                     "of 64 samples or more")
+        i0, i1 = max(free, key=lambda e: e[1] - e[0])
+        how = "longest static segment" + ("" if how.startswith("the whole") else
+                                          " within --start/--end")
+    elif segment != "all":
+        raise InputError(f"unknown segment choice {segment!r}; use all or longest-static")
     st = st.using(i0, i1, how)
     if strict and st.moving_in_used:
         raise NonStationaryError(f"{where} is not static in the part used and --strict is set")
@@ -130,7 +149,7 @@ def _axis_warnings(res: Any, st: Any, channel: str) -> list[str]:
 def calibrate_imus(recordings: Mapping[str, Any], model: str | Mapping[str, str] = "WN+RW", *,
                    units: Mapping[str, Mapping[str, str | None]] | None = None,
                    levels: int | None = None, gaps: str = "auto", start_s: float | None = None,
-                   end_s: float | None = None, strict: bool = False,
+                   end_s: float | None = None, segment: str = "all", strict: bool = False,
                    fit_options: Mapping[str, Any] | None = None, workers: int | None = None,
                    executor: str = "thread", progress: Any = None) -> dict[str, Any]:
     """Calibrate every IMU of ``recordings`` (topic -> :class:`gmwm.readers.Recording`, e.g.
@@ -139,7 +158,7 @@ def calibrate_imus(recordings: Mapping[str, Any], model: str | Mapping[str, str]
 
     ``model``: one model string for every axis, or channel -> model string; ``units``: topic ->
     (channel -> unit) replacing the file's; ``levels``, ``gaps``, ``start_s``, ``end_s``,
-    ``strict``: as :func:`prepare_imu`, for every IMU; ``fit_options``: passed to
+    ``segment``, ``strict``: as :func:`prepare_imu`, for every IMU; ``fit_options``: passed to
     :func:`gmwm.fit` (``method``, ``weights``, ``seed``, ``n_starts``, ...). ``workers``: fits run
     at once (None: :func:`available_cores`; 1: one after the other); ``executor``: ``"thread"``
     (default) or ``"process"``. ``progress``: called with a one-line message per step.
@@ -160,7 +179,7 @@ def calibrate_imus(recordings: Mapping[str, Any], model: str | Mapping[str, str]
     for topic, rec in recordings.items():
         say(f"checking stationarity of {topic}")
         prep = prepare_imu(rec, units=(units or {}).get(topic), levels=levels, gaps=gaps,
-                           start_s=start_s, end_s=end_s, strict=strict)
+                           start_s=start_s, end_s=end_s, segment=segment, strict=strict)
         for note in prep["notes"]:
             say(f"warning: {topic}: {note}")
         prepared[topic] = prep
