@@ -18,6 +18,7 @@ import html
 import os
 import re
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +26,7 @@ from gmwm import __version__
 from gmwm.datasheet import allan_readings
 from gmwm.errors import InputError
 
-__all__ = ["write_report"]
+__all__ = ["ImuSection", "imu_folders", "write_multi_report", "write_report"]
 
 
 def _slug(name: str) -> str:
@@ -113,8 +114,10 @@ def _html_table(headers: list[str], rows: list[tuple]) -> str:
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
-def _stationarity_section(st: Any, out: Path) -> tuple[list[str], list[str], list[Path]]:
-    """Markdown lines, HTML parts and files of the stationarity section (timeline figure)."""
+def _stationarity_section(st: Any, out: Path, lv: int = 2, prefix: str = ""
+                          ) -> tuple[list[str], list[str], list[Path]]:
+    """Markdown lines, HTML parts and files of the stationarity section (timeline figure
+    ``<prefix>stationarity.png``) under a heading of level ``lv``."""
     from gmwm.atomic import save_figure
     from gmwm.plots import plot_stationarity
 
@@ -127,9 +130,9 @@ def _stationarity_section(st: Any, out: Path) -> tuple[list[str], list[str], lis
                "static noise model explains." if st.moving else
                "No range is flagged: the recording looks static.")
     used = f"The estimate uses {st.used_text()}."
-    md = ["## Stationarity", "", verdict + " " + used, "", intro, ""]
+    md = [f"{'#' * lv} Stationarity", "", verdict + " " + used, "", intro, ""]
     plain = html.escape(verdict.replace("**", ""))
-    body = ["<h2>Stationarity</h2>", f"<p>{plain} {html.escape(used)}</p>",
+    body = [f"<h{lv}>Stationarity</h{lv}>", f"<p>{plain} {html.escape(used)}</p>",
             f"<p>{html.escape(intro)}</p>"]
     rows = []
     for s in st.segments:
@@ -162,60 +165,68 @@ def _stationarity_section(st: Any, out: Path) -> tuple[list[str], list[str], lis
         md.append("")
     files: list[Path] = []
     if st.tested and st.timeline:
-        png = out / "stationarity.png"
+        png = out / f"{prefix}stationarity.png"
         files += save_figure(plot_stationarity(st), png)
         md += [f"![Timeline of every axis, flagged ranges shaded]({png.name})", ""]
         body.append(f'<img src="{png.name}" alt="stationarity timeline" width="700">')
     return md, body, files
 
 
-def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]], *, source: str,
-                 title: str, timing: list[str] | None = None, stationarity: Any = None,
-                 topic: str | None = None, targets: str | Sequence[str] = ("kalibr",),
-                 inflation: Any = None) -> list[Path]:
-    """Write ``report.md``, ``report.html``, the filter configuration files of ``targets``
-    (:func:`gmwm.exports.parse_targets`; default the Kalibr ``imu.yaml``) and one
-    ``<axis>_wv.png`` per axis to ``outdir``; return the paths.
+@dataclass(frozen=True)
+class ImuSection:
+    """One IMU of a report: ``axes`` as :func:`write_report` takes them, ``timing`` lines,
+    ``stationarity`` (a :class:`gmwm.stationarity.StationarityReport` with its ``used`` range),
+    ``rostopic`` the ROS topic written into its configuration files (None: not a ROS topic,
+    e.g. a ULog stream; the files then hold a placeholder) and ``label`` a line naming the
+    recording (format, rate) shown under the IMU's heading."""
 
-    ``axes[name]`` holds ``result`` (a GMWM fit), ``units`` (signal unit; deg/s or rad/s mark a
-    gyroscope, m/s^2 or g an accelerometer), ``warnings`` (list of str), ``datasheet`` and
-    optionally ``verdict`` (a sensor datasheet's judgement, :func:`gmwm.sensor_datasheet.judge`;
-    adds ``<axis>_adev.png`` and the verdict table).
-    ``timing``: lines on the recording's time base (rate source, jitter, gaps, gap policy).
-    ``stationarity``: a :class:`gmwm.stationarity.StationarityReport` (its ``used`` range set):
-    a warning at the top when it flags the part used, a section with the timeline figure.
-    ``topic``: the IMU's ROS topic (written as ``rostopic``); ``inflation``: e.g.
-    ``"noise=2,walk=10"`` (:func:`gmwm.exports.parse_inflation`). Without any gyroscope or
-    accelerometer unit no configuration file is written and the report says why.
-    """
-    from gmwm.atomic import save_figure, write_text_atomic
-    from gmwm.exports import kalibr_text, noise_export, parse_targets, write_exports
-    from gmwm.plots import add_datasheet_line, plot_av, plot_wv
-    from gmwm.wv import AllanVariance
+    axes: Mapping[str, Mapping[str, Any]]
+    timing: Sequence[str] | None = None
+    stationarity: Any = None
+    rostopic: str | None = None
+    label: str = ""
 
+
+def _outdir(outdir: str | os.PathLike) -> Path:
     out = Path(outdir)
     if out.exists() and not out.is_dir():
         raise InputError(f"report directory {out} exists and is not a directory")
-    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def _freq(axes: Mapping[str, Mapping[str, Any]], where: str = "the report") -> float:
     if not axes:
-        raise InputError("the report needs at least one axis")
-    freq = float(next(iter(axes.values()))["result"].wv.freq)
-    # the configuration files' inputs are checked before any file is written
-    names = parse_targets(targets)
-    exp = None
-    if any(a["units"] for a in axes.values()):
-        exp = noise_export({n: (a["units"], a["result"]) for n, a in axes.items()}, freq,
-                           topic=topic, inflation=inflation, source=source)
+        raise InputError(f"{where} needs at least one axis")
+    return float(next(iter(axes.values()))["result"].wv.freq)
+
+
+def _export(axes: Mapping[str, Mapping[str, Any]], freq: float, topic: str | None,
+            inflation: Any, source: str) -> Any:
+    """The noise export of the axes with a sensor unit (None: no axis has one)."""
+    from gmwm.exports import noise_export
+
+    if not any(a["units"] for a in axes.values()):
+        return None
+    return noise_export({n: (a["units"], a["result"]) for n, a in axes.items()}, freq,
+                        topic=topic, inflation=inflation, source=source)
+
+
+def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
+                 timing: Sequence[str] | None, stationarity: Any, lv: int = 2, prefix: str = "",
+                 config_dir: str | None = None) -> tuple[list[str], list[str], list[Path]]:
+    """Markdown lines, HTML parts and figures of one IMU: the not-static warning, time base,
+    stationarity, summary, one part per axis and the Kalibr block; headings of level ``lv``,
+    figure names starting with ``prefix``; ``config_dir`` the folder of its configuration files
+    when they are not beside the page."""
+    from gmwm.atomic import save_figure
+    from gmwm.exports import kalibr_text
+    from gmwm.plots import add_datasheet_line, plot_av, plot_wv
+    from gmwm.wv import AllanVariance
+
+    h = "#" * lv
+    md: list[str] = []
+    body: list[str] = []
     written: list[Path] = []
-    md = [f"# {title}", "",
-          (f"Input `{source}`, sampling frequency {freq:g} Hz, {len(axes)} axes; "
-           f"GMWM fits by gmwm {__version__}. Coefficients are continuous-time datasheet values "
-           "with 95 % intervals inside the parameter space (a coefficient not distinguishable "
-           "from zero has an interval from 0); per-sample parameters are in the JSON output."),
-          ""]
-    body: list[str] = [f"<h1>{html.escape(title)}</h1>",
-                       (f"<p>Input <code>{html.escape(source)}</code>, sampling frequency {freq:g} "
-                        f"Hz, {len(axes)} axes; GMWM fits by gmwm {html.escape(__version__)}.</p>")]
     st = stationarity
     if st is not None and (st.moving or st.alerts):
         lines = st.warnings(limit=10)
@@ -225,11 +236,11 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
                     + ("the recording is not static." if st.moving else "") + "</strong><ul>"
                     + "".join(f"<li>{html.escape(w)}</li>" for w in lines) + "</ul></div>")
     if timing:
-        md += ["## Time base", "", *[f"- {t}" for t in timing], ""]
-        body += ["<h2>Time base</h2>",
+        md += [f"{h} Time base", "", *[f"- {t}" for t in timing], ""]
+        body += [f"<h{lv}>Time base</h{lv}>",
                  "<ul>" + "".join(f"<li>{html.escape(t)}</li>" for t in timing) + "</ul>"]
     if st is not None:
-        smd, sbody, sfiles = _stationarity_section(st, out)
+        smd, sbody, sfiles = _stationarity_section(st, out, lv, prefix)
         md += smd
         body += sbody
         written += sfiles
@@ -244,11 +255,11 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
                         "–" if rw is None else f"{_num(rw['value'])} {rw['unit']}",
                         len(_axis_warnings(a))))
     headers = ["axis", "unit", "model", "white noise", "random walk", "warnings"]
-    md += ["## Summary", "", *_md_table(headers, summary), ""]
-    body += ["<h2>Summary</h2>", _html_table(headers, summary)]
+    md += [f"{h} Summary", "", *_md_table(headers, summary), ""]
+    body += [f"<h{lv}>Summary</h{lv}>", _html_table(headers, summary)]
     for name, a in axes.items():
         res = a["result"]
-        png = out / f"{_slug(name)}_wv.png"
+        png = out / f"{prefix}{_slug(name)}_wv.png"
         ax = plot_wv(res.wv, result=res, units=a["units"] or "")
         ax.set_title(f"{name}: {res.model.spec}")
         verdict = a.get("verdict")
@@ -258,18 +269,18 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
         written += save_figure(ax.figure, png)
         rows = _rows(a["datasheet"])
         th = ["term", "quantity", "value", "95% CI", "unit"]
-        md += [f"## {name}", "",
+        md += [f"{h} {name}", "",
                (f"Model `{res.model.spec}`, T = {res.wv.n_samples} samples, J = {res.wv.n_levels} "
                 f"scales, objective {float(getattr(res, 'objective', float('nan'))):.4g}, converged "
                 f"{'yes' if getattr(res, 'converged', True) else 'NO'}."), "",
                f"![WV of {name} with the fitted model]({png.name})", "", *_md_table(th, rows), ""]
-        body += [f"<h2>{html.escape(name)}</h2>",
+        body += [f"<h{lv}>{html.escape(name)}</h{lv}>",
                  (f"<p>Model <code>{html.escape(res.model.spec)}</code>, T = {res.wv.n_samples} "
                   f"samples, J = {res.wv.n_levels} scales.</p>"),
                  f'<img src="{html.escape(png.name)}" alt="WV of {html.escape(name)}" width="560">',
                  _html_table(th, rows)]
         if verdict is not None:
-            adev_png = out / f"{_slug(name)}_adev.png"
+            adev_png = out / f"{prefix}{_slug(name)}_adev.png"
             ax = plot_av(AllanVariance.from_wv(res.wv), deviation=True, units=a["units"] or "")
             add_datasheet_line(ax, verdict["curves"]["tau_s"], verdict["curves"]["adev"],
                                verdict["label"])
@@ -309,21 +320,163 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
             body += ["<p>No warnings.</p>"]
     if exp is not None:
         yaml = kalibr_text(exp).rstrip("\n")
-        md += ["## Noise densities (Kalibr imu.yaml)", "", "```yaml", yaml, "```", ""]
-        body += ["<h2>Noise densities (Kalibr imu.yaml)</h2>", f"<pre>{html.escape(yaml)}</pre>"]
+        md += [f"{h} Noise densities (Kalibr imu.yaml)", ""]
+        body += [f"<h{lv}>Noise densities (Kalibr imu.yaml)</h{lv}>"]
+        if config_dir is not None:
+            where = f"The configuration files of this IMU are in {config_dir}/."
+            md += [where.replace(f"{config_dir}/", f"`{config_dir}/`"), ""]
+            body += [f"<p>{html.escape(where)}</p>"]
+        md += ["```yaml", yaml, "```", ""]
+        body += [f"<pre>{html.escape(yaml)}</pre>"]
     else:
         why = ("No filter configuration file (imu.yaml): no axis has a gyroscope or accelerometer "
                "unit, so neither the sensor nor the SI scale is known (give --units).")
-        md += ["## Noise densities", "", why, ""]
-        body += ["<h2>Noise densities</h2>", f"<p>{html.escape(why)}</p>"]
+        md += [f"{h} Noise densities", "", why, ""]
+        body += [f"<h{lv}>Noise densities</h{lv}>", f"<p>{html.escape(why)}</p>"]
+    return md, body, written
+
+
+def _page(title: str, body: list[str]) -> str:
     style = ("body{font-family:sans-serif;max-width:60em;margin:2em auto;padding:0 1em}"
              "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;"
              "padding:.2em .6em;text-align:right}th{background:#f4f4f4}pre{background:#f8f8f8;"
              "padding:1em}")
-    page = (f"<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{html.escape(title)}"
-            f"</title><style>{style}</style></head><body>\n" + "\n".join(body) + "\n</body></html>\n")
+    return (f"<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{html.escape(title)}"
+            f"</title><style>{style}</style></head><body>\n" + "\n".join(body)
+            + "\n</body></html>\n")
+
+
+_INTRO = ("Coefficients are continuous-time datasheet values with 95 % intervals inside the "
+          "parameter space (a coefficient not distinguishable from zero has an interval from 0); "
+          "per-sample parameters are in the JSON output.")
+
+
+def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]], *, source: str,
+                 title: str, timing: Sequence[str] | None = None, stationarity: Any = None,
+                 topic: str | None = None, targets: str | Sequence[str] = ("kalibr",),
+                 inflation: Any = None) -> list[Path]:
+    """Write ``report.md``, ``report.html``, the filter configuration files of ``targets``
+    (:func:`gmwm.exports.parse_targets`; default the Kalibr ``imu.yaml``) and one
+    ``<axis>_wv.png`` per axis to ``outdir``; return the paths.
+
+    ``axes[name]`` holds ``result`` (a GMWM fit), ``units`` (signal unit; deg/s or rad/s mark a
+    gyroscope, m/s^2 or g an accelerometer), ``warnings`` (list of str), ``datasheet`` and
+    optionally ``verdict`` (a sensor datasheet's judgement, :func:`gmwm.sensor_datasheet.judge`;
+    adds ``<axis>_adev.png`` and the verdict table).
+    ``timing``: lines on the recording's time base (rate source, jitter, gaps, gap policy).
+    ``stationarity``: a :class:`gmwm.stationarity.StationarityReport` (its ``used`` range set):
+    a warning at the top when it flags the part used, a section with the timeline figure.
+    ``topic``: the IMU's ROS topic (written as ``rostopic``); ``inflation``: e.g.
+    ``"noise=2,walk=10"`` (:func:`gmwm.exports.parse_inflation`). Without any gyroscope or
+    accelerometer unit no configuration file is written and the report says why.
+    Several IMUs on one page: :func:`write_multi_report`.
+    """
+    from gmwm.atomic import write_text_atomic
+    from gmwm.exports import parse_targets, write_exports
+
+    out = _outdir(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    freq = _freq(axes)
+    # the configuration files' inputs are checked before any file is written
+    names = parse_targets(targets)
+    exp = _export(axes, freq, topic, inflation, source)
+    md = [f"# {title}", "",
+          (f"Input `{source}`, sampling frequency {freq:g} Hz, {len(axes)} axes; "
+           f"GMWM fits by gmwm {__version__}. " + _INTRO), ""]
+    body: list[str] = [f"<h1>{html.escape(title)}</h1>",
+                       (f"<p>Input <code>{html.escape(source)}</code>, sampling frequency {freq:g} "
+                        f"Hz, {len(axes)} axes; GMWM fits by gmwm {html.escape(__version__)}.</p>")]
+    smd, sbody, written = _imu_section(out, axes, exp, timing=timing, stationarity=stationarity)
+    md += smd
+    body += sbody
     written.append(write_text_atomic(out / "report.md", "\n".join(md)))
-    written.append(write_text_atomic(out / "report.html", page))
+    written.append(write_text_atomic(out / "report.html", _page(title, body)))
     if exp is not None and names:
         written += write_exports(exp, out, names)
+    return written
+
+
+def imu_folders(topics: Sequence[str]) -> dict[str, str]:
+    """The configuration folder name of each IMU of a multi-IMU report: the topic with every run
+    of characters other than letters, digits, ``_.-`` replaced by ``_`` (``/imu0/data`` ->
+    ``imu0_data``, ``sensor_gyro:1`` -> ``sensor_gyro_1``); a name already taken gets ``-2``,
+    ``-3``, ..."""
+    out: dict[str, str] = {}
+    for t in topics:
+        base = _slug(t) if _slug(t) != "axis" else "imu"
+        name, k = base, 1
+        while name in out.values():
+            k += 1
+            name = f"{base}-{k}"
+        out[t] = name
+    return out
+
+
+def write_multi_report(outdir: str | os.PathLike, imus: Mapping[str, ImuSection], *,
+                       source: str, title: str, targets: str | Sequence[str] = ("kalibr",),
+                       inflation: Any = None) -> list[Path]:
+    """One page (``report.md``, ``report.html``) over several IMUs of one recording, and one set
+    of filter configuration files per IMU; return the paths.
+
+    ``imus[topic]``: an :class:`ImuSection`. The page has an overview table, then a section per
+    IMU (its warning, time base, stationarity, summary, axes and Kalibr block, as
+    :func:`write_report` writes them one heading level down); figure names start with the IMU's
+    folder name (``imu0_data_gx_wv.png``, ``imu0_data_stationarity.png``). The configuration files
+    of ``targets`` go to ``<outdir>/<folder>/`` (:func:`imu_folders`), each carrying its
+    ``rostopic``. A single IMU gives exactly :func:`write_report`'s layout (files beside the page).
+    Every IMU's export is checked before any file is written."""
+    from gmwm.atomic import write_text_atomic
+    from gmwm.exports import parse_targets, write_exports
+
+    if not imus:
+        raise InputError("the report needs at least one IMU")
+    if len(imus) == 1:
+        sec = next(iter(imus.values()))
+        return write_report(outdir, sec.axes, source=source, title=title, timing=sec.timing,
+                            stationarity=sec.stationarity, topic=sec.rostopic, targets=targets,
+                            inflation=inflation)
+    out = _outdir(outdir)
+    names = parse_targets(targets)
+    folders = imu_folders(list(imus))
+    freqs = {t: _freq(sec.axes, f"IMU {t}") for t, sec in imus.items()}
+    exps = {t: _export(sec.axes, freqs[t], sec.rostopic, inflation, f"{source} ({t})")
+            for t, sec in imus.items()}
+    out.mkdir(parents=True, exist_ok=True)
+    overview = [(t, sec.label or "–", f"{freqs[t]:g}", len(sec.axes),
+                 sum(len(_axis_warnings(a)) for a in sec.axes.values()),
+                 "not static" if sec.stationarity is not None and sec.stationarity.moving
+                 else "static" if sec.stationarity is not None else "not checked",
+                 f"{folders[t]}/" if exps[t] is not None and names else "–")
+                for t, sec in imus.items()]
+    oh = ["IMU", "recording", "rate [Hz]", "axes", "warnings", "stationarity",
+          "configuration files"]
+    md = [f"# {title}", "",
+          (f"Input `{source}`, {len(imus)} IMUs; GMWM fits by gmwm {__version__}. " + _INTRO
+           + " Each IMU has its own section and its own folder of filter configuration files."),
+          "", *_md_table(oh, overview), ""]
+    body = [f"<h1>{html.escape(title)}</h1>",
+            (f"<p>Input <code>{html.escape(source)}</code>, {len(imus)} IMUs; GMWM fits by gmwm "
+             f"{html.escape(__version__)}. Each IMU has its own section and its own folder of "
+             "filter configuration files.</p>"), _html_table(oh, overview)]
+    written: list[Path] = []
+    for t, sec in imus.items():
+        md += [f"## IMU {t}", ""]
+        body.append(f"<h2>IMU {html.escape(t)}</h2>")
+        line = (f"{sec.label + ', ' if sec.label else ''}sampling frequency {freqs[t]:g} Hz, "
+                f"{len(sec.axes)} axes" + (f", ROS topic {sec.rostopic}" if sec.rostopic else "")
+                + ".")
+        md += [line, ""]
+        body.append(f"<p>{html.escape(line)}</p>")
+        smd, sbody, files = _imu_section(
+            out, sec.axes, exps[t], timing=sec.timing, stationarity=sec.stationarity, lv=3,
+            prefix=folders[t] + "_", config_dir=folders[t] if names else None)
+        md += smd
+        body += sbody
+        written += files
+    written.append(write_text_atomic(out / "report.md", "\n".join(md)))
+    written.append(write_text_atomic(out / "report.html", _page(title, body)))
+    if names:
+        for t, exp in exps.items():
+            if exp is not None:
+                written += write_exports(exp, out / folders[t], names)
     return written

@@ -17,6 +17,9 @@ HDF5                       HDF5 ``freq`` attribute, ``freq``
 Without stamps the rate is ``freq``; without either, :attr:`Recording.time` is None and
 :meth:`Recording.require_time` raises (a physical unit or a datasheet needs seconds: never
 1 Hz). A ``freq`` that contradicts the stamps by more than 1 % is an error.
+
+Several IMU streams of one bag or ULog: :func:`imu_topics` lists them, :func:`read_recordings`
+reads them with the file opened once.
 """
 
 from __future__ import annotations
@@ -42,7 +45,8 @@ from gmwm.readers.timebase import (
     time_from_freq,
 )
 
-__all__ = ["FORMATS", "Recording", "read_recording", "sample_range", "select_samples"]
+__all__ = ["FORMATS", "Recording", "imu_topics", "read_recording", "read_recordings", "sample_range",
+           "select_samples"]
 
 FORMATS = ("ros1", "ros2-sqlite3", "ros2-mcap", "ulog", "euroc", "rostopic", "csv", "npy", "npz",
            "hdf5")
@@ -353,6 +357,86 @@ def _from_io(p: Path, kind: str, columns: Any, dataset: str | None, freq: float 
     return _finish(p, kind, dict(ch.signals), {}, tb, freq, units, notes)
 
 
+def _bag_format(p: Path) -> str:
+    from gmwm.readers.rosbag import bag_kind
+
+    fmt = {"ros1": "ros1", "sqlite3": "ros2-sqlite3", "mcap": "ros2-mcap"}.get(bag_kind(p) or "")
+    if fmt is None:  # a ROS 2 folder: its storage files say which
+        fmt = "ros2-mcap" if any(q.suffix == ".mcap" for q in p.iterdir()) else "ros2-sqlite3"
+    return fmt
+
+
+def _from_bag(p: Path, d: Any, columns: Any, freq: float | None, units: Any,
+              fmt: str | None = None) -> Recording:
+    """The :class:`Recording` of a decoded bag topic (:class:`gmwm.readers.rosbag.TopicData`)."""
+    names = _select(list(d.vectors), columns, p, default_all=True)
+    tb = time_base(d.stamp_ns, unit="ns", where=f"{d.stamp_source} of topic {d.topic}",
+                   source=f"{d.stamp_source} of topic {d.topic} (ns)")
+    return _finish(p, fmt or _bag_format(p), {n: d.vectors[n] for n in names}, d.units, tb, freq,
+                   units, d.notes, d.topic, stamps=d.stamp_ns)
+
+
+def _from_ulog(p: Path, u: Any, columns: Any, freq: float | None, units: Any) -> Recording:
+    """The :class:`Recording` of a ULog topic (:class:`gmwm.readers.ulog.UlogData`)."""
+    names = _select(list(u.vectors), columns, p, default_all=True)
+    tb = time_base(u.stamp_us, unit="us", where=f"{u.stamp_field} of {u.topic}",
+                   source=f"{u.stamp_field} of {u.topic} (us)")
+    return _finish(p, "ulog", {n: u.vectors[n] for n in names}, u.units, tb, freq, units,
+                   u.notes, u.topic, stamps=u.stamp_us,
+                   temperature=None if u.temperature is None else
+                   (u.temperature, u.temperature_source))
+
+
+def _multi_kind(p: Path, what: str) -> str:
+    if not p.exists():
+        raise InputError(f"file not found: {p}")
+    kind = _kind(p)
+    if kind not in ("bag", "ulog"):
+        raise InputError(f"{what} applies to ROS bags and ULog files, not to {p}")
+    return kind
+
+
+def imu_topics(path: str | os.PathLike) -> list[str]:
+    """The IMU streams of a ROS bag (:func:`gmwm.readers.rosbag.imu_bag_topics`: the
+    ``sensor_msgs/Imu`` topics and the gyroscope/accelerometer ``Vector3Stamped`` topics) or of a
+    PX4 ULog (:func:`gmwm.readers.ulog.ulog_imu_topics`: the ``sensor_gyro``/``sensor_accel``
+    instances, else ``sensor_combined``), in the file's order. Another format, or a file without
+    any, is an :class:`InputError`."""
+    p = Path(path)
+    if _multi_kind(p, "listing IMU topics") == "bag":
+        from gmwm.readers.rosbag import imu_bag_topics
+
+        return [t.topic for t in imu_bag_topics(p)]
+    from gmwm.readers.ulog import ulog_imu_topics
+
+    return ulog_imu_topics(p)
+
+
+def read_recordings(path: str | os.PathLike, topics: str | Sequence[str] = "all", *,
+                    columns: Any = None, freq: float | None = None,
+                    units: str | Mapping[str, str] | None = None) -> dict[str, Recording]:
+    """Several IMU streams of one ROS bag or PX4 ULog, the file opened and indexed once.
+
+    ``topics``: ``"all"`` (every stream of :func:`imu_topics`) or a list of topic names.
+    Returns topic -> :class:`Recording` in the file's order (``"all"``) or the order given;
+    ``columns``, ``freq`` and ``units`` apply to every topic as in :func:`read_recording`. An
+    unknown or repeated topic, or another file format, is an :class:`InputError`."""
+    p = Path(path)
+    kind = _multi_kind(p, "several topics (--topic all)")
+    if not isinstance(topics, str) and not all(isinstance(t, str) for t in topics):
+        raise InputError("topics must be 'all' or a list of topic names")
+    if kind == "bag":
+        from gmwm.readers.rosbag import read_bag_topics
+
+        fmt = _bag_format(p)
+        return {t: _from_bag(p, d, columns, freq, units, fmt)
+                for t, d in read_bag_topics(p, topics).items()}
+    from gmwm.readers.ulog import read_ulog_topics
+
+    return {t: _from_ulog(p, u, columns, freq, units)
+            for t, u in read_ulog_topics(p, topics).items()}
+
+
 def read_recording(path: str | os.PathLike, *, topic: str | None = None, columns: Any = None,
                    dataset: str | None = None, freq: float | None = None,
                    time_unit: str | None = None,
@@ -374,29 +458,13 @@ def read_recording(path: str | os.PathLike, *, topic: str | None = None, columns
     if time_unit is not None and time_unit not in ("s", "ms", "us", "ns"):
         raise InputError(f"unknown time unit {time_unit!r}; use s, ms, us or ns")
     if kind == "bag":
-        from gmwm.readers.rosbag import bag_kind, read_bag
+        from gmwm.readers.rosbag import read_bag
 
-        d = read_bag(p, topic)
-        bk = bag_kind(p)
-        fmt = {"ros1": "ros1", "sqlite3": "ros2-sqlite3", "mcap": "ros2-mcap"}.get(bk or "")
-        if fmt is None:  # a ROS 2 folder: its storage files say which
-            fmt = "ros2-mcap" if any(q.suffix == ".mcap" for q in p.iterdir()) else "ros2-sqlite3"
-        names = _select(list(d.vectors), columns, p, default_all=True)
-        tb = time_base(d.stamp_ns, unit="ns", where=f"{d.stamp_source} of topic {d.topic}",
-                       source=f"{d.stamp_source} of topic {d.topic} (ns)")
-        return _finish(p, fmt, {n: d.vectors[n] for n in names}, d.units, tb, freq, units,
-                       d.notes, d.topic, stamps=d.stamp_ns)
+        return _from_bag(p, read_bag(p, topic), columns, freq, units)
     if kind == "ulog":
         from gmwm.readers.ulog import read_ulog
 
-        u = read_ulog(p, topic)
-        names = _select(list(u.vectors), columns, p, default_all=True)
-        tb = time_base(u.stamp_us, unit="us", where=f"{u.stamp_field} of {u.topic}",
-                       source=f"{u.stamp_field} of {u.topic} (us)")
-        return _finish(p, "ulog", {n: u.vectors[n] for n in names}, u.units, tb, freq, units,
-                       u.notes, u.topic, stamps=u.stamp_us,
-                       temperature=None if u.temperature is None else
-                       (u.temperature, u.temperature_source))
+        return _from_ulog(p, read_ulog(p, topic), columns, freq, units)
     if kind == "text":
         return _from_table(p, columns, time_unit, freq, units)
     if kind == "npz":

@@ -20,6 +20,7 @@ whose stamps are all zero falls back to the bag's record time, with a note.
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from io import BytesIO
 from pathlib import Path
@@ -29,7 +30,7 @@ import numpy as np
 
 from gmwm.errors import InputError
 
-__all__ = ["BagTopic", "TopicData", "bag_topics", "read_bag"]
+__all__ = ["BagTopic", "TopicData", "bag_topics", "imu_bag_topics", "read_bag", "read_bag_topics"]
 
 IMU = "sensor_msgs/msg/Imu"
 VECTOR3 = "geometry_msgs/msg/Vector3Stamped"
@@ -516,16 +517,22 @@ def read_bag(path: str | os.PathLike, topic: str | None = None) -> TopicData:
                 raise InputError(f"{p} has {len(cands)} IMU topics: choose one with --topic: "
                                  + listing([t.topic for _, t in cands]))
             conn, info = cands[0]
-        if info.count == 0:
-            raise InputError(f"topic {info.topic} of {p} has no messages")
-        where = f"topic {info.topic} of {p}"
-        stamp, vectors, rec = bag.read(conn, where)
-        notes: list[str] = []
-        source = "header.stamp"
-        if stamp.size and np.all(stamp == 0):
-            stamp, source = rec(), "bag record time"
+        return _decoded(bag, conn, info, p)
     finally:
         bag.close()
+
+
+def _decoded(bag: _Ros1 | _Ros2, conn: Any, info: BagTopic, p: Path) -> TopicData:
+    """Decode the topic of ``conn`` from the open ``bag``: stamps checked and sorted, units and
+    roles from the message type (or, for Vector3Stamped, from the topic name)."""
+    if info.count == 0:
+        raise InputError(f"topic {info.topic} of {p} has no messages")
+    where = f"topic {info.topic} of {p}"
+    stamp, vectors, rec = bag.read(conn, where)
+    notes: list[str] = []
+    source = "header.stamp"
+    if stamp.size and np.all(stamp == 0):
+        stamp, source = rec(), "bag record time"
     if source != "header.stamp":
         notes.append(f"{where}: header.stamp is zero in every message; the bag's record times "
                      "are used (they include transport delays)")
@@ -549,3 +556,70 @@ def read_bag(path: str | os.PathLike, topic: str | None = None) -> TopicData:
             notes.append(f"{where} (Vector3Stamped) does not say whether it is a gyroscope or an "
                          "accelerometer: give --units")
     return TopicData(info.topic, info.msgtype, stamp, vectors, units, roles, source, notes)
+
+
+def _imu_candidates(listed: list[tuple[Any, BagTopic]]) -> list[tuple[Any, BagTopic]]:
+    """The IMU streams among a bag's topics, in the bag's order (see :func:`imu_bag_topics`)."""
+    keep = [(c, t) for c, t in listed if t.count and (
+        t.msgtype == IMU or (t.msgtype == VECTOR3 and _role(t.topic)[0] is not None))]
+    return keep or [(c, t) for c, t in listed if t.count and t.msgtype == VECTOR3]
+
+
+def imu_bag_topics(path: str | os.PathLike) -> list[BagTopic]:
+    """The IMU streams of a bag, in the bag's order: every ``sensor_msgs/Imu`` topic with
+    messages and every ``Vector3Stamped`` topic whose name marks a gyroscope or an accelerometer
+    (``gyro``/``angular``, ``acc``/``linear``); a bag with neither gives its other
+    ``Vector3Stamped`` topics (as :func:`read_bag` does with no topic). Each Vector3Stamped topic
+    is one single-sensor stream: gmwm does not merge a gyroscope topic and an accelerometer topic
+    (their stamps differ). None at all is an :class:`InputError` listing the bag's topics."""
+    p = Path(path)
+    bag = _open(p)
+    try:
+        found = _imu_candidates(bag.topics(rates=False))
+        if not found:
+            raise InputError(f"{p} has no sensor_msgs/Imu or Vector3Stamped topic with messages; "
+                             f"its topics: {_listing([t for _, t in bag.topics(rates=True)])}")
+        rated = {t.topic: t for _, t in bag.topics(rates=True)}
+        return [rated[t.topic] for _, t in found]
+    finally:
+        bag.close()
+
+
+def read_bag_topics(path: str | os.PathLike, topics: str | Sequence[str] = "all"
+                    ) -> dict[str, TopicData]:
+    """Decode several IMU topics of one bag, opened (container index parsed) once.
+
+    ``topics``: ``"all"`` (the streams of :func:`imu_bag_topics`) or topic names (a leading
+    ``/`` may be left out). Returns topic -> :class:`TopicData` in the order asked for (the bag's
+    order for ``"all"``). An unknown or repeated topic, an unsupported type or an empty topic is
+    an :class:`InputError` naming it."""
+    p = Path(path)
+    bag = _open(p)
+    try:
+        listed = bag.topics(rates=False)
+        if isinstance(topics, str) and topics.strip().lower() == "all":
+            chosen = _imu_candidates(listed)
+            if not chosen:
+                raise InputError(f"{p} has no sensor_msgs/Imu or Vector3Stamped topic with "
+                                 f"messages; its topics: "
+                                 f"{_listing([t for _, t in bag.topics(rates=True)]) or 'none'}")
+        else:
+            names = [topics] if isinstance(topics, str) else list(topics)
+            if not names:
+                raise InputError("no topic given")
+            chosen = []
+            for name in names:
+                found = [(c, t) for c, t in listed if t.topic in (name, "/" + name)]
+                if not found:
+                    raise InputError(f"topic {name!r} not in {p}; its topics: "
+                                     f"{_listing([t for _, t in bag.topics(rates=True)])}")
+                conn, info = found[0]
+                if info.msgtype not in SUPPORTED:
+                    raise InputError(f"topic {info.topic} of {p} has type {info.msgtype}; gmwm "
+                                     "reads sensor_msgs/Imu and geometry_msgs/Vector3Stamped")
+                if any(t.topic == info.topic for _, t in chosen):
+                    raise InputError(f"topic {info.topic} requested twice")
+                chosen.append((conn, info))
+        return {info.topic: _decoded(bag, conn, info, p) for conn, info in chosen}
+    finally:
+        bag.close()

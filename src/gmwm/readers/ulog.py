@@ -15,14 +15,16 @@ Temperature (deg C): the ``temperature`` field of ``sensor_gyro`` / ``sensor_acc
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from gmwm.errors import InputError
 
-__all__ = ["ULOG_MAGIC", "UlogData", "read_ulog"]
+__all__ = ["ULOG_MAGIC", "UlogData", "read_ulog", "read_ulog_topics", "ulog_imu_topics"]
 
 ULOG_MAGIC = b"ULog\x01\x12\x35"
 _TOPICS = ("sensor_combined", "sensor_gyro", "sensor_accel")
@@ -54,15 +56,13 @@ def _split_topic(topic: str) -> tuple[str, int | None]:
     return name, None
 
 
-def read_ulog(path: str | os.PathLike, topic: str | None = None) -> UlogData:
-    """Read the IMU topic of a PX4 ULog. ``topic``: ``sensor_combined`` (default when logged),
-    ``sensor_gyro`` or ``sensor_accel``, optionally ``:INSTANCE`` (``sensor_gyro:1``)."""
+def _open(p: Path) -> tuple[Any, dict[tuple[str, int], Any], str]:
+    """The parsed ULog (IMU topics only), its topics by (name, instance) and their listing."""
     try:
         from pyulog import ULog
     except ModuleNotFoundError:
         raise InputError("reading PX4 ULog files needs the package 'pyulog': "
                          "pip install 'gmwm[recordings]'") from None
-    p = Path(path)
     try:
         ulog = ULog(str(p), list(_TOPICS))
     except Exception as exc:  # noqa: BLE001 - pyulog raises bare exceptions on damaged files
@@ -71,6 +71,69 @@ def read_ulog(path: str | os.PathLike, topic: str | None = None) -> UlogData:
     have = {(d.name, d.multi_id): d for d in ulog.data_list}
     listing = ", ".join(f"{n}:{i} ({d.data['timestamp'].size} messages)"
                         for (n, i), d in sorted(have.items())) or "none"
+    return ulog, have, listing
+
+
+def _streams(have: dict[tuple[str, int], Any]) -> list[tuple[str, int]]:
+    """The IMU streams of a log (see :func:`ulog_imu_topics`)."""
+    raw = sorted(((n, i) for n, i in have if n != "sensor_combined"),
+                 key=lambda k: (k[1], k[0] != "sensor_gyro"))
+    return raw or sorted(k for k in have if k[0] == "sensor_combined")
+
+
+def _label(name: str, inst: int) -> str:
+    return name if name == "sensor_combined" and inst == 0 else f"{name}:{inst}"
+
+
+def ulog_imu_topics(path: str | os.PathLike) -> list[str]:
+    """The IMU streams of a PX4 ULog: every logged instance of ``sensor_gyro`` and
+    ``sensor_accel`` (``sensor_gyro:0``, ``sensor_accel:0``, ``sensor_gyro:1``, ... by instance),
+    else ``sensor_combined``. The raw topics are preferred because ``sensor_combined`` repeats the
+    primary IMU's data; a gyroscope and an accelerometer instance stay separate streams (each has
+    its own stamps). None logged is an :class:`InputError`."""
+    p = Path(path)
+    have = _open(p)[1]
+    found = _streams(have)
+    if not found:
+        raise InputError(f"{p} logs no IMU topic ({', '.join(_TOPICS)})")
+    return [_label(n, i) for n, i in found]
+
+
+def read_ulog_topics(path: str | os.PathLike, topics: str | Sequence[str] = "all"
+                     ) -> dict[str, UlogData]:
+    """Read several IMU topics of a PX4 ULog, parsed once: ``topics`` ``"all"`` (the streams of
+    :func:`ulog_imu_topics`) or names as :func:`read_ulog` takes them. Returns label ->
+    :class:`UlogData` (labels ``sensor_combined``, ``sensor_gyro:1``, ...) in the order asked."""
+    p = Path(path)
+    ulog, have, listing = _open(p)
+    if isinstance(topics, str) and topics.strip().lower() == "all":
+        wanted = [_label(n, i) for n, i in _streams(have)]
+        if not wanted:
+            raise InputError(f"{p} logs no IMU topic ({', '.join(_TOPICS)})")
+    else:
+        wanted = [topics] if isinstance(topics, str) else list(topics)
+        if not wanted:
+            raise InputError("no topic given")
+    out: dict[str, UlogData] = {}
+    for t in wanted:
+        d = _extract(p, ulog, have, listing, t)
+        if d.topic in out:
+            raise InputError(f"topic {d.topic} requested twice")
+        out[d.topic] = d
+    return out
+
+
+def read_ulog(path: str | os.PathLike, topic: str | None = None) -> UlogData:
+    """Read the IMU topic of a PX4 ULog. ``topic``: ``sensor_combined`` (default when logged),
+    ``sensor_gyro`` or ``sensor_accel``, optionally ``:INSTANCE`` (``sensor_gyro:1``)."""
+    p = Path(path)
+    ulog, have, listing = _open(p)
+    return _extract(p, ulog, have, listing, topic)
+
+
+def _extract(p: Path, ulog: Any, have: dict[tuple[str, int], Any], listing: str,
+             topic: str | None) -> UlogData:
+    """The IMU topic ``topic`` (see :func:`read_ulog`) of the parsed log."""
     if topic is None:
         if ("sensor_combined", 0) in have:
             name, inst = "sensor_combined", 0
@@ -113,7 +176,7 @@ def read_ulog(path: str | os.PathLike, topic: str | None = None) -> UlogData:
     if ulog.dropouts:
         lost = sum(getattr(x, "duration", 0) for x in ulog.dropouts)
         notes.append(f"{p}: the logger reports {len(ulog.dropouts)} dropout(s) ({lost} ms in all)")
-    label = name if name == "sensor_combined" else f"{name}:{inst}"
+    label = _label(name, inst)
     stamps = np.asarray(d[stamp_field], dtype=np.int64)
     temp, source = _temperature(have, name, d, stamps, label)
     return UlogData(label, stamps, vectors, units, roles, stamp_field, notes, temp, source)

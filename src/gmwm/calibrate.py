@@ -1,0 +1,217 @@
+"""Calibrate the IMUs of a recording: for each stream the stationarity check, the gap policy, a
+GMWM fit per axis and the datasheet coefficients, ready for :func:`gmwm.report.write_report` or
+:func:`gmwm.report.write_multi_report`.
+
+The fits of several IMUs are independent, so :func:`calibrate_imus` runs the (IMU, axis) fits
+concurrently, at most one per core this process may use (``os.sched_getaffinity``). Threads by
+default: a fit spends most of its time in code that releases the GIL (numba ``nogil`` kernels,
+LAPACK, the C WV kernel), so threads overlap about as well as worker processes without their
+start-up and the copying of each signal (``benchmarks/bench_multi_imu.py`` measures serial,
+threads and processes). Each fit is deterministic for a given ``seed``, so the results do not
+depend on the number of workers or their kind.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import threading
+from collections.abc import Mapping
+from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+
+from gmwm.errors import InputError
+
+__all__ = ["available_cores", "calibrate_imus", "prepare_imu"]
+
+
+def available_cores() -> int:
+    """The number of cores this process may run on (its CPU affinity; at least 1)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _rostopic(rec: Any) -> str | None:
+    """The ROS topic a filter subscribes to, for a bag recording (a ULog stream has none)."""
+    return rec.topic if rec.topic and rec.format.startswith("ros") else None
+
+
+def prepare_imu(rec: Any, *, units: Mapping[str, str | None] | None = None,
+                levels: int | None = None, gaps: str = "auto", start_s: float | None = None,
+                end_s: float | None = None, segment: str = "all", strict: bool = False
+                ) -> dict[str, Any]:
+    """The stationarity check, the part used and the fit inputs of one recording.
+
+    ``units``: channel -> signal unit replacing the recording's (e.g. for a Vector3Stamped
+    topic); ``levels``: number of WV scales (None: all); ``gaps``: the gap policy
+    (:meth:`gmwm.readers.recording.Recording.gaps`); ``start_s``/``end_s``: the part to use,
+    seconds since the first sample; ``segment``: ``"all"`` or ``"longest-static"`` (the longest
+    stretch of that part no flagged range touches); ``strict``: a used part that moved is a
+    :class:`gmwm.stationarity.NonStationaryError`. Returns ``recording`` (the part used),
+    ``stationarity``, ``gaps`` (the decision), ``data`` channel -> fit input (signal or pooled
+    WV), ``units``, ``freq``, ``timing`` (report lines) and ``notes`` (warnings to show)."""
+    from gmwm.readers.recording import sample_range, select_samples
+    from gmwm.readers.timebase import signal_for_wv
+    from gmwm.stationarity import NonStationaryError, check_stationarity
+
+    where = rec.path + (f" topic {rec.topic}" if rec.topic else "")
+    tb = rec.require_time(f"a calibration report of {where}")
+    u = {c: (units or {}).get(c, rec.units.get(c)) for c in rec.channels}
+    st = check_stationarity(rec, units=u)
+    i0, i1 = (0, rec.n) if start_s is None and end_s is None else \
+        sample_range(rec, start_s, end_s)
+    how = "the whole recording" if (i0, i1) == (0, rec.n) else "--start/--end"
+    if segment == "longest-static":
+        free, at = [], i0
+        for s in st.segments:  # the stretches of the requested range no flagged segment touches
+            if s.i0 > at:
+                free.append((at, min(s.i0, i1)))
+            at = max(at, s.i1)
+        if at < i1:
+            free.append((at, i1))
+        free = [(a, b) for a, b in free if b > a]
+        if not free or max(b - a for a, b in free) < 64:
+            raise NonStationaryError(f"--segment longest-static: {where} has no static stretch "
+                                     "of 64 samples or more")
+        i0, i1 = max(free, key=lambda e: e[1] - e[0])
+        how = "longest static segment" + ("" if how.startswith("the whole") else
+                                          " within --start/--end")
+    elif segment != "all":
+        raise InputError(f"unknown segment choice {segment!r}; use all or longest-static")
+    st = st.using(i0, i1, how)
+    if strict and st.moving_in_used:
+        raise NonStationaryError(f"{where} is not static in the part used and --strict is set")
+    notes = [*rec.notes, *st.warnings()]
+    used = select_samples(rec, i0, i1)
+    decision = used.gaps(gaps)
+    if decision.message:
+        notes.append(decision.message)
+    timing = [f"Recording ({rec.format}{', topic ' + rec.topic if rec.topic else ''}): "
+              + tb.summary()]
+    timing += [n for n in rec.notes if n not in timing]
+    if decision.message:
+        timing.append(decision.message)
+    data = {c: signal_for_wv(x, decision, levels, tb.freq) for c, x in used.channels.items()}
+    return {"recording": used, "stationarity": st, "gaps": decision, "data": data, "units": u,
+            "freq": tb.freq, "timing": timing, "notes": notes}
+
+
+def _fit_one(data: Any, spec: str, freq: float, levels: int | None,
+             options: Mapping[str, Any]) -> Any:
+    """One axis's GMWM fit (runs in a worker)."""
+    import gmwm
+    from gmwm.model import Model
+
+    lv = levels if isinstance(data, np.ndarray) else None  # a pooled WV is already subset
+    return gmwm.fit(data, Model(spec, freq=freq), levels=lv, freq=freq, **dict(options))
+
+
+def _warm() -> None:
+    """Load the compiled kernels in a new worker before the first fit (numba's on-disk cache)."""
+    import gmwm  # noqa: F401
+    from gmwm import estimator  # noqa: F401
+
+
+def _executor(kind: str, workers: int) -> Executor:
+    if kind == "thread":
+        return ThreadPoolExecutor(max_workers=workers)
+    if kind != "process":
+        raise InputError(f"unknown executor {kind!r}; use 'process' or 'thread'")
+    # fork: a worker inherits the imported modules and loaded kernels and starts at once; with
+    # other threads alive (which a fork would copy mid-flight) a fresh forkserver worker instead
+    if os.name != "posix":
+        return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context(
+            "spawn"), initializer=_warm)
+    method = "fork" if threading.active_count() == 1 else "forkserver"
+    return ProcessPoolExecutor(max_workers=workers,
+                               mp_context=multiprocessing.get_context(method),
+                               initializer=None if method == "fork" else _warm)
+
+
+def _axis_warnings(res: Any, st: Any, channel: str) -> list[str]:
+    """The fit's diagnostics warnings and, when the part used moved in this channel, where."""
+    found = [str(w) for w in (getattr(res, "diagnostics", None) or {}).get("warnings", [])]
+    if st is not None:
+        a, b = st.used or (0, st.n)
+        segs = [s for s in st.segments_in(a, b) if channel in s.channels]
+        if segs:
+            where = ", ".join(st.span(s.start_s, s.end_s) for s in segs[:4])
+            found.append(f"not static in {where}"
+                         + (f" and {len(segs) - 4} more ranges" if len(segs) > 4 else "")
+                         + " (see Stationarity): the coefficients include that motion")
+    return found
+
+
+def calibrate_imus(recordings: Mapping[str, Any], model: str | Mapping[str, str] = "WN+RW", *,
+                   units: Mapping[str, Mapping[str, str | None]] | None = None,
+                   levels: int | None = None, gaps: str = "auto", start_s: float | None = None,
+                   end_s: float | None = None, segment: str = "all", strict: bool = False,
+                   fit_options: Mapping[str, Any] | None = None, workers: int | None = None,
+                   executor: str = "thread", progress: Any = None) -> dict[str, Any]:
+    """Calibrate every IMU of ``recordings`` (topic -> :class:`gmwm.readers.Recording`, e.g.
+    from :func:`gmwm.readers.read_recordings`); return topic -> :class:`gmwm.report.ImuSection`
+    in the same order, for :func:`gmwm.report.write_multi_report`.
+
+    ``model``: one model string for every axis, or channel -> model string; ``units``: topic ->
+    (channel -> unit) replacing the file's; ``levels``, ``gaps``, ``start_s``, ``end_s``,
+    ``segment``, ``strict``: as :func:`prepare_imu`, for every IMU; ``fit_options``: passed to
+    :func:`gmwm.fit` (``method``, ``weights``, ``seed``, ``n_starts``, ...). ``workers``: fits run
+    at once (None: :func:`available_cores`; 1: one after the other); ``executor``: ``"thread"``
+    (default) or ``"process"``. ``progress``: called with a one-line message per step.
+
+    Each ``ImuSection.axes[channel]`` holds ``result``, ``units``, ``warnings`` and
+    ``datasheet`` (what :func:`gmwm.report.write_report` needs; a caller may add ``verdict``);
+    ``timing`` lists the time base, the gap decision and the recording's notes. Those notes, the
+    stationarity warnings and the gap decision also go to ``progress`` as ``warning: ...``."""
+    from gmwm.datasheet import datasheet
+    from gmwm.model import Model
+    from gmwm.report import ImuSection
+
+    if not recordings:
+        raise InputError("no IMU to calibrate")
+    say = progress or (lambda _msg: None)
+    prepared: dict[str, dict[str, Any]] = {}
+    jobs: list[tuple[str, str, Any, str, float]] = []
+    for topic, rec in recordings.items():
+        say(f"checking stationarity of {topic}")
+        prep = prepare_imu(rec, units=(units or {}).get(topic), levels=levels, gaps=gaps,
+                           start_s=start_s, end_s=end_s, segment=segment, strict=strict)
+        for note in prep["notes"]:
+            say(f"warning: {topic}: {note}")
+        prepared[topic] = prep
+        for c, d in prep["data"].items():
+            spec = model if isinstance(model, str) else model.get(c)
+            if spec is None:
+                raise InputError(f"no model given for channel {c} of {topic}")
+            Model(spec, freq=prep["freq"])  # a wrong model string fails before any fit
+            jobs.append((topic, c, d, spec, prep["freq"]))
+    n = min(len(jobs), available_cores() if workers is None else max(1, int(workers)))
+    opts = dict(fit_options or {})
+    results: dict[tuple[str, str], Any] = {}
+    if n <= 1:
+        for topic, c, d, spec, freq in jobs:
+            say(f"fitting {spec} to {c} of {topic}")
+            results[(topic, c)] = _fit_one(d, spec, freq, levels, opts)
+    else:
+        say(f"fitting {len(jobs)} axes in {n} parallel {executor}s")
+        with _executor(executor, n) as pool:
+            futures = {(t, c): pool.submit(_fit_one, d, spec, freq, levels, opts)
+                       for t, c, d, spec, freq in jobs}
+            results = {k: f.result() for k, f in futures.items()}
+    out: dict[str, Any] = {}
+    for topic, prep in prepared.items():
+        rec, st = prep["recording"], prep["stationarity"]
+        axes = {}
+        for c in prep["data"]:
+            res = results[(topic, c)]
+            unit = prep["units"].get(c)
+            axes[c] = {"result": res, "units": unit or "",
+                       "warnings": _axis_warnings(res, st, c),
+                       "datasheet": datasheet(res, unit or None)}
+        label = f"{rec.format}, {rec.n} samples"
+        out[topic] = ImuSection(axes, tuple(prep["timing"]), st, _rostopic(rec), label)
+    return out
