@@ -84,31 +84,52 @@ def _u32(buf: np.ndarray, pos: np.ndarray, big: bool = False) -> np.ndarray:
     return np.ascontiguousarray(b).view(">u4" if big else "<u4").reshape(-1)
 
 
+def _rows(buf: np.ndarray, starts: np.ndarray, width: int) -> np.ndarray | None:
+    """An (n, width) uint8 view of ``buf`` at ``starts`` when they are equally spaced (the usual
+    case: one topic per chunk, one message size), else None. No copy."""
+    n = starts.size
+    if n == 0 or int(starts[0]) < 0:
+        return None
+    if n == 1:
+        stride = width
+    else:
+        stride = int(starts[1] - starts[0])
+        if stride < width or int(starts[-1] - starts[0]) != (n - 1) * stride:
+            return None
+        if n > 2 and not np.array_equal(np.diff(starts), np.broadcast_to(stride, (n - 1,))):
+            return None
+    if int(starts[-1]) + width > buf.size:
+        return None
+    return np.lib.stride_tricks.as_strided(buf[int(starts[0]):], shape=(n, width),
+                                           strides=(stride, 1), writeable=False)
+
+
 def _gather(buf: np.ndarray, starts: np.ndarray, fields: list[tuple[int, str]], big: bool
             ) -> list[np.ndarray]:
     """Gather the fields (byte offset from each start, 'u4'/'i4'/'3f8') of every message."""
-    out: list[list[np.ndarray]] = [[] for _ in fields]
     order = ">" if big else "<"
+    width = max(off + (24 if k == "3f8" else 4) for off, k in fields)
+    rows = _rows(buf, starts, width)
+    if rows is not None:
+        # equally spaced messages: slice each field's bytes out of the strided view
+        out = []
+        for off, k in fields:
+            w = 24 if k == "3f8" else 4
+            col = np.ascontiguousarray(rows[:, off:off + w])
+            out.append(col.view(order + ("f8" if k == "3f8" else k))
+                       .reshape((-1, 3) if k == "3f8" else -1))
+        return out
+    parts: list[list[np.ndarray]] = [[] for _ in fields]
     cols = np.concatenate([np.arange(off, off + (24 if k == "3f8" else 4)) for off, k in fields])
     dtype = np.dtype([(f"f{i}", order + "f8", (3,)) if k == "3f8" else (f"f{i}", order + k)
                       for i, (_, k) in enumerate(fields)])
-    steps = np.diff(starts)
-    stride = int(steps[0]) if steps.size else 0
-    if stride > 0 and np.all(steps == stride) and int(starts[0]) + starts.size * stride <= buf.size:
-        # equally spaced messages (one topic per chunk): a structured view of the buffer itself
-        view = np.ndarray((starts.size,), dtype=np.dtype({
-            "names": [f"f{i}" for i in range(len(fields))],
-            "formats": [(order + "f8", (3,)) if k == "3f8" else order + k for _, k in fields],
-            "offsets": [off for off, _ in fields], "itemsize": stride}),
-            buffer=buf, offset=int(starts[0]))
-        return [np.array(view[f"f{i}"]) for i in range(len(fields))]
     for a in range(0, starts.size, _BLOCK):
         s = starts[a:a + _BLOCK]
         raw = np.ascontiguousarray(buf[s[:, None] + cols[None, :]])
         rec = raw.view(dtype).reshape(-1)
         for i in range(len(fields)):
-            out[i].append(np.array(rec[f"f{i}"]))
-    return [np.concatenate(o) if o else np.empty(0) for o in out]
+            parts[i].append(np.array(rec[f"f{i}"]))
+    return [np.concatenate(o) if o else np.empty(0) for o in parts]
 
 
 def _layout(msgtype: str, cdr: bool, size: int, frame_len: int) -> int | None:
@@ -133,45 +154,45 @@ def decode(buf: np.ndarray, starts: np.ndarray, sizes: np.ndarray, msgtype: str,
         return stamp, vec
     hdr = 4 if cdr else 0  # CDR: the encapsulation header precedes the payload
     if cdr:
-        enc = buf[starts[:, None] + np.arange(2)]
-        if np.any(enc[:, 0] != 0) or np.any(enc[:, 1] > 1):
-            i = int(np.argmax((enc[:, 0] != 0) | (enc[:, 1] > 1)))
+        enc = _rows(buf, starts, 2)
+        enc = buf[starts[:, None] + np.arange(2)] if enc is None else enc
+        bad = (enc[:, 0] != 0) | (enc[:, 1] > 1)
+        if bad.any():
+            i = int(np.argmax(bad))
             raise InputError(f"{where}: message {i + 1} is not plain CDR (encapsulation "
                              f"{bytes(enc[i]).hex()}); gmwm reads CDR_LE and CDR_BE")
         big_all = enc[:, 1] == 0
     else:
         big_all = np.zeros(n, dtype=bool)
-    for size in np.unique(sizes):
-        for big in (False, True):
-            sel = np.flatnonzero((sizes == size) & (big_all == big))
-            if sel.size == 0:
-                continue
-            s = starts[sel]
-            stamp_off = hdr + (0 if cdr else 4)
-            frame_off = hdr + (8 if cdr else 12)
-            flen = _u32(buf, s + frame_off, big)
-            o = _layout(msgtype, cdr, int(size), int(flen[0]))
-            ok = o is not None and np.all(flen == flen[0])
-            if not ok:
-                raise InputError(f"{where}: {sel.size} message(s) of {int(size)} bytes do not have "
-                                 f"the {msgtype} layout (frame_id length {int(flen[0])})")
-            if msgtype == IMU:
-                sec, nsec, g, a = _gather(buf, s, [(stamp_off, "u4" if not cdr else "i4"),
-                                                   (stamp_off + 4, "u4"), (o + 104, "3f8"),
-                                                   (o + 200, "3f8")], big)
-                for k, arr in zip(names[:3], g.T, strict=True):
-                    vec[k][sel] = arr
-                for k, arr in zip(names[3:], a.T, strict=True):
-                    vec[k][sel] = arr
-            else:
-                sec, nsec, v = _gather(buf, s, [(stamp_off, "u4" if not cdr else "i4"),
-                                                (stamp_off + 4, "u4"), (o, "3f8")], big)
-                for k, arr in zip(names, v.T, strict=True):
-                    vec[k][sel] = arr
-            if np.any(nsec >= 1_000_000_000):
-                raise InputError(f"{where}: header.stamp nanoseconds of 1e9 or more (not a "
-                                 f"{msgtype} message?)")
-            stamp[sel] = sec.astype(np.int64) * 1_000_000_000 + nsec.astype(np.int64)
+    if sizes.min() == sizes.max() and big_all.min() == big_all.max():
+        groups = [(slice(None), int(sizes[0]), bool(big_all[0]))]  # the usual case: one group
+    else:
+        groups = [(sel, int(size), big) for size in np.unique(sizes) for big in (False, True)
+                  if (sel := np.flatnonzero((sizes == size) & (big_all == big))).size]
+    stamp_off = hdr + (0 if cdr else 4)
+    frame_off = hdr + (8 if cdr else 12)
+    for sel, size, big in groups:
+        s = starts[sel]
+        sec, nsec, flen = _gather(buf, s, [(stamp_off, "u4" if not cdr else "i4"),
+                                           (stamp_off + 4, "u4"), (frame_off, "u4")], big)
+        o = _layout(msgtype, cdr, size, int(flen[0]))
+        if o is None or np.any(flen != flen[0]):
+            raise InputError(f"{where}: {s.size} message(s) of {size} bytes do not have "
+                             f"the {msgtype} layout (frame_id length {int(flen[0])})")
+        if np.any(nsec >= 1_000_000_000):
+            raise InputError(f"{where}: header.stamp nanoseconds of 1e9 or more (not a "
+                             f"{msgtype} message?)")
+        if msgtype == IMU:
+            g, a = _gather(buf, s, [(o + 104, "3f8"), (o + 200, "3f8")], big)
+            for k, arr in zip(names[:3], g.T, strict=True):
+                vec[k][sel] = arr
+            for k, arr in zip(names[3:], a.T, strict=True):
+                vec[k][sel] = arr
+        else:
+            (v,) = _gather(buf, s, [(o, "3f8")], big)
+            for k, arr in zip(names, v.T, strict=True):
+                vec[k][sel] = arr
+        stamp[sel] = sec.astype(np.int64) * 1_000_000_000 + nsec
     return stamp, vec
 
 
