@@ -2,12 +2,14 @@
 messages) as a ROS 1 bag, a ROS 2 sqlite3 bag and a ROS 2 MCAP bag (written by rosbags' writers),
 a PX4 ULog of the same length, and a 1e7-row EuRoC CSV.
 
-    python benchmarks/bench_readers.py [--dir DIR] [--repeat 3] [--euroc-rows 10000000] [--write]
+    python benchmarks/bench_readers.py [--dir DIR] [--repeat 3] [--euroc-rows 10000000]
+        [--no-report] [--readme]
 
 Files are written once to DIR (default: a temporary folder; give --dir to keep them between
 runs). Each read is ``gmwm.readers.read_recording(path)``, best of --repeat after a warm-up
-call, CPU and wall seconds; the import of the container libraries is outside the timing.
-``--write`` stores the table in docs/recordings_speed.md (run it on an idle machine).
+call, CPU and wall seconds; the import of the container libraries is outside the timing. Then
+``gmwm report`` on the ROS 1 bag end to end (a child process: wall, CPU and peak RSS of the child).
+``--readme`` writes the tables into benchmarks/README.md (run it on an idle machine).
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bench_wv import best_time
+from readme_section import load as load_avg
+from readme_section import machine, run_measured, update_section
 
 T0 = 1_700_000_000_000_000_000
 FS = 200.0
@@ -113,7 +117,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--messages", type=int, default=720_000)
     ap.add_argument("--euroc-rows", type=int, default=10_000_000)
-    ap.add_argument("--write", action="store_true")
+    ap.add_argument("--no-report", action="store_true", help="skip the `gmwm report` run")
+    ap.add_argument("--readme", action="store_true", help="write the tables into README.md")
     args = ap.parse_args()
     tmp = None
     if args.dir is None:
@@ -139,7 +144,7 @@ def main() -> None:
 
     from gmwm.readers.recording import read_recording
 
-    load = os.getloadavg()[0]
+    before = load_avg()
     rows = []
     for name, (p, _) in files.items():
         rec = read_recording(p)
@@ -149,15 +154,28 @@ def main() -> None:
             "|---|---|---|---|---|---|")
     table = "\n".join([head] + [f"| {r[0]} | {r[1]} | {r[2]:g} | {r[3]:.3f} | {r[4]:.3f} | "
                                 f"{r[5]:.3g} |" for r in rows])
-    info = (f"`read_recording`, best of {args.repeat} after a warm-up call; 1-minute load "
-            f"average {load:.2f} before the runs; {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}.")
-    print(table)
+    report = ""
+    if not args.no_report:
+        bag = files["ROS 1 bag"][0]
+        out = d / "report_out"
+        shutil.rmtree(out, ignore_errors=True)
+        r = run_measured([sys.executable, "-m", "gmwm", "report", str(bag), "-o", str(out)],
+                         env={**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [
+                             str(Path(__file__).resolve().parents[1] / "src"),
+                             os.environ.get("PYTHONPATH")]))})
+        if r["code"] != 0:
+            print(r["err"], file=sys.stderr)
+        report = ("\n\n| run | exit | wall [s] | CPU of the child [s] | peak RSS [MB] |\n"
+                  "|---|---|---|---|---|\n"
+                  f"| `gmwm report {bag.name} -o DIR` ({n} messages, 200 Hz, six axes) | "
+                  f"{r['code']} | {r['wall']:.2f} | {r['cpu']:.2f} | {r['rss_mb']:.0f} |")
+        shutil.rmtree(out, ignore_errors=True)
+    info = (f"`python benchmarks/bench_readers.py`: `read_recording`, best of {args.repeat} after "
+            f"a warm-up call; {machine()}; load average {before} before, {load_avg()} after.")
     print(info)
-    if args.write:
-        out = Path(__file__).resolve().parents[1] / "docs" / "recordings_speed.md"
-        out.write_text("# Decoding speed of the recording readers\n\nWritten by "
-                       "`python benchmarks/bench_readers.py --write`.\n\n" + table + "\n\n"
-                       + info + "\n")
+    print(table + report)
+    if args.readme:
+        update_section("bench_readers", info + "\n\n" + table + report)
     if tmp is not None:
         shutil.rmtree(tmp, ignore_errors=True)
 

@@ -192,6 +192,39 @@ def test_bag_out_of_order_and_dropped_messages(tmp_path):
     assert tb.longest_gap_s == pytest.approx(4 / FS)
 
 
+def test_sqlite3_rows_out_of_record_time_order_read_like_rosbags(tmp_path, monkeypatch):
+    """The sqlite3 fast path reads table rows in batches (here of 7 rows) and puts them in
+    record-time order, ties in table order: the same messages, order and notes as rosbags'
+    per-message iterator (ORDER BY timestamp)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from gmwm.readers import rosbag
+
+    n = 60
+    g, a = _signals(n, 4)
+    st = _stamps(n)
+    rec_t = T0 + np.arange(n) * 1000
+    rec_t[[5, 6, 7]] = rec_t[[7, 5, 6]]  # rows stored out of record-time order
+    rec_t[20:23] = rec_t[20]  # equal record times: table order decides
+    st[[30, 31]] = st[[31, 30]]  # and header stamps out of order
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    with Writer(tmp_path / "o_db3", version=9, storage_plugin=StoragePlugin.SQLITE3) as w:
+        c = w.add_connection("/imu", "sensor_msgs/msg/Imu", typestore=ts)
+        for i in range(n):
+            w.write(c, int(rec_t[i]), ts.serialize_cdr(_imu(ts, int(st[i]), g[i], a[i], "imu"),
+                                                        "sensor_msgs/msg/Imu"))
+    monkeypatch.setattr(rosbag, "_SQL_ROWS", 7)
+    fast = rosbag.read_bag(tmp_path / "o_db3")
+    monkeypatch.setattr(rosbag._Ros2, "_sqlite", staticmethod(lambda storage, conn: None))
+    slow = rosbag.read_bag(tmp_path / "o_db3")
+    np.testing.assert_array_equal(fast.stamp_ns, slow.stamp_ns)
+    for k in slow.vectors:
+        np.testing.assert_array_equal(fast.vectors[k], slow.vectors[k])
+    assert fast.notes == slow.notes and any("sorted" in m for m in fast.notes)
+    np.testing.assert_array_equal(np.sort(fast.stamp_ns), np.sort(st))
+
+
 def _sensor_combined(n: int, g: np.ndarray, a: np.ndarray, t0_us: int = 5_000_000):
     fields = {"sensor_combined": [("timestamp", "uint64_t"), ("gyro_rad", "float[3]"),
                                   ("gyro_integral_dt", "float"),

@@ -8,9 +8,12 @@ known (ROS 1: packed little-endian; ROS 2: CDR with 8-byte alignment after the 4
 encapsulation header, little- or big-endian per message), so the stamps and the vectors are
 gathered from the raw bytes with NumPy, grouped by message size, and every group is checked
 (frame_id length against the size, encapsulation, record op codes and lengths) before it is
-trusted. One Python object per message would cost ~10 us; this costs well under 1 us. A bag the
-checks do not fit (a compressed-per-message ROS 2 bag, an MCAP without chunk index) is read
-through ``rosbags``' own per-message iterator, then decoded the same way.
+trusted; equally spaced messages (the usual case) are read through strided views of the
+chunk, without index arrays. The sqlite3 rows of a topic are fetched a batch of table rows per SQL
+aggregate (data concatenated, lengths and record times as text) instead of one Python object per
+row, and put in record-time order as rosbag2 reads them. A bag the checks do not fit (a
+compressed-per-message ROS 2 bag, an MCAP without chunk index, a sqlite3 database not in UTF-8)
+is read through ``rosbags``' own per-message iterator, then decoded the same way.
 
 Units and axis roles come from the message definition (REP 103): ``angular_velocity`` in rad/s
 (gyroscope), ``linear_acceleration`` in m/s^2 (accelerometer). Time is ``header.stamp``; a topic
@@ -20,6 +23,7 @@ whose stamps are all zero falls back to the bag's record time, with a note.
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from io import BytesIO
@@ -39,6 +43,8 @@ _ROS1_MAGIC = b"#ROSBAG V2.0\n"
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
 _SQLITE_MAGIC = b"SQLite format 3\x00"
 _BLOCK = 65536  # messages gathered per NumPy block
+_SQL_ROWS = 1 << 17  # table rows per SQL aggregate (bounds its blob)
+_SQL_MMAP = 1 << 30  # SQLite memory-mapped I/O [bytes]
 
 
 def _rosbags():
@@ -80,36 +86,57 @@ class TopicData:
 # vectorised decoding of the fixed layouts
 # --------------------------------------------------------------------------------------------------
 
+def _stride(buf: np.ndarray, starts: np.ndarray, width: int) -> int | None:
+    """The common spacing of ``starts`` when they are equally spaced (the usual case: one topic
+    per chunk, one message size) and records of ``width`` bytes fit in ``buf``, else None."""
+    n = starts.size
+    if n == 0 or int(starts[0]) < 0 or int(starts[-1]) + width > buf.size:
+        return None
+    if n == 1:
+        return width
+    stride = int(starts[1] - starts[0])
+    if stride < width or int(starts[-1] - starts[0]) != (n - 1) * stride:
+        return None
+    if n > 2 and not np.all(np.diff(starts) == stride):
+        return None
+    return stride
+
+
+def _field(buf: np.ndarray, starts: np.ndarray, off: int, dtype: str, count: int = 1,
+           stride: int | None = -1) -> np.ndarray:
+    """The ``dtype`` value(s) (``count`` of them: shape (n, count) when count > 1) at byte
+    ``off`` of every record ``buf[starts[i]:]``, as a new array. Equally spaced records are read
+    through a strided view of ``buf``; others are gathered byte by byte."""
+    dt = np.dtype(dtype)
+    width = off + dt.itemsize * count
+    if stride == -1:
+        stride = _stride(buf, starts, width)
+    if stride is not None and starts.size:
+        shape = (starts.size, count) if count > 1 else (starts.size,)
+        strides = (stride, dt.itemsize) if count > 1 else (stride,)
+        return np.array(np.ndarray(shape, dtype=dt, buffer=buf, offset=int(starts[0]) + off,
+                                   strides=strides))
+    b = buf[(starts + off)[:, None] + np.arange(dt.itemsize * count)]
+    out = np.ascontiguousarray(b).view(dt)
+    return out.reshape(-1, count) if count > 1 else out.reshape(-1)
+
+
 def _u32(buf: np.ndarray, pos: np.ndarray, big: bool = False) -> np.ndarray:
-    b = buf[pos[:, None] + np.arange(4)]
-    return np.ascontiguousarray(b).view(">u4" if big else "<u4").reshape(-1)
+    return _field(buf, pos, 0, ">u4" if big else "<u4")
 
 
 def _gather(buf: np.ndarray, starts: np.ndarray, fields: list[tuple[int, str]], big: bool
             ) -> list[np.ndarray]:
     """Gather the fields (byte offset from each start, 'u4'/'i4'/'3f8') of every message."""
-    out: list[list[np.ndarray]] = [[] for _ in fields]
     order = ">" if big else "<"
-    cols = np.concatenate([np.arange(off, off + (24 if k == "3f8" else 4)) for off, k in fields])
-    dtype = np.dtype([(f"f{i}", order + "f8", (3,)) if k == "3f8" else (f"f{i}", order + k)
-                      for i, (_, k) in enumerate(fields)])
-    steps = np.diff(starts)
-    stride = int(steps[0]) if steps.size else 0
-    if stride > 0 and np.all(steps == stride) and int(starts[0]) + starts.size * stride <= buf.size:
-        # equally spaced messages (one topic per chunk): a structured view of the buffer itself
-        view = np.ndarray((starts.size,), dtype=np.dtype({
-            "names": [f"f{i}" for i in range(len(fields))],
-            "formats": [(order + "f8", (3,)) if k == "3f8" else order + k for _, k in fields],
-            "offsets": [off for off, _ in fields], "itemsize": stride}),
-            buffer=buf, offset=int(starts[0]))
-        return [np.array(view[f"f{i}"]) for i in range(len(fields))]
-    for a in range(0, starts.size, _BLOCK):
-        s = starts[a:a + _BLOCK]
-        raw = np.ascontiguousarray(buf[s[:, None] + cols[None, :]])
-        rec = raw.view(dtype).reshape(-1)
-        for i in range(len(fields)):
-            out[i].append(np.array(rec[f"f{i}"]))
-    return [np.concatenate(o) if o else np.empty(0) for o in out]
+    width = max(off + (24 if k == "3f8" else 4) for off, k in fields)
+    stride = _stride(buf, starts, width)
+    if stride is not None or starts.size <= _BLOCK:
+        return [_field(buf, starts, off, order + ("f8" if k == "3f8" else k),
+                       3 if k == "3f8" else 1, stride) for off, k in fields]
+    parts = [_gather(buf, starts[a:a + _BLOCK], fields, big)
+             for a in range(0, starts.size, _BLOCK)]  # bounded index arrays
+    return [np.concatenate([q[i] for q in parts]) for i in range(len(fields))]
 
 
 def _layout(msgtype: str, cdr: bool, size: int, frame_len: int) -> int | None:
@@ -134,58 +161,58 @@ def decode(buf: np.ndarray, starts: np.ndarray, sizes: np.ndarray, msgtype: str,
         return stamp, vec
     hdr = 4 if cdr else 0  # CDR: the encapsulation header precedes the payload
     if cdr:
-        enc = buf[starts[:, None] + np.arange(2)]
-        if np.any(enc[:, 0] != 0) or np.any(enc[:, 1] > 1):
-            i = int(np.argmax((enc[:, 0] != 0) | (enc[:, 1] > 1)))
+        enc = _field(buf, starts, 0, "u1", 2)
+        bad = (enc[:, 0] != 0) | (enc[:, 1] > 1)
+        if bad.any():
+            i = int(np.argmax(bad))
             raise InputError(f"{where}: message {i + 1} is not plain CDR (encapsulation "
                              f"{bytes(enc[i]).hex()}); gmwm reads CDR_LE and CDR_BE")
         big_all = enc[:, 1] == 0
     else:
         big_all = np.zeros(n, dtype=bool)
-    for size in np.unique(sizes):
-        for big in (False, True):
-            sel = np.flatnonzero((sizes == size) & (big_all == big))
-            if sel.size == 0:
-                continue
-            s = starts[sel]
-            stamp_off = hdr + (0 if cdr else 4)
-            frame_off = hdr + (8 if cdr else 12)
-            flen = _u32(buf, s + frame_off, big)
-            o = _layout(msgtype, cdr, int(size), int(flen[0]))
-            ok = o is not None and np.all(flen == flen[0])
-            if not ok:
-                raise InputError(f"{where}: {sel.size} message(s) of {int(size)} bytes do not have "
-                                 f"the {msgtype} layout (frame_id length {int(flen[0])})")
-            if msgtype == IMU:
-                sec, nsec, g, a = _gather(buf, s, [(stamp_off, "u4" if not cdr else "i4"),
-                                                   (stamp_off + 4, "u4"), (o + 104, "3f8"),
-                                                   (o + 200, "3f8")], big)
-                for k, arr in zip(names[:3], g.T, strict=True):
-                    vec[k][sel] = arr
-                for k, arr in zip(names[3:], a.T, strict=True):
-                    vec[k][sel] = arr
-            else:
-                sec, nsec, v = _gather(buf, s, [(stamp_off, "u4" if not cdr else "i4"),
-                                                (stamp_off + 4, "u4"), (o, "3f8")], big)
-                for k, arr in zip(names, v.T, strict=True):
-                    vec[k][sel] = arr
-            if np.any(nsec >= 1_000_000_000):
-                raise InputError(f"{where}: header.stamp nanoseconds of 1e9 or more (not a "
-                                 f"{msgtype} message?)")
-            stamp[sel] = sec.astype(np.int64) * 1_000_000_000 + nsec.astype(np.int64)
+    if sizes.min() == sizes.max() and big_all.min() == big_all.max():
+        groups = [(slice(None), int(sizes[0]), bool(big_all[0]))]  # the usual case: one group
+    else:
+        groups = [(sel, int(size), big) for size in np.unique(sizes) for big in (False, True)
+                  if (sel := np.flatnonzero((sizes == size) & (big_all == big))).size]
+    stamp_off = hdr + (0 if cdr else 4)
+    frame_off = hdr + (8 if cdr else 12)
+    for sel, size, big in groups:
+        s = starts[sel]
+        sec, nsec, flen = _gather(buf, s, [(stamp_off, "u4" if not cdr else "i4"),
+                                           (stamp_off + 4, "u4"), (frame_off, "u4")], big)
+        o = _layout(msgtype, cdr, size, int(flen[0]))
+        if o is None or np.any(flen != flen[0]):
+            raise InputError(f"{where}: {s.size} message(s) of {size} bytes do not have "
+                             f"the {msgtype} layout (frame_id length {int(flen[0])})")
+        if np.any(nsec >= 1_000_000_000):
+            raise InputError(f"{where}: header.stamp nanoseconds of 1e9 or more (not a "
+                             f"{msgtype} message?)")
+        if msgtype == IMU:
+            g, a = _gather(buf, s, [(o + 104, "3f8"), (o + 200, "3f8")], big)
+            for k, arr in zip(names[:3], g.T, strict=True):
+                vec[k][sel] = arr
+            for k, arr in zip(names[3:], a.T, strict=True):
+                vec[k][sel] = arr
+        else:
+            (v,) = _gather(buf, s, [(o, "3f8")], big)
+            for k, arr in zip(names, v.T, strict=True):
+                vec[k][sel] = arr
+        stamp[sel] = sec.astype(np.int64) * 1_000_000_000 + nsec
     return stamp, vec
 
 
-class _LazyTimes:
-    """Record times of a sqlite3 query, fetched only when asked for."""
-
-    def __init__(self, db: Any, topic_id: int) -> None:
-        self.db, self.topic_id = db, topic_id
-
-    def get(self) -> np.ndarray:
-        rows = self.db.execute("SELECT timestamp FROM messages WHERE topic_id = ? "
-                               "ORDER BY timestamp", (self.topic_id,))
-        return np.fromiter((r[0] for r in rows), dtype=np.int64)
+def _ints(text: str | bytes | None, count: int) -> np.ndarray | None:
+    """The ``count`` integers of SQLite's comma-separated ``group_concat`` text, else None."""
+    if text is None:
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            out = np.fromstring(text, dtype=np.int64, sep=",")
+        except (ValueError, DeprecationWarning):
+            return None
+    return out if out.size == count else None
 
 
 def _from_blobs(blobs: list[bytes]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -301,7 +328,7 @@ def _join(stamps: list[np.ndarray], vecs: list[dict[str, np.ndarray]], rec: list
         return (np.empty(0, np.int64), {k: np.empty(0) for k in names},
                 lambda: np.empty(0, np.int64))
     return (np.concatenate(stamps), {k: np.concatenate([v[k] for v in vecs]) for k in names},
-            lambda: np.concatenate([r.get() if isinstance(r, _LazyTimes) else r for r in rec]))
+            lambda: np.concatenate(rec))
 
 
 def _mcap_index(bio: Any, chunk: Any, cid: int) -> np.ndarray | None:
@@ -366,43 +393,79 @@ class _Ros2:
 
     def read(self, conn: Any, where: str) -> tuple[np.ndarray, dict[str, np.ndarray], Any]:
         stamps, vecs, rec = [], [], []
-        for storage, sc in self._parts(conn):
+        parts = self._parts(conn)
+        got_all: list[tuple] | None = []
+        for storage, sc in parts:
             if self.per_message_zstd:
                 got = None
             elif hasattr(storage, "dbconn"):
                 got = self._sqlite(storage, sc)
             else:
                 got = self._mcap(storage, sc, where)
-            if got is None:  # the container's per-message iterator
-                blobs, times = [], []
-                for _, t, data in self.reader.messages([conn]):
-                    blobs.append(data)
-                    times.append(t)
-                buf, starts, sizes = _from_blobs(blobs)
-                got = [(buf, starts, sizes, np.asarray(times, dtype=np.int64))]
-                for buf, starts, sizes, t in got:
-                    s, v = decode(buf, starts, sizes, conn.msgtype, True, where)
-                    stamps.append(s)
-                    vecs.append(v)
-                    rec.append(t)
+            if got is None or got_all is None:
+                got_all = None
                 break
-            for buf, starts, sizes, t in got:
-                s, v = decode(buf, starts, sizes, conn.msgtype, True, where)
-                stamps.append(s)
-                vecs.append(v)
-                rec.append(t)
+            got_all.extend(got)
+        if got_all is None:  # the container's per-message iterator, in record-time order
+            blobs, times = [], []
+            for _, t, data in self.reader.messages([conn]):
+                blobs.append(data)
+                times.append(t)
+            buf, starts, sizes = _from_blobs(blobs)
+            got_all = [(buf, starts, sizes, np.asarray(times, dtype=np.int64))]
+        elif parts and all(hasattr(st, "dbconn") for st, _ in parts):
+            got_all = self._record_order(got_all)
+        for buf, starts, sizes, t in got_all:
+            s, v = decode(buf, starts, sizes, conn.msgtype, True, where)
+            stamps.append(s)
+            vecs.append(v)
+            rec.append(t)
         return _join(stamps, vecs, rec, conn.msgtype)
 
     @staticmethod
-    def _sqlite(storage: Any, conn: Any) -> list[tuple]:
-        # the data alone (the record times are read again only if header.stamp is empty)
-        rows = storage.dbconn.execute("SELECT data FROM messages WHERE topic_id = ? "
-                                      "ORDER BY timestamp", (conn.id,)).fetchall()
-        if not rows:
-            return []
-        buf, starts, sizes = _from_blobs([r[0] for r in rows])
-        del rows
-        return [(buf, starts, sizes, _LazyTimes(storage.dbconn, conn.id))]
+    def _record_order(got: list[tuple]) -> list[tuple]:
+        """sqlite3 batches in record-time order (ties in table order), as rosbag2 and rosbags
+        read them; the usual, already ordered, case costs one comparison pass."""
+        t = np.concatenate([g[3] for g in got]) if got else np.empty(0, np.int64)
+        if not np.any(t[1:] < t[:-1]):
+            return got
+        order = np.argsort(t, kind="stable")
+        bufs = [g[0] for g in got]
+        base = np.cumsum([0] + [b.size for b in bufs[:-1]])
+        starts = np.concatenate([g[1] + o for g, o in zip(got, base, strict=True)])[order]
+        sizes = np.concatenate([g[2] for g in got])[order]
+        buf = np.concatenate(bufs) if len(bufs) > 1 else bufs[0]
+        return [(buf, starts, sizes, t[order])]
+
+    @staticmethod
+    def _sqlite(storage: Any, conn: Any) -> list[tuple] | None:
+        """The topic's messages in batches of table rows, each batch one SQL aggregate: the data
+        concatenated, their lengths and record times as text (a Python object per message would
+        cost several times SQLite's own scan). None when the database does not fit that (the
+        per-message iterator then reads it)."""
+        db = storage.dbconn
+        if (db.execute("PRAGMA encoding").fetchone() or ("",))[0] != "UTF-8":
+            return None  # group_concat works on text: other encodings would transcode the bytes
+        db.execute(f"PRAGMA mmap_size={_SQL_MMAP}")  # pages read in place, not copied by read()
+        lo, hi = db.execute("SELECT min(id), max(id) FROM messages").fetchone()
+        out: list[tuple] = []
+        if lo is None:
+            return out
+        for a in range(lo - 1, hi, _SQL_ROWS):
+            blob, lengths, times, count = db.execute(
+                "SELECT CAST(group_concat(data, x'') AS BLOB), group_concat(length(data)), "
+                "group_concat(timestamp), count(*) FROM messages "
+                "WHERE topic_id = ? AND id > ? AND id <= ?", (conn.id, a, a + _SQL_ROWS)
+            ).fetchone()
+            if not count:
+                continue
+            sizes, t = _ints(lengths, count), _ints(times, count)
+            if sizes is None or t is None or blob is None or int(sizes.sum()) != len(blob):
+                return None
+            starts = np.zeros(count, dtype=np.int64)
+            np.cumsum(sizes[:-1], out=starts[1:])
+            out.append((np.frombuffer(blob, dtype=np.uint8), starts, sizes, t))
+        return out
 
     @staticmethod
     def _mcap(storage: Any, conn: Any, where: str) -> list[tuple] | None:
@@ -425,14 +488,15 @@ class _Ros2:
             off = idx["off"].astype(np.int64)
             if off.size == 0:
                 continue
-            if np.any(off + 31 > buf.size) or np.any(buf[off] != 0x05):
+            if off.min() < 0 or off.max() + 31 > buf.size or np.any(buf[off] != 0x05):
                 raise InputError(f"{where}: the MCAP message index does not point at messages "
                                  "(damaged file)")
-            length = np.ascontiguousarray(buf[(off + 1)[:, None] + np.arange(8)]).view("<u8")
-            chan = np.ascontiguousarray(buf[(off + 9)[:, None] + np.arange(2)]).view("<u2")
-            if np.any(chan.reshape(-1) != conn.id):
+            stride = _stride(buf, off, 31)
+            length = _field(buf, off, 1, "<u8", stride=stride)
+            chan = _field(buf, off, 9, "<u2", stride=stride)
+            if np.any(chan != conn.id):
                 raise InputError(f"{where}: the MCAP message index points at another channel")
-            sizes = length.reshape(-1).astype(np.int64) - 22
+            sizes = length.astype(np.int64) - 22
             starts = off + 31
             if np.any(sizes < 0) or np.any(starts + sizes > buf.size):
                 raise InputError(f"{where}: MCAP message records overrun their chunk")
