@@ -191,3 +191,28 @@ def test_a_wavelet_variance_is_accepted() -> None:
     c = choose_model(wv, kind="accelerometer", max_gm=1)
     assert c.result.wv.n_samples == 2**16 and math.isclose(c.result.wv.freq, F)
     assert c.model.spec == choose_model(x, freq=F, kind="accelerometer", max_gm=1).model.spec
+
+
+def test_report_renders_the_choice_and_its_warning(tmp_path) -> None:
+    """write_report with axes[name]["choice"]: the ranking table and the all-rejected warning
+    appear even when the caller's warning list is empty."""
+    from gmwm.report import write_report
+
+    t = np.arange(2**14)
+    bad = np.random.default_rng(68).standard_normal(t.size) + np.sign(np.sin(2 * np.pi * t / 500))
+    good = ACC.simulate_fast(ACC_THETA, 2**14, rng=np.random.default_rng(69))
+    axes = {}
+    for name, x in (("gx", bad), ("gy", good)):
+        c = choose_model(x, freq=F, kind="gyroscope", max_gm=1)
+        axes[name] = {"result": c.result, "units": "deg/s", "warnings": [],
+                      "datasheet": datasheet(c.result, "deg/s"), "choice": c}
+    assert not axes["gx"]["choice"].passed and axes["gy"]["choice"].passed
+    write_report(tmp_path, axes, source="sim.csv", title="IMU")
+    md = (tmp_path / "report.md").read_text()
+    page = (tmp_path / "report.html").read_text()
+    gx, gy = md.split("## gx", 1)[1].split("## gy", 1)
+    assert "every candidate model is rejected" in gx and "No warnings" not in gx
+    assert "| rank | model | params | WIC - best [chi2] | GOF p | choice |" in gx
+    assert axes["gy"]["choice"].headline()[1:] in gy and "| chosen |" in gy
+    assert "every candidate model is rejected" not in gy
+    assert "every candidate model is rejected" in page and "GOF p" in page
