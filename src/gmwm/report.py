@@ -5,7 +5,9 @@ time ranges that moved, the part of the recording used and a timeline figure wit
 ranges. Per axis: the empirical WV with the fitted model and its components (PNG), the
 goodness-of-fit line (:mod:`gmwm.gof`), the datasheet coefficients with 95 % CIs
 (:func:`gmwm.datasheet.datasheet`), the IEEE 952 Allan-deviation readings of the same data (bias
-instability included) and the fit's warnings (a rejected model among them); with a sensor
+instability included) and the fit's warnings (a rejected model among them); for a model chosen
+by the data (``axes[name]["choice"]``, :func:`gmwm.automodel.choose_model`) the candidates'
+ranking with their goodness-of-fit p-values (:func:`choice_section`); with a sensor
 datasheet (``axes[name]["verdict"]`` from :func:`gmwm.sensor_datasheet.judge`) also the datasheet's
 WV and Allan deviation beside the measured ones and a verdict table (within / better / worse, with
 the rule); at the end the Kalibr ``imu.yaml`` (:mod:`gmwm.exports`), also written alone with the
