@@ -28,11 +28,13 @@ _EXPORTS = {
     "fit_avsm": "avsm",
     "svo": "virtual",
     "select_model": "select", "rank_models": "select",
+    "choose_model": "automodel", "Choice": "automodel",
 }
 
-__all__ = ["AllanVariance", "DataUnavailableError", "FitSettings", "GMWMError", "GMWMResult",
-           "IdentifiabilityError", "InputError", "Model", "ModelError", "WaveletVariance", "avar",
-           "fit", "fit_avsm", "prepare_wv", "rank_models", "select_model", "svo", "wvar"]
+__all__ = ["AllanVariance", "Choice", "DataUnavailableError", "FitSettings", "GMWMError",
+           "GMWMResult", "IdentifiabilityError", "InputError", "Model", "ModelError",
+           "WaveletVariance", "avar", "choose_model", "fit", "fit_avsm", "prepare_wv", "rank_models",
+           "select_model", "svo", "wvar"]
 
 
 def __getattr__(name: str) -> Any:

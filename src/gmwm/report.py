@@ -5,7 +5,9 @@ time ranges that moved, the part of the recording used and a timeline figure wit
 ranges. Per axis: the empirical WV with the fitted model and its components (PNG), the
 goodness-of-fit line (:mod:`gmwm.gof`), the datasheet coefficients with 95 % CIs
 (:func:`gmwm.datasheet.datasheet`), the IEEE 952 Allan-deviation readings of the same data (bias
-instability included) and the fit's warnings (a rejected model among them); with a sensor
+instability included) and the fit's warnings (a rejected model among them); for a model chosen
+by the data (``axes[name]["choice"]``, :func:`gmwm.automodel.choose_model`) the candidates'
+ranking with their goodness-of-fit p-values (:func:`choice_section`); with a sensor
 datasheet (``axes[name]["verdict"]`` from :func:`gmwm.sensor_datasheet.judge`) also the datasheet's
 WV and Allan deviation beside the measured ones and a verdict table (within / better / worse, with
 the rule); at the end the Kalibr ``imu.yaml`` (:mod:`gmwm.exports`), also written alone with the
@@ -26,7 +28,7 @@ from gmwm import __version__
 from gmwm.datasheet import allan_readings
 from gmwm.errors import InputError
 
-__all__ = ["ImuSection", "imu_folders", "write_multi_report", "write_report"]
+__all__ = ["ImuSection", "choice_section", "imu_folders", "write_multi_report", "write_report"]
 
 
 def _slug(name: str) -> str:
@@ -75,13 +77,37 @@ def _reading_rows(res: Any, units: str | None) -> list[tuple[str, str, str, str,
 
 def _axis_warnings(a: Mapping[str, Any]) -> list[str]:
     """The axis's warnings, with the fit's rejected-model warning (:meth:`gmwm.gof.GOFResult.warning`)
-    even if the caller's list lacks it: a page never shows "No warnings" over a rejected model."""
+    and an automatic choice's "every candidate rejected" warning (:attr:`gmwm.automodel.Choice.
+    warnings`) even if the caller's list lacks them: a page never shows "No warnings" over a
+    rejected model."""
     found = [str(w) for w in a["warnings"]]
     gof = getattr(a["result"], "gof", None)
-    note = gof.warning() if gof is not None else None
-    if note is not None and note not in found:
-        found.append(note)
+    notes = [gof.warning() if gof is not None else None]
+    choice = a.get("choice")
+    if choice is not None and not choice.passed:
+        notes.insert(0, choice.warnings[0])
+    for note in notes:
+        if note is not None and note not in found:
+            found.append(note)
     return found
+
+
+def choice_section(choice: Any) -> tuple[list[str], str]:
+    """Markdown lines and HTML of an automatic model choice (:class:`gmwm.automodel.Choice`):
+    the headline, the candidates' ranking with each one's goodness-of-fit p-value, the notes."""
+    headers, rows = choice.table()
+    head = choice.headline()
+    head = head[0].upper() + head[1:] + "."
+    rule = ("Candidates ranked by the criterion (best first); the chosen model is the best-ranked "
+            f"one the goodness-of-fit test does not reject at {choice.alpha:g} (docs/METHODS.md "
+            "§6.1).")
+    md = [head, "", rule, "", *_md_table(headers, rows), "", *(f"- {n}" for n in choice.notes)]
+    if choice.notes:
+        md.append("")
+    body = (f"<p>{html.escape(head)}</p><p>{html.escape(rule)}</p>" + _html_table(headers, rows)
+            + ("<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in choice.notes) + "</ul>"
+               if choice.notes else ""))
+    return md, body
 
 
 def _gof_line(res: Any) -> str | None:
@@ -279,6 +305,11 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
                   f"samples, J = {res.wv.n_levels} scales.</p>"),
                  f'<img src="{html.escape(png.name)}" alt="WV of {html.escape(name)}" width="560">',
                  _html_table(th, rows)]
+        choice = a.get("choice")
+        if choice is not None:
+            cmd, cbody = choice_section(choice)
+            md += cmd
+            body.append(cbody)
         if verdict is not None:
             adev_png = out / f"{prefix}{_slug(name)}_adev.png"
             ax = plot_av(AllanVariance.from_wv(res.wv), deviation=True, units=a["units"] or "")
@@ -362,7 +393,8 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     ``axes[name]`` holds ``result`` (a GMWM fit), ``units`` (signal unit; deg/s or rad/s mark a
     gyroscope, m/s^2 or g an accelerometer), ``warnings`` (list of str), ``datasheet`` and
     optionally ``verdict`` (a sensor datasheet's judgement, :func:`gmwm.sensor_datasheet.judge`;
-    adds ``<axis>_adev.png`` and the verdict table).
+    adds ``<axis>_adev.png`` and the verdict table) and ``choice`` (the
+    :class:`gmwm.automodel.Choice` that chose the model: its ranking, :func:`choice_section`).
     ``timing``: lines on the recording's time base (rate source, jitter, gaps, gap policy).
     ``stationarity``: a :class:`gmwm.stationarity.StationarityReport` (its ``used`` range set):
     a warning at the top when it flags the part used, a section with the timeline figure.

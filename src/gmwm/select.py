@@ -63,8 +63,8 @@ from .processes import PROCESSES, SINGLETONS
 from .settings import prepare_wv
 from .wv import WaveletVariance
 
-__all__ = ["CRITERIA", "DEFAULT", "RankedModel", "Ranking", "auto_candidates", "optimism",
-           "rank_models", "rerank", "select_model"]
+__all__ = ["CRITERIA", "DEFAULT", "RankedModel", "Ranking", "auto_candidates", "merge",
+           "optimism", "rank_models", "rerank", "select_model"]
 
 _LOG10E = np.log10(np.e)
 # caps of the automatic candidate set (issue 11): up to 3 AR1/GM and 2 SIN components
@@ -376,6 +376,27 @@ def rerank(ranking: Ranking, criterion: str) -> Ranking:
                for e in ranking.ranked]
     return Ranking(_order(entries) + ranking.skipped, criterion, k, ranking.wv,
                    ranking.drift_sign)
+
+
+def merge(rankings: Sequence[Ranking]) -> Ranking:
+    """One ranking of the candidates of several rankings of the same WV by the same criterion
+    (e.g. candidates fitted in stages); a model in more than one keeps its first entry."""
+    if not rankings:
+        raise InputError("no rankings to merge")
+    first = rankings[0]
+    seen: set[str] = set()
+    entries: list[RankedModel] = []
+    for r in rankings:
+        if r.criterion != first.criterion or r.wv.n_samples != first.wv.n_samples or \
+                not np.array_equal(r.wv.variance, first.wv.variance):
+            raise InputError("rankings to merge must rank the same WV by the same criterion")
+        for e in r.entries:
+            if e.model not in seen:
+                seen.add(e.model)
+                entries.append(e)
+    fitted = [e for e in entries if e.error is None]
+    return Ranking(_order(fitted) + [e for e in entries if e.error is not None], first.criterion,
+                   first.factor, first.wv, first.drift_sign)
 
 
 def select_model(data: Any, models: Sequence[str | Model] | str | Model, **kwargs: Any) -> Any:
