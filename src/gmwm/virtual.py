@@ -456,7 +456,10 @@ class SVOResult:
         return self.summary()
 
     def to_json_dict(self) -> dict[str, Any]:
-        """Strict-JSON-able dict (non-finite numbers as None)."""
+        """Strict-JSON-able dict (non-finite numbers as None): the coefficients with their
+        standard errors, covariance and ``conf_int`` at the result's level (None without
+        bootstrap), the settings, and ``virtual_wv``, the WV of the virtual signal
+        (:meth:`wv`)."""
         return to_jsonable({
             "method": self.method,
             "names": list(self.names),
@@ -470,6 +473,8 @@ class SVOResult:
             "n_samples": self.wccv.n_samples,
             "levels": self.wccv.n_levels,
             "freq": self.wccv.freq,
+            "conf_int": None if self.cov is None else self.conf_int(),
+            "virtual_wv": self.wv().to_dict(),
         })
 
     # temporary: cli.py is being rewritten (it still calls to_dict)
