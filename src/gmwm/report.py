@@ -22,6 +22,15 @@ from pathlib import Path
 from typing import Any
 
 from gmwm import __version__
+from gmwm.cli.format import (
+    datasheet_rows,
+    html_table,
+    interval,
+    md_table,
+    num,
+    reading_rows,
+    verdict_rows,
+)
 from gmwm.datasheet import allan_readings
 from gmwm.errors import InputError
 
@@ -32,20 +41,10 @@ def _slug(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_") or "axis"
 
 
-def _num(v: Any) -> str:
-    return "–" if v is None else f"{float(v):.4g}"
-
-
 def _rows(ds: Mapping[str, dict]) -> list[tuple[str, str, str, str, str]]:
     """(term, quantity, value, 95 % CI, unit) rows of a datasheet dict."""
-    out = []
-    for term, e in ds.items():
-        parts = [("", e)] if "value" in e else list(e.items())
-        for what, v in parts:
-            ci = v.get("ci95")
-            ci_text = "–" if not ci else f"[{_num(ci[0])}, {_num(ci[1])}]"
-            out.append((term, what.replace("_", " "), _num(v["value"]), ci_text, v["unit"] or "–"))
-    return out
+    return [(term, what.replace("_", " "), num(value), interval(ci), unit or "–")
+            for term, what, value, ci, unit in datasheet_rows(ds)]
 
 
 def _reading_rows(res: Any, units: str | None) -> list[tuple[str, str, str, str, str]]:
@@ -56,20 +55,8 @@ def _reading_rows(res: Any, units: str | None) -> list[tuple[str, str, str, str,
         r = allan_readings(AllanVariance.from_wv(res.wv), units or None)
     except InputError:
         return []
-    rows = []
-    for key in ("N", "K", "B"):
-        e = r[key]
-        ci = e.get("ci95")
-        if key == "B":
-            where = f"AD minimum at {e['tau_s']:.4g} s" + (" (last scale: upper bound)" if e["at_end"]
-                                                          else "")
-        elif e.get("value") is None:
-            where = e.get("note", "")
-        else:
-            where = f"slope line over {e['tau_range_s'][0]:.4g}-{e['tau_range_s'][1]:.4g} s"
-        rows.append((f"{key} ({e['name']})", _num(e.get("value")),
-                     "–" if not ci else f"[{_num(ci[0])}, {_num(ci[1])}]", e["unit"], where))
-    return rows
+    return [(label, num(value), interval(ci), unit, where)
+            for label, value, ci, unit, where in reading_rows(r, brief=True)]
 
 
 def _axis_warnings(a: Mapping[str, Any]) -> list[str]:
@@ -90,27 +77,8 @@ def _gof_line(res: Any) -> str | None:
 
 def _verdict_rows(v: Mapping[str, Any]) -> list[tuple[str, str, str, str, str, str]]:
     """(term, datasheet, measured, 95 % CI, unit, verdict) rows of a datasheet verdict."""
-    out = []
-    for r in v["rows"]:
-        ci = r.get("ci95")
-        out.append((r["term"] + (f" {r['quantity'].replace('_', ' ')}" if r["quantity"] else ""),
-                    _num(r["datasheet"]), _num(r["measured"]),
-                    "–" if not ci else f"[{_num(ci[0])}, {_num(ci[1])}]", r["unit"],
-                    r["verdict"]))
-    return out
-
-
-def _md_table(headers: list[str], rows: list[tuple]) -> list[str]:
-    lines = ["| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
-    lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
-    return lines
-
-
-def _html_table(headers: list[str], rows: list[tuple]) -> str:
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>"
-                   for r in rows)
-    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+    return [(term, num(ds), num(measured), interval(ci), unit, verdict)
+            for term, ds, measured, ci, unit, verdict in verdict_rows(v, readable=True)]
 
 
 def _stationarity_section(st: Any, out: Path) -> tuple[list[str], list[str], list[Path]]:
@@ -146,8 +114,8 @@ def _stationarity_section(st: Any, out: Path) -> tuple[list[str], list[str], lis
     if rows:
         th = [f"range [{unit}]", "channels", "tests", "largest change", "statistic / threshold",
               f"window [{unit}]", "in the part used"]
-        md += _md_table(th, rows) + [""]
-        body.append(_html_table(th, rows))
+        md += md_table(th, rows) + [""]
+        body.append(html_table(th, rows))
     t = st.temperature
     if t is not None:
         line = (f"Temperature {t.range_c[0]:.3g}-{t.range_c[1]:.3g} °C"
@@ -240,12 +208,12 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
         white = next((v for k, v in ds.items() if k.split("[")[0] in ("ARW", "VRW", "WN")), None)
         rw = next((v for k, v in ds.items() if k.split("[")[0] in ("RRW", "AccRW", "RW")), None)
         summary.append((name, a["units"] or "–", res.model.spec,
-                        "–" if white is None else f"{_num(white['value'])} {white['unit']}",
-                        "–" if rw is None else f"{_num(rw['value'])} {rw['unit']}",
+                        "–" if white is None else f"{num(white['value'])} {white['unit']}",
+                        "–" if rw is None else f"{num(rw['value'])} {rw['unit']}",
                         len(_axis_warnings(a))))
     headers = ["axis", "unit", "model", "white noise", "random walk", "warnings"]
-    md += ["## Summary", "", *_md_table(headers, summary), ""]
-    body += ["<h2>Summary</h2>", _html_table(headers, summary)]
+    md += ["## Summary", "", *md_table(headers, summary), ""]
+    body += ["<h2>Summary</h2>", html_table(headers, summary)]
     for name, a in axes.items():
         res = a["result"]
         png = out / f"{_slug(name)}_wv.png"
@@ -262,12 +230,12 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
                (f"Model `{res.model.spec}`, T = {res.wv.n_samples} samples, J = {res.wv.n_levels} "
                 f"scales, objective {float(getattr(res, 'objective', float('nan'))):.4g}, converged "
                 f"{'yes' if getattr(res, 'converged', True) else 'NO'}."), "",
-               f"![WV of {name} with the fitted model]({png.name})", "", *_md_table(th, rows), ""]
+               f"![WV of {name} with the fitted model]({png.name})", "", *md_table(th, rows), ""]
         body += [f"<h2>{html.escape(name)}</h2>",
                  (f"<p>Model <code>{html.escape(res.model.spec)}</code>, T = {res.wv.n_samples} "
                   f"samples, J = {res.wv.n_levels} scales.</p>"),
                  f'<img src="{html.escape(png.name)}" alt="WV of {html.escape(name)}" width="560">',
-                 _html_table(th, rows)]
+                 html_table(th, rows)]
         if verdict is not None:
             adev_png = out / f"{_slug(name)}_adev.png"
             ax = plot_av(AllanVariance.from_wv(res.wv), deviation=True, units=a["units"] or "")
@@ -282,19 +250,19 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
             notes = [f"{r['term']}: {r['note']}" for r in verdict["rows"] if r.get("note")]
             rule = f"Rule: {verdict['rule']}."
             md += [head, "", f"![Allan deviation of {name} and the datasheet's]({adev_png.name})",
-                   "", *_md_table(vh, vrows), "", *(f"- {n}" for n in notes), f"- {rule}", ""]
+                   "", *md_table(vh, vrows), "", *(f"- {n}" for n in notes), f"- {rule}", ""]
             body += [f"<p>{html.escape(head)}</p>",
                      (f'<img src="{html.escape(adev_png.name)}" alt="Allan deviation of '
-                      f'{html.escape(name)}" width="560">'), _html_table(vh, vrows),
+                      f'{html.escape(name)}" width="560">'), html_table(vh, vrows),
                      "<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in [*notes, rule])
                      + "</ul>"]
         readings = _reading_rows(res, a["units"])
         if readings:
             rh = ["IEEE 952 reading", "value", "95% CI", "unit", "from"]
             md += ["Allan-deviation readings of the same data (slope method, for comparison):", "",
-                   *_md_table(rh, readings), ""]
+                   *md_table(rh, readings), ""]
             body += [("<p>Allan-deviation readings of the same data (slope method, for "
-                      "comparison):</p>"), _html_table(rh, readings)]
+                      "comparison):</p>"), html_table(rh, readings)]
         gof = _gof_line(res)
         if gof is not None:  # after the figure and table, before the warnings
             md += [gof[0].upper() + gof[1:] + ".", ""]

@@ -477,9 +477,6 @@ class SVOResult:
             "virtual_wv": self.wv().to_dict(),
         })
 
-    # temporary: cli.py is being rewritten (it still calls to_dict)
-    to_dict = to_json_dict
-
 
 def _read_only(a: Any) -> np.ndarray:
     out = np.array(a, dtype=np.float64, copy=True)
@@ -580,14 +577,3 @@ def equal(X: Any, *, levels: int | None = None, alpha: float = 0.05, freq: float
     p = W.n_signals
     return SVOResult(np.full(p, 1.0 / p), None, None, W, "equal", 0, 0, alpha)
 
-
-# temporary: cli.py is being rewritten (it imports these two from here)
-_MOVED = {"read_weights": "gmwm.readers.tables", "plot_virtual_wv": "gmwm.plots"}
-
-
-def __getattr__(name: str) -> Any:
-    if name in _MOVED:
-        from importlib import import_module
-
-        return getattr(import_module(_MOVED[name]), name)
-    raise AttributeError(f"module 'gmwm.virtual' has no attribute {name!r}")
