@@ -469,6 +469,38 @@ def test_report_writes_markdown_html_yaml(capsys, imu, tmp_path):
     assert html.startswith("<!DOCTYPE html>") and 'src="gx_wv.png"' in html
 
 
+def test_report_export_targets_and_inflation(capsys, imu, tmp_path):
+    # --export writes the configuration files asked for, --inflate multiplies the densities
+    common = ["report", imu["path"], "--columns", "gx,ax", "--units", "gx=deg/s",
+              "--units", "ax=m/s^2", "--json"]
+    code, out, err = run(capsys, *common, "-o", tmp_path / "plain")
+    assert code == 0, err
+    code, out, err = run(capsys, *common, "--export", "kalibr,openvins,json", "--inflate",
+                         "noise=2,walk=10", "-o", tmp_path / "infl")
+    assert code == 0, err
+    files = {p.split("/")[-1] for p in json.loads(out)["files"]}
+    assert {"imu.yaml", "kalibr_imu_chain.yaml", "imu_noise.json"} <= files
+    assert {p.name for p in (tmp_path / "plain").iterdir()} >= {"imu.yaml"}
+    assert not (tmp_path / "plain" / "imu_noise.json").exists()   # default: Kalibr only
+    plain = yaml.safe_load((tmp_path / "plain" / "imu.yaml").read_text())
+    infl = yaml.safe_load((tmp_path / "infl" / "imu.yaml").read_text())
+    for sensor in ("gyroscope", "accelerometer"):
+        assert infl[f"{sensor}_noise_density"] == pytest.approx(
+            2 * plain[f"{sensor}_noise_density"], rel=1e-3)
+        assert infl[f"{sensor}_random_walk"] == pytest.approx(
+            10 * plain[f"{sensor}_random_walk"], rel=1e-3)
+    noise = json.loads((tmp_path / "infl" / "imu_noise.json").read_text())
+    assert json.dumps(noise, allow_nan=False)  # strict JSON, read back
+    chain = (tmp_path / "infl" / "kalibr_imu_chain.yaml").read_text()
+    assert "gyroscope_noise_density" in chain
+    # a bad target or factor: one line, exit 1, before any fit and any file
+    for opt, bad, msg in (("--export", "rovio", "unknown export target"),
+                          ("--inflate", "noise=0.5", "inflation")):
+        code, _, err = run(capsys, *common, opt, bad, "-o", tmp_path / "bad")
+        assert code == 1 and err.count("\n") == 1 and msg in err, err
+        assert not (tmp_path / "bad").exists()
+
+
 # ---- tables that round-trip (issue 11 part 3) ---------------------------------------------------
 
 

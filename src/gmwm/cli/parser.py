@@ -383,7 +383,9 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=(
             "example:\n"
             "  gmwm report imu.csv 'WN+RW' --columns gx,gy,gz,ax,ay,az \\\n"
-            "       --units gx,gy,gz=deg/s --units ax,ay,az=m/s^2 -o imu_report\n\n" + _EXIT_STATUS_HELP
+            "       --units gx,gy,gz=deg/s --units ax,ay,az=m/s^2 -o imu_report\n"
+            "  gmwm report imu.bag --topic /imu0 --export kalibr,openvins --inflate noise=2,walk=10 \\\n"
+            "       -o imu_report\n\n" + _EXIT_STATUS_HELP
         ),
     )
     _add_input(p)
@@ -397,6 +399,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="directory for report.md, report.html, imu.yaml and the figures")
     p.add_argument("--title", default=None, help="page title (default: the input file name)")
     _add_datasheet(p)
+    _add_export(p)
     _add_select_parser(sub)
     _add_svo_parser(sub)
     _add_plan_parser(sub)
@@ -576,6 +579,16 @@ def _add_plan_parser(sub: Any) -> None:
     p.add_argument("--plot", metavar="FILE.png", default=None,
                    help="draw the relative standard error of every coefficient against the length")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress lines on stderr")
+
+
+def _add_export(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--export", default="kalibr", metavar="TARGETS",
+                   help="filter configuration files to write, comma-separated: kalibr (imu.yaml), "
+                        "openvins, vins-fusion, orb-slam3, lio-sam, fast-lio, json, or all "
+                        "(gmwm.exports.TARGETS)")
+    p.add_argument("--inflate", default=None, metavar="SPEC",
+                   help="inflate the exported noise densities after the axis rule, e.g. "
+                        "'noise=2,walk=10' (factors >= 1 on the densities) or one factor for both")
 
 
 _PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".tif", ".tiff")

@@ -1,5 +1,6 @@
 """``gmwm report``: fit every axis of an IMU recording and write the calibration report
-(:func:`gmwm.report.write_report`: Markdown, HTML, Kalibr-style imu.yaml, figures)."""
+(:func:`gmwm.report.write_report`: Markdown, HTML, figures and the filter configuration files of
+``--export``, default the Kalibr ``imu.yaml``, with ``--inflate`` factors)."""
 
 from __future__ import annotations
 
@@ -12,8 +13,11 @@ from gmwm.cli.format import fit_json, fit_warnings, json_text, spans
 
 
 def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    from gmwm.exports import parse_inflation, parse_targets
     from gmwm.report import write_report
 
+    targets = parse_targets(args.export)  # bad targets or factors before any fit
+    inflation = parse_inflation(args.inflate)
     sheet = load_datasheet(args)
     got, fits = fit_columns(args, err, require_time="a calibration report")
     fits = attach_verdicts(fits, sheet, err, True)
@@ -39,7 +43,7 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             timing.append(gaps.message)
     files = write_report(args.output, axes, source=args.input,
                          title=args.title or f"Calibration report: {Path(args.input).name}",
-                         timing=timing, stationarity=st)
+                         timing=timing, stationarity=st, targets=targets, inflation=inflation)
     if args.json:
         obj = {"command": "report", "input": args.input, "files": [str(p) for p in files],
                "fits": {c: fit_json(f.result, source=args.input, units=f.units,
@@ -49,7 +53,7 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             obj["stationarity"] = st.to_json_dict()
         out.write(json_text(obj))
     else:
-        shown = [str(p) for p in files if p.suffix in (".md", ".html", ".yaml")]
+        shown = [str(p) for p in files if p.suffix in (".md", ".html", ".yaml", ".json")]
         out.write(f"report of {len(fits)} axes of {args.input} written to: "
                   + ", ".join(shown) + "\n")
     return fit_status(fits, err, True)
