@@ -347,7 +347,7 @@ def _static_part(args: argparse.Namespace, rec: Any, units: Mapping[str, str], e
     i0, i1 = (0, rec.n) if start is None and end is None else sample_range(rec, start, end)
     how = "the whole recording" if (i0, i1) == (0, rec.n) else "--start/--end"
     if getattr(args, "segment", "all") == "longest-static":
-        a, b = _longest_free(st, i0, i1)
+        a, b = st.clean_segment(i0, i1)
         if b <= a:
             raise NonStationaryError(f"--segment longest-static: every part of {args.input} "
                                      f"is flagged as moving ({_flagged(st)})")
@@ -368,20 +368,6 @@ def _static_part(args: argparse.Namespace, rec: Any, units: Mapping[str, str], e
             err.write(f"gmwm: note: the estimate uses {st.used_text()}\n")
         rec = select_samples(rec, i0, i1)
     return rec, st
-
-
-def _longest_free(st: Any, i0: int, i1: int) -> tuple[int, int]:
-    """The longest stretch of samples within ``i0:i1`` that no flagged segment touches
-    (``(i0, i0)`` when there is none)."""
-    free, start = [], 0
-    for s in st.segments:
-        if s.i0 > start:
-            free.append((start, s.i0))
-        start = max(start, s.i1)
-    if start < st.n:
-        free.append((start, st.n))
-    free = [(max(a, i0), min(b, i1)) for a, b in free]
-    return max([(a, b) for a, b in free if b > a] or [(i0, i0)], key=lambda e: e[1] - e[0])
 
 
 def _flagged(st: Any) -> str:
