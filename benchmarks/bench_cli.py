@@ -7,7 +7,8 @@ Whole processes are timed from outside with `farm-bench` (paired A/B runs, media
 is installed, else with `subprocess` wall and child CPU times (median). The signal and the NumPy
 script are written to --workdir (never to the repository). Also prints the CLI's own split of the
 WV time (`seconds_first_call`: loading the compiled kernel; `seconds`: the steady-state WV) and the
-import time of `gmwm.cli`, `gmwm` and `gmwm.wv`. Tests never assert on these numbers.
+import time of `gmwm.cli`, `gmwm.cli.commands.wv` (what `gmwm wv` imports), `gmwm` and `gmwm.wv`.
+Tests never assert on these numbers.
 """
 
 from __future__ import annotations
@@ -95,14 +96,14 @@ def main() -> None:
     cli = [gmwm, "wv", str(x_path), "--json", "--quiet"]
     base = [sys.executable, str(naive), str(x_path)]
     # an installed package has its bytecode; an editable checkout run with PYTHONDONTWRITEBYTECODE
-    # (as on the dev machine) would recompile cli.py, wv.py, ... in every process (~0.1 s)
+    # (as on the dev machine) would recompile gmwm/cli/*.py, wv.py, ... in every process (~0.1 s)
     import gmwm as _pkg
 
     subprocess.run([sys.executable, "-m", "compileall", "-q", str(Path(_pkg.__file__).parent)],
                    check=True)
     print(f"# load average {os.getloadavg()[0]:.1f} / {os.cpu_count()} cores, T = {args.n}, "
           f"bytecode compiled for {Path(_pkg.__file__).parent}")
-    for module in ("gmwm.cli", "gmwm", "gmwm.wv"):
+    for module in ("gmwm.cli", "gmwm.cli.commands.wv", "gmwm", "gmwm.wv"):
         print(f"import {module}: {_import_seconds(module):.3f} s (median of 3 fresh processes)")
     obj = json.loads(subprocess.run(cli, capture_output=True, text=True, check=True).stdout)
     print(f"gmwm wv --json ({obj['wv_kernel']} kernel): WV + CI {obj['seconds']:.3f} s (includes the "

@@ -72,6 +72,10 @@ def test_step_is_flagged_where_it_happens(axis):
     a, b = st.clean_segment()  # the longest static stretch is one side of the step
     assert not (a <= at < b)
     assert max(b - a, 0) > 0.3 * n
+    # within a window (what --segment longest-static uses with --start/--end)
+    first = min(s.i0 for s in st.segments)
+    assert st.clean_segment(0, first) == (0, first)
+    assert st.clean_segment(first, first + 1) == (first, first)   # all flagged: empty
 
 
 def test_small_step_not_flagged():

@@ -148,13 +148,15 @@ class AVSMResult:
         return self.summary()
 
     def to_json_dict(self) -> dict[str, Any]:
-        """JSON-able summary (model, n, params, se (None), converged, regions, settings, WV,
-        timings)."""
+        """JSON-able summary (model, n, params, se (None), objective and weights (None: AVSM
+        minimises nothing), converged, regions, settings, WV, timings), with the keys of
+        :meth:`gmwm.estimator.GMWMResult.to_json_dict` where they apply."""
         wv = self.wv
         return json_safe({
             "model": self._spec(), "method": "avsm", "n": int(wv.n_samples),
             "freq": float(getattr(wv, "freq", 1.0)), "params": self.as_dict(),
-            "se": dict.fromkeys(self.param_names), "converged": bool(self.converged),
+            "se": dict.fromkeys(self.param_names), "objective": None, "weights": None,
+            "converged": bool(self.converged),
             "message": self.message, "warnings": self.warnings,
             "settings": self.settings.to_json_dict(),
             "regions": {c: {"slope": r.slope, "levels": r.levels, "intercept": r.intercept,

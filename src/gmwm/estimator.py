@@ -164,8 +164,8 @@ class GMWMResult:
     def to_json_dict(self) -> dict[str, Any]:
         """JSON-able summary (model, n, params, se, ci95 (name -> [low, high], :meth:`conf_int`),
         objective, gof (:meth:`gmwm.gof.GOFResult.to_json_dict`: statistic, df, p_value,
-        rejected, per-scale residuals; None when not computed), converged, warnings, settings,
-        WV, timings); non-finite numbers are None."""
+        rejected, per-scale residuals; None when not computed), converged, warnings, weights
+        (their kind), settings, WV, timings); non-finite numbers are None."""
         ci = self.conf_int()
         return json_safe({
             "model": self.model.spec,
@@ -181,6 +181,7 @@ class GMWMResult:
             "converged": bool(self.converged),
             "message": self.message,
             "warnings": self.warnings,
+            "weights": self.settings.weights_kind,
             "settings": self.settings.to_json_dict(),
             "condition_number": self.diagnostics.get("condition_number"),
             "wv": self.wv.to_dict(),

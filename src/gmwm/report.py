@@ -25,6 +25,15 @@ from pathlib import Path
 from typing import Any
 
 from gmwm import __version__
+from gmwm.formatting import (
+    datasheet_rows,
+    html_table,
+    interval,
+    md_table,
+    num,
+    reading_rows,
+    verdict_rows,
+)
 from gmwm.datasheet import allan_readings
 from gmwm.errors import InputError
 
@@ -35,20 +44,10 @@ def _slug(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_") or "axis"
 
 
-def _num(v: Any) -> str:
-    return "–" if v is None else f"{float(v):.4g}"
-
-
 def _rows(ds: Mapping[str, dict]) -> list[tuple[str, str, str, str, str]]:
     """(term, quantity, value, 95 % CI, unit) rows of a datasheet dict."""
-    out = []
-    for term, e in ds.items():
-        parts = [("", e)] if "value" in e else list(e.items())
-        for what, v in parts:
-            ci = v.get("ci95")
-            ci_text = "–" if not ci else f"[{_num(ci[0])}, {_num(ci[1])}]"
-            out.append((term, what.replace("_", " "), _num(v["value"]), ci_text, v["unit"] or "–"))
-    return out
+    return [(term, what.replace("_", " "), num(value), interval(ci), unit or "–")
+            for term, what, value, ci, unit in datasheet_rows(ds)]
 
 
 def _reading_rows(res: Any, units: str | None) -> list[tuple[str, str, str, str, str]]:
@@ -59,20 +58,8 @@ def _reading_rows(res: Any, units: str | None) -> list[tuple[str, str, str, str,
         r = allan_readings(AllanVariance.from_wv(res.wv), units or None)
     except InputError:
         return []
-    rows = []
-    for key in ("N", "K", "B"):
-        e = r[key]
-        ci = e.get("ci95")
-        if key == "B":
-            where = f"AD minimum at {e['tau_s']:.4g} s" + (" (last scale: upper bound)" if e["at_end"]
-                                                          else "")
-        elif e.get("value") is None:
-            where = e.get("note", "")
-        else:
-            where = f"slope line over {e['tau_range_s'][0]:.4g}-{e['tau_range_s'][1]:.4g} s"
-        rows.append((f"{key} ({e['name']})", _num(e.get("value")),
-                     "–" if not ci else f"[{_num(ci[0])}, {_num(ci[1])}]", e["unit"], where))
-    return rows
+    return [(label, num(value), interval(ci), unit, where)
+            for label, value, ci, unit, where in reading_rows(r, brief=True)]
 
 
 def _axis_warnings(a: Mapping[str, Any]) -> list[str]:
@@ -101,10 +88,10 @@ def choice_section(choice: Any) -> tuple[list[str], str]:
     rule = ("Candidates ranked by the criterion (best first); the chosen model is the best-ranked "
             f"one the goodness-of-fit test does not reject at {choice.alpha:g} (docs/METHODS.md "
             "§6.1).")
-    md = [head, "", rule, "", *_md_table(headers, rows), "", *(f"- {n}" for n in choice.notes)]
+    md = [head, "", rule, "", *md_table(headers, rows), "", *(f"- {n}" for n in choice.notes)]
     if choice.notes:
         md.append("")
-    body = (f"<p>{html.escape(head)}</p><p>{html.escape(rule)}</p>" + _html_table(headers, rows)
+    body = (f"<p>{html.escape(head)}</p><p>{html.escape(rule)}</p>" + html_table(headers, rows)
             + ("<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in choice.notes) + "</ul>"
                if choice.notes else ""))
     return md, body
@@ -117,27 +104,8 @@ def _gof_line(res: Any) -> str | None:
 
 def _verdict_rows(v: Mapping[str, Any]) -> list[tuple[str, str, str, str, str, str]]:
     """(term, datasheet, measured, 95 % CI, unit, verdict) rows of a datasheet verdict."""
-    out = []
-    for r in v["rows"]:
-        ci = r.get("ci95")
-        out.append((r["term"] + (f" {r['quantity'].replace('_', ' ')}" if r["quantity"] else ""),
-                    _num(r["datasheet"]), _num(r["measured"]),
-                    "–" if not ci else f"[{_num(ci[0])}, {_num(ci[1])}]", r["unit"],
-                    r["verdict"]))
-    return out
-
-
-def _md_table(headers: list[str], rows: list[tuple]) -> list[str]:
-    lines = ["| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
-    lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
-    return lines
-
-
-def _html_table(headers: list[str], rows: list[tuple]) -> str:
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>"
-                   for r in rows)
-    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+    return [(term, num(ds), num(measured), interval(ci), unit, verdict)
+            for term, ds, measured, ci, unit, verdict in verdict_rows(v, readable=True)]
 
 
 def _stationarity_section(st: Any, out: Path, lv: int = 2, prefix: str = ""
@@ -175,8 +143,8 @@ def _stationarity_section(st: Any, out: Path, lv: int = 2, prefix: str = ""
     if rows:
         th = [f"range [{unit}]", "channels", "tests", "largest change", "statistic / threshold",
               f"window [{unit}]", "in the part used"]
-        md += _md_table(th, rows) + [""]
-        body.append(_html_table(th, rows))
+        md += md_table(th, rows) + [""]
+        body.append(html_table(th, rows))
     t = st.temperature
     if t is not None:
         line = (f"Temperature {t.range_c[0]:.3g}-{t.range_c[1]:.3g} °C"
@@ -277,12 +245,12 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
         white = next((v for k, v in ds.items() if k.split("[")[0] in ("ARW", "VRW", "WN")), None)
         rw = next((v for k, v in ds.items() if k.split("[")[0] in ("RRW", "AccRW", "RW")), None)
         summary.append((name, a["units"] or "–", res.model.spec,
-                        "–" if white is None else f"{_num(white['value'])} {white['unit']}",
-                        "–" if rw is None else f"{_num(rw['value'])} {rw['unit']}",
+                        "–" if white is None else f"{num(white['value'])} {white['unit']}",
+                        "–" if rw is None else f"{num(rw['value'])} {rw['unit']}",
                         len(_axis_warnings(a))))
     headers = ["axis", "unit", "model", "white noise", "random walk", "warnings"]
-    md += [f"{h} Summary", "", *_md_table(headers, summary), ""]
-    body += [f"<h{lv}>Summary</h{lv}>", _html_table(headers, summary)]
+    md += [f"{h} Summary", "", *md_table(headers, summary), ""]
+    body += [f"<h{lv}>Summary</h{lv}>", html_table(headers, summary)]
     for name, a in axes.items():
         res = a["result"]
         png = out / f"{prefix}{_slug(name)}_wv.png"
@@ -299,12 +267,12 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
                (f"Model `{res.model.spec}`, T = {res.wv.n_samples} samples, J = {res.wv.n_levels} "
                 f"scales, objective {float(getattr(res, 'objective', float('nan'))):.4g}, converged "
                 f"{'yes' if getattr(res, 'converged', True) else 'NO'}."), "",
-               f"![WV of {name} with the fitted model]({png.name})", "", *_md_table(th, rows), ""]
+               f"![WV of {name} with the fitted model]({png.name})", "", *md_table(th, rows), ""]
         body += [f"<h{lv}>{html.escape(name)}</h{lv}>",
                  (f"<p>Model <code>{html.escape(res.model.spec)}</code>, T = {res.wv.n_samples} "
                   f"samples, J = {res.wv.n_levels} scales.</p>"),
                  f'<img src="{html.escape(png.name)}" alt="WV of {html.escape(name)}" width="560">',
-                 _html_table(th, rows)]
+                 html_table(th, rows)]
         choice = a.get("choice")
         if choice is not None:
             cmd, cbody = choice_section(choice)
@@ -324,19 +292,19 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
             notes = [f"{r['term']}: {r['note']}" for r in verdict["rows"] if r.get("note")]
             rule = f"Rule: {verdict['rule']}."
             md += [head, "", f"![Allan deviation of {name} and the datasheet's]({adev_png.name})",
-                   "", *_md_table(vh, vrows), "", *(f"- {n}" for n in notes), f"- {rule}", ""]
+                   "", *md_table(vh, vrows), "", *(f"- {n}" for n in notes), f"- {rule}", ""]
             body += [f"<p>{html.escape(head)}</p>",
                      (f'<img src="{html.escape(adev_png.name)}" alt="Allan deviation of '
-                      f'{html.escape(name)}" width="560">'), _html_table(vh, vrows),
+                      f'{html.escape(name)}" width="560">'), html_table(vh, vrows),
                      "<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in [*notes, rule])
                      + "</ul>"]
         readings = _reading_rows(res, a["units"])
         if readings:
             rh = ["IEEE 952 reading", "value", "95% CI", "unit", "from"]
             md += ["Allan-deviation readings of the same data (slope method, for comparison):", "",
-                   *_md_table(rh, readings), ""]
+                   *md_table(rh, readings), ""]
             body += [("<p>Allan-deviation readings of the same data (slope method, for "
-                      "comparison):</p>"), _html_table(rh, readings)]
+                      "comparison):</p>"), html_table(rh, readings)]
         gof = _gof_line(res)
         if gof is not None:  # after the figure and table, before the warnings
             md += [gof[0].upper() + gof[1:] + ".", ""]
@@ -485,11 +453,11 @@ def write_multi_report(outdir: str | os.PathLike, imus: Mapping[str, ImuSection]
     md = [f"# {title}", "",
           (f"Input `{source}`, {len(imus)} IMUs; GMWM fits by gmwm {__version__}. " + _INTRO
            + " Each IMU has its own section and its own folder of filter configuration files."),
-          "", *_md_table(oh, overview), ""]
+          "", *md_table(oh, overview), ""]
     body = [f"<h1>{html.escape(title)}</h1>",
             (f"<p>Input <code>{html.escape(source)}</code>, {len(imus)} IMUs; GMWM fits by gmwm "
              f"{html.escape(__version__)}. Each IMU has its own section and its own folder of "
-             "filter configuration files.</p>"), _html_table(oh, overview)]
+             "filter configuration files.</p>"), html_table(oh, overview)]
     written: list[Path] = []
     for t, sec in imus.items():
         md += [f"## IMU {t}", ""]

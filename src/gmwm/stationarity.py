@@ -211,8 +211,10 @@ class StationarityReport:
         a, b = self.used or (0, self.n)
         return bool(self.segments_in(a, b))
 
-    def clean_segment(self) -> tuple[int, int]:
-        """The longest stretch of samples ``(i0, i1)`` that no flagged segment touches."""
+    def clean_segment(self, i0: int = 0, i1: int | None = None) -> tuple[int, int]:
+        """The longest stretch of samples ``(a, b)`` within ``i0:i1`` (default: all) that no
+        flagged segment touches; ``(i0, i0)`` when there is none."""
+        i1 = self.n if i1 is None else i1
         edges, start = [], 0
         for s in self.segments:
             if s.i0 > start:
@@ -220,8 +222,10 @@ class StationarityReport:
             start = max(start, s.i1)
         if start < self.n:
             edges.append((start, self.n))
+        edges = [(max(a, i0), min(b, i1)) for a, b in edges]
+        edges = [(a, b) for a, b in edges if b > a]
         if not edges:
-            return (0, 0)
+            return (i0, i0)
         return max(edges, key=lambda e: e[1] - e[0])
 
     def using(self, i0: int, i1: int, how: str) -> StationarityReport:

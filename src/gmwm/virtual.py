@@ -456,7 +456,10 @@ class SVOResult:
         return self.summary()
 
     def to_json_dict(self) -> dict[str, Any]:
-        """Strict-JSON-able dict (non-finite numbers as None)."""
+        """Strict-JSON-able dict (non-finite numbers as None): the coefficients with their
+        standard errors, covariance and ``conf_int`` at the result's level (None without
+        bootstrap), the settings, and ``virtual_wv``, the WV of the virtual signal
+        (:meth:`wv`)."""
         return to_jsonable({
             "method": self.method,
             "names": list(self.names),
@@ -470,10 +473,9 @@ class SVOResult:
             "n_samples": self.wccv.n_samples,
             "levels": self.wccv.n_levels,
             "freq": self.wccv.freq,
+            "conf_int": None if self.cov is None else self.conf_int(),
+            "virtual_wv": self.wv().to_dict(),
         })
-
-    # temporary: cli.py is being rewritten (it still calls to_dict)
-    to_dict = to_json_dict
 
 
 def _read_only(a: Any) -> np.ndarray:
@@ -575,14 +577,3 @@ def equal(X: Any, *, levels: int | None = None, alpha: float = 0.05, freq: float
     p = W.n_signals
     return SVOResult(np.full(p, 1.0 / p), None, None, W, "equal", 0, 0, alpha)
 
-
-# temporary: cli.py is being rewritten (it imports these two from here)
-_MOVED = {"read_weights": "gmwm.readers.tables", "plot_virtual_wv": "gmwm.plots"}
-
-
-def __getattr__(name: str) -> Any:
-    if name in _MOVED:
-        from importlib import import_module
-
-        return getattr(import_module(_MOVED[name]), name)
-    raise AttributeError(f"module 'gmwm.virtual' has no attribute {name!r}")

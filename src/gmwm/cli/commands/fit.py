@@ -1,0 +1,195 @@
+"""``gmwm fit``: fit a composite model to every requested channel of a recording or a WV table
+(one :func:`gmwm.fit` call per channel with the command's :class:`gmwm.settings.FitSettings`),
+print the estimates, datasheet coefficients, warnings and, with ``--datasheet``, the verdicts; and
+the fitting of channels it shares with ``gmwm report`` (:func:`fit_columns`, :func:`fit_status`,
+:func:`attach_verdicts`)."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, TextIO
+
+import numpy as np
+
+from gmwm.formatting import fit_json, fit_text, fit_warnings, json_text
+from gmwm.cli.inputs import Inputs, models_by_column, read_fit_data
+from gmwm.cli.outputs import plot_channels, save_plot
+from gmwm.cli.parser import EXIT_NOT_CONVERGED, EXIT_OK
+from gmwm.errors import InputError
+
+
+@dataclass(frozen=True)
+class ColumnFit:
+    """One channel's fit: the result, the signal unit ('' unknown), its datasheet coefficients
+    (:func:`gmwm.units.datasheet`), the identifiability check (``--check``) and the datasheet
+    verdict (``--datasheet``, :func:`gmwm.sensor_datasheet.judge`), None when not asked for."""
+
+    result: Any
+    units: str
+    datasheet: dict[str, Any]
+    check: Any = None
+    verdict: dict[str, Any] | None = None
+
+
+def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    sheet = load_datasheet(args)
+    got, fits = fit_columns(args, err)
+    multi = args.columns is not None
+    fits = attach_verdicts(fits, sheet, err, multi)
+    if args.plot and sheet is not None:
+        _plot_with_datasheet(fits, args.plot)
+    elif args.plot:
+        from gmwm.plots import plot_wv
+
+        plot_channels(fits, lambda f, ax, c: plot_wv(f.result.wv, result=f.result, ax=ax,
+                                                     units=f.units), args.plot)
+    st = got.stationarity
+    if args.json:
+        objs = {c: fit_json(f.result, source=args.input, units=f.units, datasheet=f.datasheet,
+                            check=f.check, verdict=f.verdict) for c, f in fits.items()}
+        obj = ({"command": "fit", "input": args.input, "fits": objs} if multi
+               else next(iter(objs.values())))
+        if st is not None:
+            obj["stationarity"] = st.to_json_dict()
+        out.write(json_text(obj))
+    else:
+        if st is not None and st.used not in (None, (0, st.n)):
+            out.write(f"recording part used: {st.used_text()}\n")
+        out.write("\n\n".join(fit_text(f.result, source=args.input, name=c if multi else None,
+                                       units=f.units, datasheet=f.datasheet, check=f.check,
+                                       verdict=f.verdict)
+                              for c, f in fits.items()) + "\n")
+    return fit_status(fits, err, multi)
+
+
+def fit_settings(args: argparse.Namespace) -> Any:
+    """The :class:`gmwm.settings.FitSettings` of the command line (validated before the input
+    is read). Weights, starts and reweighting are set only when given (see the parser)."""
+    from gmwm.settings import FitSettings
+
+    options: dict[str, Any] = {"method": args.method, "seed": args.seed, "levels": args.levels}
+    if getattr(args, "robust", False):
+        options.update(robust=True, eff=args.eff)
+    given = {"weights": args.weights, "n_starts": args.n_starts, "reweight": args.reweight}
+    options.update({k: v for k, v in given.items() if v is not None})
+    return FitSettings.of(**options)
+
+
+def fit_columns(args: argparse.Namespace, err: TextIO, require_time: str | None = None
+                ) -> tuple[Inputs, dict[str, ColumnFit]]:
+    """Read the input (:func:`gmwm.cli.inputs.read_fit_data`) and fit every channel with its
+    model; every model is parsed before the first fit."""
+    import gmwm
+    from gmwm.model import Model
+    from gmwm.units import datasheet
+
+    settings = fit_settings(args)
+    got = read_fit_data(args, err, require_time)
+    specs = models_by_column(args.model, list(got.data))
+    models = {c: Model(specs[c], freq=got.freq) for c in got.data}
+    fits = {}
+    for c, d in got.data.items():
+        args.progress(f"fitting {models[c].spec} to {c}")
+        # a WV (a table, streamed, pooled segments) is already cut to --levels
+        s = settings if isinstance(d, np.ndarray) else settings.replace(levels=None)
+        res = gmwm.fit(d, models[c], settings=s, freq=got.freq)
+        if c in got.streamed:
+            res = _streamed(res, got.streamed[c])
+        check = None
+        if getattr(args, "check", False):
+            from gmwm import identify
+
+            args.progress(f"identifiability check of {c}")
+            check = identify.check(res)
+        units = got.units[c]
+        fits[c] = ColumnFit(res, units, datasheet(res, units or None), check)
+    return got, fits
+
+
+def _streamed(res: Any, channel: Any) -> Any:
+    """A fit of a streamed channel's WV with what the WV does not hold: the sign of a drift (from
+    the signal's first and last samples, as :func:`gmwm.fit` takes it from a signal) and the
+    seconds the streamed WV took."""
+    if res.settings.method != "avsm":
+        from gmwm.select import _fix_drift_sign
+
+        res = _fix_drift_sign(res, channel.drift_sign)
+    return dataclasses.replace(res, seconds_wv=channel.seconds)
+
+
+def fit_status(fits: dict[str, ColumnFit], err: TextIO, multi: bool) -> int:
+    """The fits' warnings on stderr (prefixed by the channel when ``multi``); exit status 3 when
+    a fit did not converge."""
+    status = EXIT_OK
+    for name, f in fits.items():
+        prefix = f"{name}: " if multi else ""
+        err.writelines(f"gmwm: warning: {prefix}{w}\n" for w in fit_warnings(f.result))
+        if not f.result.converged:
+            msg = str(f.result.message).strip().splitlines()
+            err.write(f"gmwm: warning: {prefix}the optimizer did not converge"
+                      + (f" ({msg[0]})" if msg else "")
+                      + "; treat the estimate with care (exit status 3)\n")
+            status = EXIT_NOT_CONVERGED
+    return status
+
+
+# -- sensor datasheets (fit, report) ------------------------------------------------------------
+def load_datasheet(args: argparse.Namespace) -> Any:
+    """The sensor datasheet of ``--datasheet`` (:func:`gmwm.sensor_datasheet.load_datasheet`),
+    or None."""
+    if not getattr(args, "datasheet", None):
+        return None
+    from gmwm.sensor_datasheet import load_datasheet as load
+
+    return load(args.datasheet)
+
+
+def attach_verdicts(fits: dict[str, ColumnFit], sheet: Any, err: TextIO, multi: bool
+                    ) -> dict[str, ColumnFit]:
+    """The fits with their datasheet verdicts; a column the datasheet does not cover (no section
+    for its sensor type) gets a warning, a column without a known unit is an error."""
+    if sheet is None:
+        return fits
+    from gmwm.datasheet import parse_unit
+    from gmwm.sensor_datasheet import judge
+
+    out = {}
+    for name, f in fits.items():
+        parsed = parse_unit(f.units) if f.units else None
+        if parsed is None:
+            raise InputError(f"--datasheet: give the unit of {name} with --units (e.g. deg/s or "
+                             "m/s^2) to tell a gyroscope from an accelerometer")
+        if parsed[2] not in sheet.sensors:
+            err.write(f"gmwm: warning: {name + ': ' if multi else ''}the datasheet "
+                      f"{sheet.where} has no {parsed[2]} section: no verdict\n")
+            out[name] = f
+            continue
+        out[name] = dataclasses.replace(f, verdict=judge(f.result, sheet, f.units))
+    if all(f.verdict is None for f in out.values()):
+        raise InputError(f"--datasheet {sheet.where}: no fitted column is of a sensor type it "
+                         f"describes ({', '.join(sheet.sensors)})")
+    return out
+
+
+def _plot_with_datasheet(fits: dict[str, ColumnFit], path: str) -> None:
+    """Per column one row: WV with the fit and the datasheet's WV; Allan deviation with the
+    datasheet's."""
+    from gmwm.plots import add_datasheet_line, channel_grid, plot_av, plot_wv
+    from gmwm.wv import AllanVariance
+
+    fig, axes = channel_grid(2 * len(fits), ncols=2)
+    for i, (name, f) in enumerate(fits.items()):
+        res, v = f.result, f.verdict
+        ax_wv, ax_ad = axes[2 * i], axes[2 * i + 1]
+        plot_wv(res.wv, result=res, ax=ax_wv, units=f.units)
+        plot_av(AllanVariance.from_wv(res.wv), deviation=True, ax=ax_ad, units=f.units)
+        if v is not None:
+            c = v["curves"]
+            add_datasheet_line(ax_wv, c["scales_s"], c["wv"], v["label"])
+            add_datasheet_line(ax_ad, c["tau_s"], c["adev"], v["label"])
+        if len(fits) > 1:
+            ax_wv.set_title(f"{name}: WV")
+            ax_ad.set_title(f"{name}: Allan deviation")
+    save_plot(fig, path)

@@ -1,0 +1,380 @@
+"""The one place the ``gmwm`` commands turn a file and the input options into data.
+
+A recording (any format of :func:`gmwm.readers.read_recording`) gives per channel a signal, or,
+when the gap policy pools the clean segments, their wavelet variance; before that, the
+stationarity check (:func:`gmwm.stationarity.check_stationarity`) picks the part to use
+(``--start/--end``, ``--segment longest-static``) and may refuse it (``--strict``). Raw binary
+(``--dtype``) and large .npy / HDF5 files are streamed (:mod:`gmwm.stream`): their channels' WVs
+come out of one pass with bounded memory. A WV or AV table gives per channel a
+:class:`gmwm.wv.WaveletVariance`. The frequency comes from the file or ``--freq`` (a contradiction
+is an error) and a unit without a time base is an error, never 1 Hz. The rules are the library's;
+this module calls them and prints their warnings.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+from gmwm.formatting import spans
+from gmwm.cli.parser import STREAM_MIN_BYTES, UsageError
+from gmwm.errors import InputError
+
+#: the shortest static stretch --segment longest-static accepts [samples]
+MIN_STATIC_SAMPLES = 64
+
+
+@dataclass(frozen=True)
+class Inputs:
+    """What a command works on. ``data``: per channel a 1-D float signal or a
+    :class:`~gmwm.wv.WaveletVariance` (a table, a streamed channel, or a recording's pooled clean
+    segments); ``freq`` [Hz] (1 for a signal without time stamps or unit); ``units`` per channel
+    ('' unknown); ``recording``, ``stationarity`` (its ``used`` range set) and ``gaps`` (the gap
+    decision) for a recording read whole; ``streamed``: per channel the
+    :class:`gmwm.stream.ChannelWV` when the input was streamed; ``seconds`` spent reading."""
+
+    data: dict[str, Any]
+    freq: float
+    units: dict[str, str]
+    recording: Any = None
+    stationarity: Any = None
+    gaps: Any = None
+    streamed: dict[str, Any] = field(default_factory=dict)
+    seconds: float = 0.0
+
+
+def model_theta(spec: str, params: Sequence[tuple[str, float]], freq: float) -> tuple[Any, Any]:
+    """The model of ``spec`` and its parameter vector from the ``--param`` pairs."""
+    from gmwm.model import Model
+
+    model = Model(spec, freq=freq)
+    values: dict[str, float] = {}
+    for name, value in params:
+        if name in values:
+            raise UsageError(f"--param {name} given twice")
+        values[name] = value
+    if not values and model.n_params:
+        raise UsageError(f"give the parameter values with --param, e.g. --param "
+                         f"'{model.param_names[0]}=...'; model {model.spec} needs "
+                         f"{', '.join(model.param_names)}")
+    return model, model.theta(values)
+
+
+def check_levels(n: int, levels: int | None) -> None:
+    """A signal of ``n`` samples and ``--levels``: clear messages before any computation."""
+    if n < 4:
+        raise InputError(f"signal has {n} samples; at least 4 are needed for one wavelet scale")
+    jmax = int(n).bit_length() - 1
+    if levels is not None and levels > jmax:
+        raise InputError(
+            f"signal of {n} samples is too short for --levels {levels} "
+            f"(scale 2^{levels} = {2 ** levels} samples needs at least that many; at most "
+            f"J = {jmax})")
+
+
+# -- signals ------------------------------------------------------------------------------------
+def read_signals(args: argparse.Namespace, err: TextIO, *, allow_wv: bool = False,
+                 require_time: str | None = None) -> Inputs:
+    """The requested channels, read whole: signals, or with ``allow_wv`` the pooled WV of the
+    clean segments where the gap policy combines them. A channel with a unit, or
+    ``require_time`` (what needs the rate), makes a recording without time stamps or ``--freq``
+    an error, never 1 Hz."""
+    from gmwm.readers.recording import read_recording
+    from gmwm.readers.timebase import signal_for_wv
+
+    args.progress(f"reading {args.input}")
+    t0 = time.perf_counter()
+    if args.dtype is not None:  # raw binary read whole (e.g. for the robust WV)
+        return _read_raw(args, require_time, t0)
+    rec = read_recording(args.input, topic=args.topic, columns=wanted_columns(args),
+                         dataset=args.dataset, freq=args.freq, time_unit=args.time_unit)
+    units = units_by_column(args, list(rec.channels), rec.units)
+    if rec.time is None:
+        with_unit = [c for c, u in units.items() if u]
+        if require_time or with_unit:
+            rec.require_time(require_time or f"coefficients in {units[with_unit[0]]}")
+        freq = 1.0  # per-sample scales of a signal without a unit
+    else:
+        freq = rec.time.freq
+    _warn(err, rec.notes)
+    rec, st = _static_part(args, rec, units, err)
+    policy = args.gaps
+    if policy == "combine" and not allow_wv:
+        raise UsageError("--gaps combine applies to fit and report (use longest here)")
+    decision = rec.gaps(policy if allow_wv or policy != "auto" else "longest")
+    if decision.message:
+        _warn(err, [decision.message])
+    data = {c: signal_for_wv(x, decision, args.levels, freq) for c, x in rec.channels.items()}
+    return Inputs(data, freq, units, rec, st, decision, seconds=time.perf_counter() - t0)
+
+
+def _read_raw(args: argparse.Namespace, require_time: str | None, t0: float) -> Inputs:
+    with raw_source(args) as src:
+        rows = src.read(0, src.n_samples)
+        signals = {n: np.ascontiguousarray(rows[:, i], dtype=np.float64)
+                   for i, n in enumerate(src.names)}
+    units = units_by_column(args, list(signals), {})
+    freq = resolve_freq(args, None, None, units, require_time)
+    for name, x in signals.items():
+        bad = ~np.isfinite(x)
+        if bad.any():
+            raise InputError(f"{args.input} ({name}) contains a non-finite value at sample "
+                             f"{int(np.argmax(bad))}; clean or interpolate it first")
+    return Inputs(signals, freq, units, seconds=time.perf_counter() - t0)
+
+
+def wanted_columns(args: argparse.Namespace) -> Any:
+    """``--column`` / ``--columns`` as the readers take them (None: the file's only channel)."""
+    if args.columns is not None and args.column is not None:
+        raise UsageError("give --column (one signal) or --columns (several), not both")
+    return args.columns if args.columns is not None else (None if args.column is None
+                                                          else [args.column])
+
+
+def resolve_freq(args: argparse.Namespace, found: float | None, source: str | None,
+                 units: Mapping[str, str], require_time: str | None = None) -> float:
+    """--freq, else the file's frequency; both given and different (> 1 %) is an error. Without
+    either, per-sample scales (1 Hz) only for a plain signal: a unit or ``require_time`` needs a
+    time base, so that is an error asking for --freq, never a silent 1 Hz."""
+    given, where = args.freq, args.input
+    if found is None:
+        if given is not None:
+            return float(given)
+        with_unit = [c for c, u in units.items() if u]
+        if require_time or with_unit:
+            why = require_time or f"coefficients in {units[with_unit[0]]}"
+            raise InputError(f"{where} has no time stamps and no sampling frequency: {why} needs "
+                             "one; give --freq HZ")
+        return 1.0
+    if given is None:
+        return float(found)
+    if abs(given / found - 1.0) > 0.01:
+        raise InputError(f"--freq {given:g} contradicts the sampling frequency {found:g} Hz given "
+                         f"by the {source} of {where}; drop --freq or fix the file")
+    return float(given)
+
+
+# -- streaming ----------------------------------------------------------------------------------
+def raw_source(args: argparse.Namespace) -> Any:
+    """The raw binary file of ``--dtype`` as a :class:`gmwm.stream.RawSource`."""
+    from gmwm.stream import RawSource
+
+    if args.dataset is not None:
+        raise UsageError("--dataset applies to HDF5 files, not to raw binary (--dtype)")
+    return RawSource(args.input, args.dtype, args.raw_channels, args.raw_offset,
+                     wanted_columns(args))
+
+
+def stream_min_bytes() -> int:
+    """The size from which .npy / HDF5 inputs are streamed (``GMWM_STREAM_MIN_BYTES`` overrides)."""
+    env = os.environ.get("GMWM_STREAM_MIN_BYTES", "").strip()
+    if not env:
+        return STREAM_MIN_BYTES
+    try:
+        return max(0, int(float(env)))
+    except ValueError:
+        raise UsageError(f"GMWM_STREAM_MIN_BYTES must be a number of bytes, got {env!r}") from None
+
+
+def stream_wvs(args: argparse.Namespace, err: TextIO, require_time: str | None = None
+               ) -> Inputs | None:
+    """The WV per channel of a streamed input (raw binary; .npy / HDF5 from
+    :func:`stream_min_bytes` on, in a layout the stream reads) with ``--levels``/``--alpha``, or
+    None when the input is read whole. The robust WV needs the whole signal: never streamed."""
+    from gmwm.cli import one_line
+
+    if getattr(args, "robust", False):
+        return None
+    if args.dtype is not None:
+        src = raw_source(args)
+    else:
+        p = Path(args.input)
+        if p.suffix.lower() not in (".npy", ".h5", ".hdf5") or not p.is_file() \
+                or p.stat().st_size < stream_min_bytes():
+            return None
+        from gmwm.stream import open_source
+
+        try:
+            src = open_source(p, wanted_columns(args), args.dataset)
+        except InputError as exc:  # a layout only the in-memory reader handles (or a bad file:
+            # the reader then reports it in its own words)
+            err.write(f"gmwm: note: {args.input} is read into memory, not streamed "
+                      f"({one_line(exc)})\n")
+            return None
+    from gmwm.stream import wvar_stream
+
+    with src:
+        units = units_by_column(args, list(src.names), {})
+        freq = resolve_freq(args, src.freq, src.freq_source, units, require_time)
+        _warn(err, src.notes)
+        check_levels(src.n_samples, args.levels)
+        args.progress(f"streaming {args.input} ({src.n_samples} samples x {len(src.names)} "
+                      "channels)")
+        got = wvar_stream(src, levels=args.levels, alpha=getattr(args, "alpha", 0.05), freq=freq)
+    return Inputs({c: v.wv for c, v in got.items()}, freq, units, streamed=got)
+
+
+# -- what fit and report fit --------------------------------------------------------------------
+def read_fit_data(args: argparse.Namespace, err: TextIO, require_time: str | None = None
+                  ) -> Inputs:
+    """What ``gmwm fit`` and ``gmwm report`` fit: the channels of a WV (or AV) table, cut to
+    ``--levels``; of a streamed input, their WVs; else of a recording (:func:`read_signals`,
+    pooled segments allowed)."""
+    from gmwm.readers.tables import is_wv_table, read_wv_table, table_channels
+
+    p = Path(args.input)
+    if not p.exists():
+        raise InputError(f"file not found: {p}")
+    if args.dtype is not None or not is_wv_table(p):  # --dtype: raw binary, whatever the name
+        if args.n_samples is not None:
+            raise UsageError("--n-samples applies to a WV table (a CSV with 'scale' and "
+                             "'variance' columns)")
+        got = stream_wvs(args, err, require_time)  # a WV is all a fit needs
+        if got is None:
+            got = read_signals(args, err, allow_wv=True, require_time=require_time)
+        if getattr(args, "robust", False) and any(not isinstance(d, np.ndarray)
+                                                  for d in got.data.values()):
+            raise UsageError("--robust needs one contiguous signal, but the gaps of the "
+                             "recording leave the pooled WV of its segments: use --gaps longest")
+        return got
+    if args.start is not None or args.end is not None or args.segment != "all" or args.strict:
+        raise UsageError("--start/--end/--segment/--strict apply to recordings, not to a WV table")
+    if getattr(args, "robust", False):
+        raise UsageError("--robust needs the signal; a WV table is already an estimate")
+    channels = table_channels(p)
+    if args.columns is None:
+        wanted: list[Any] = [None] if args.column is None else [str(args.column)]
+    elif args.columns == "all":
+        wanted = channels or [None]
+    else:
+        wanted = [str(c) for c in args.columns]
+    data = {}
+    for c in wanted:
+        wv = read_wv_table(p, n_samples=args.n_samples, freq=args.freq, channel=c)
+        if args.levels is not None:
+            if args.levels > wv.n_levels:
+                raise InputError(f"--levels {args.levels} but the table {args.input} has "
+                                 f"{wv.n_levels} scales")
+            wv = wv.subset(np.arange(1, args.levels + 1))
+        data[p.stem if c is None else c] = wv
+    return Inputs(data, next(iter(data.values())).freq, units_by_column(args, list(data), {}))
+
+
+# -- per-column options -------------------------------------------------------------------------
+def units_by_column(args: argparse.Namespace, columns: Sequence[str],
+                    file_units: Mapping[str, str | None]) -> dict[str, str]:
+    """Per column: the ``--units`` given (validated; an unknown unit is an error listing the known
+    ones, one contradicting ``file_units`` too), else the unit the file defines (bags, ULog,
+    EuRoC headers), else ''."""
+    from gmwm.datasheet import parse_unit
+
+    given = _by_column(getattr(args, "units", []) or [], columns, "--units", None)
+    out = {}
+    for c in columns:
+        file_unit = file_units.get(c)
+        u = given.get(c)
+        if u:
+            pu = parse_unit(u)
+            if file_unit and pu != parse_unit(file_unit):
+                raise InputError(f"--units {u} for {c} contradicts {args.input}, which says "
+                                 f"{file_unit}")
+        out[c] = u or file_unit or ""
+    return out
+
+
+def models_by_column(spec: str, columns: Sequence[str]) -> dict[str, str]:
+    """'WN+RW' for every column, or 'gx=WN+RW,ax=QN+WN+RW[,DEFAULT]' pairs."""
+    if "=" not in spec:
+        return dict.fromkeys(columns, spec)
+    default = None
+    pairs = {}
+    for item in (t.strip() for t in spec.split(",")):
+        if not item:
+            continue
+        if "=" in item:
+            col, model = (t.strip() for t in item.split("=", 1))
+            pairs[col] = model
+        else:
+            default = item
+    unknown = [c for c in pairs if c not in columns]
+    if unknown:
+        raise InputError(f"model given for column(s) {', '.join(unknown)}, not among the columns "
+                         f"used ({', '.join(columns)}); select them with --columns")
+    missing = [c for c in columns if c not in pairs and default is None]
+    if missing:
+        raise InputError(f"no model for column(s) {', '.join(missing)}: add COL=MODEL pairs or a "
+                         "bare default model")
+    return {c: pairs.get(c, default) for c in columns}
+
+
+def _by_column(items: Sequence[str], columns: Sequence[str], what: str, default: str | None
+               ) -> dict[str, str | None]:
+    """Per-column values from 'VALUE' (every other column) and 'C1,C2=VALUE' items."""
+    explicit: dict[str, str] = {}
+    fallback = default
+    for item in items:
+        if "=" in item:
+            cols, value = item.rsplit("=", 1)
+            for c in (t.strip() for t in cols.split(",")):
+                if c not in columns:
+                    raise InputError(f"{what} for column '{c}', which is not among the columns "
+                                     f"used ({', '.join(columns)})")
+                explicit[c] = value.strip()
+        else:
+            fallback = item.strip()
+    return {c: explicit.get(c, fallback) for c in columns}
+
+
+# -- stationarity -------------------------------------------------------------------------------
+def _static_part(args: argparse.Namespace, rec: Any, units: Mapping[str, str], err: TextIO
+                 ) -> tuple[Any, Any]:
+    """Check the recording for motion (docs/METHODS.md §16), choose the part to use
+    (``--start/--end``, ``--segment longest-static``), print the warnings, and with ``--strict``
+    refuse a used part that moved. Returns that part and the report (its ``used`` range set)."""
+    from gmwm.readers.recording import sample_range, select_samples
+    from gmwm.stationarity import NonStationaryError, check_stationarity
+
+    args.progress("checking stationarity")
+    st = check_stationarity(rec, units={c: (u or None) for c, u in units.items()})
+    start, end = getattr(args, "start", None), getattr(args, "end", None)
+    i0, i1 = (0, rec.n) if start is None and end is None else sample_range(rec, start, end)
+    how = "the whole recording" if (i0, i1) == (0, rec.n) else "--start/--end"
+    if getattr(args, "segment", "all") == "longest-static":
+        a, b = st.clean_segment(i0, i1)
+        if b <= a:
+            raise NonStationaryError(f"--segment longest-static: every part of {args.input} "
+                                     f"is flagged as moving ({_flagged(st)})")
+        if b - a < MIN_STATIC_SAMPLES:
+            raise NonStationaryError(f"--segment longest-static: the longest static stretch of "
+                                     f"{args.input} has only {b - a} samples")
+        i0, i1 = a, b
+        how = "longest static segment" + ("" if how.startswith("the whole") else
+                                          " within --start/--end")
+    st = st.using(i0, i1, how)
+    if getattr(args, "strict", False) and st.moving_in_used:
+        raise NonStationaryError(f"{args.input} is not static in the part used ({_flagged(st)}) "
+                                 "and --strict is set: calibrate a static part with --segment "
+                                 "longest-static or --start/--end")
+    _warn(err, st.warnings())
+    if (i0, i1) != (0, rec.n):
+        if not st.segments:
+            err.write(f"gmwm: note: the estimate uses {st.used_text()}\n")
+        rec = select_samples(rec, i0, i1)
+    return rec, st
+
+
+def _flagged(st: Any) -> str:
+    """The flagged ranges in the part used (all of them when none is)."""
+    a, b = st.used or (0, st.n)
+    return spans(st, st.segments_in(a, b) or list(st.segments))
+
+
+def _warn(err: TextIO, messages: Sequence[str]) -> None:
+    err.writelines(f"gmwm: warning: {m}\n" for m in messages)
