@@ -78,7 +78,8 @@ MAX_VALUES = 20_000
 
 #: README commands not run: (name, regex on the command's first line, reason)
 SKIP_RULES: tuple[tuple[str, str, str], ...] = (
-    ("install", r"^\s*pip\s+install\b", "installs the package (the environment is given)"),
+    ("install", r"^\s*(python\s+-m\s+)?pip\s+install\b",
+     "installs the package (the environment is given)"),
     ("tests", r"^\s*(python\s+-m\s+)?pytest\b", "the test suite (not an example; run on its own)"),
     ("quick-profile", r"^\s*snakemake\b.*--configfile\s+config/quick\.yaml",
      "the quick profile: run by the quick part, in a git copy of the repository"),
@@ -236,13 +237,15 @@ def run_readme(scratch: Path, env: dict[str, str]) -> dict[str, Any]:
         skip = skip_reason(c["command"])
         if skip:
             rec.update(status="skipped", rule=skip[0], reason=skip[1])
-        elif re.fullmatch(r"\s*cd\s+\"?\$\(mktemp -d\)\"?\s*", c["command"]):
+        elif re.fullmatch(r"\s*(repo=\$PWD;\s*)?cd\s+\"?\$\(mktemp -d\)\"?\s*(#.*)?", c["command"]):
             cwd = new_session()
             rec.update(status="run", reason="handled by the script: a new empty scratch directory",
                        session=cwd.name, returncode=0, stdout="", stderr="")
         else:
             t0 = time.perf_counter()
-            proc = subprocess.run(["bash", "-o", "pipefail", "-c", c["command"]], cwd=cwd, env=env,
+            # the README's commands start in the checkout ("repo=$PWD") and then work in scratch
+            proc = subprocess.run(["bash", "-o", "pipefail", "-c", c["command"]], cwd=cwd,
+                                  env={**env, "repo": str(REPO)},
                                   capture_output=True, text=True, check=False)
             rec.update(status="run", session=cwd.name, returncode=proc.returncode,
                        stdout=proc.stdout, stderr=proc.stderr,
