@@ -656,3 +656,28 @@ def test_progress_lines_only_on_a_terminal_and_not_quiet(signal_files, monkeypat
     assert main(["fit", str(signal_files["npy"]), "WN+AR1", "--json"]) == 0
     assert "reading" in tty.text and "fitting WN+AR1" in tty.text
     capsys.readouterr()
+
+
+# ---- the automatic model choice ('auto') ----------------------------------------------------------
+
+
+def test_fit_auto_prints_the_ranking_and_keeps_wn_and_rw(capsys, signal_files):
+    code, out, err = run(capsys, "fit", signal_files["npy"], "auto", "--freq", "100",
+                         "--units", "deg/s", "-q")
+    assert code == 0, err
+    head = out.splitlines()[0]
+    assert head.startswith("model ") and "chosen for the gyroscope" in head
+    chosen = head.split()[1]
+    assert "WN" in chosen and "RW" in chosen  # the terms a filter needs, in every candidate
+    assert "GOF p" in out and "rank" in out
+    code, out, _ = run(capsys, "fit", signal_files["npy"], "auto", "--freq", "100",
+                       "--units", "deg/s", "--json", "-q")
+    obj = json.loads(out)
+    assert obj["model"] == chosen and obj["model_choice"]["model"] == chosen
+    assert [c["rank"] for c in obj["model_choice"]["candidates"]][:2] == [1, 2]
+
+
+def test_auto_refuses_the_slope_method(capsys, signal_files):
+    code, _, err = run(capsys, "fit", signal_files["npy"], "auto", "--freq", "100",
+                       "--method", "avsm")
+    assert code == 1 and err.count("\n") == 1 and "automatic model choice" in err

@@ -374,18 +374,29 @@ def test_combined_segments_pool_coefficients_exactly():
 # ---- the user's path: gmwm report FILE -o DIR, no options --------------------------------------
 
 
-def test_report_of_a_bag_needs_no_options_and_recovers_densities(tmp_path):
+def test_report_of_a_bag_needs_no_options_and_recovers_densities(tmp_path, capsys):
+    import json
+
     from gmwm.cli import main
 
     n = 2 ** 14
     g, a = _signals(n, 10)
     bag = write_bag(tmp_path / "imu.bag", "ros1", {"/imu/data": (_stamps(n), g, a, "imu")})
-    assert main(["report", str(bag), "-o", str(tmp_path / "rep"), "-q"]) == 0
+    assert main(["report", str(bag), "-o", str(tmp_path / "rep"), "-q", "--json"]) == 0
     vals = yaml.safe_load((tmp_path / "rep" / "imu.yaml").read_text())
-    assert vals["update_rate"] == FS and vals["rostopic"]  # a placeholder until the CLI passes it
+    assert vals["update_rate"] == FS and vals["rostopic"] == "/imu/data"
+    # no model given: chosen per axis by the data, every candidate with the WN and RW filters need
+    page = (tmp_path / "rep" / "report.md").read_text()
+    assert page.count("chosen for the gyroscope") == 3
+    assert page.count("chosen for the accelerometer") == 3
     # the largest of three axes: within ~5 % of the simulated 1e-3 and 2e-2 densities
     assert vals["gyroscope_noise_density"] == pytest.approx(1e-3, rel=0.06)
     assert vals["accelerometer_noise_density"] == pytest.approx(2e-2, rel=0.06)
+    fits = json.loads(capsys.readouterr().out)["fits"]
+    for name, f in fits.items():
+        choice = f["model_choice"]
+        assert "WN" in choice["model"] and "RW" in choice["model"], name
+        assert choice["candidates"][0]["rank"] == 1 and "result" not in choice
 
 
 @pytest.mark.parametrize(("unit", "factor"), [("mg", 1e-3 * 9.80665), ("ug", 1e-6 * 9.80665),

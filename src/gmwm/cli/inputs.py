@@ -23,9 +23,9 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from gmwm.formatting import spans
 from gmwm.cli.parser import STREAM_MIN_BYTES, UsageError
 from gmwm.errors import InputError
+from gmwm.formatting import spans
 
 #: the shortest static stretch --segment longest-static accepts [samples]
 MIN_STATIC_SAMPLES = 64

@@ -229,9 +229,11 @@ def _add_params(p: argparse.ArgumentParser) -> None:
 
 
 _DEFAULT_LEVELS = "number of dyadic scales tau_j = 2^j, j = 1..J (default floor(log2 T) - 1)"
-_MODEL_HELP = ("model string, e.g. 'WN+RW+AR1+SIN'; with --columns one model for all or "
-               "COL=MODEL pairs separated by commas ('gx=WN+RW,ax=QN+WN+RW'; a bare model is the "
-               "default for the other columns)")
+_MODEL_HELP = ("model string, e.g. 'WN+RW+AR1+SIN', or 'auto' (chosen per axis by the data: "
+               "WN, QN, RW, DR, up to three GM, SIN on a WV bump, ranked by WIC, the best one "
+               "the goodness-of-fit test does not reject; docs/METHODS.md §6.1); with --columns "
+               "one model for all or COL=MODEL pairs separated by commas "
+               "('gx=WN+RW,ax=QN+WN+RW'; a bare model is the default for the other columns)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -389,8 +391,9 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     _add_input(p)
-    p.add_argument("model", metavar="MODEL", nargs="?", default="WN+RW",
-                   help=_MODEL_HELP + "; WN+RW gives the two terms Kalibr needs")
+    p.add_argument("model", metavar="MODEL", nargs="?", default="auto",
+                   help=_MODEL_HELP + "; default auto (every gyroscope or accelerometer candidate "
+                        "has the WN and RW terms filters need)")
     _add_common(p, _DEFAULT_LEVELS, plot=False)
     _add_units(p, "datasheet coefficients; deg/s or rad/s marks a gyroscope, m/s^2 or g an "
                   "accelerometer")

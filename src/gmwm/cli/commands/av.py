@@ -9,6 +9,8 @@ from typing import Any, TextIO
 import numpy as np
 
 from gmwm.cli.commands.wv import channel_wvs
+from gmwm.cli.outputs import plot_channels, write_table
+from gmwm.cli.parser import EXIT_OK
 from gmwm.formatting import (
     AV_HEADERS,
     av_channel_table,
@@ -18,8 +20,6 @@ from gmwm.formatting import (
     readings_text,
     table,
 )
-from gmwm.cli.outputs import plot_channels, write_table
-from gmwm.cli.parser import EXIT_OK
 
 
 def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:

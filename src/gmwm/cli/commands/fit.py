@@ -13,11 +13,11 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from gmwm.formatting import fit_json, fit_text, fit_warnings, json_text
 from gmwm.cli.inputs import Inputs, models_by_column, read_fit_data
 from gmwm.cli.outputs import plot_channels, save_plot
 from gmwm.cli.parser import EXIT_NOT_CONVERGED, EXIT_OK
 from gmwm.errors import InputError
+from gmwm.formatting import fit_json, fit_text, fit_warnings, json_text
 
 
 @dataclass(frozen=True)
@@ -31,6 +31,7 @@ class ColumnFit:
     datasheet: dict[str, Any]
     check: Any = None
     verdict: dict[str, Any] | None = None
+    choice: Any = None
 
 
 def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
@@ -49,6 +50,9 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if args.json:
         objs = {c: fit_json(f.result, source=args.input, units=f.units, datasheet=f.datasheet,
                             check=f.check, verdict=f.verdict) for c, f in fits.items()}
+        for c, f in fits.items():
+            if f.choice is not None:
+                objs[c]["model_choice"] = choice_json(f.choice)
         obj = ({"command": "fit", "input": args.input, "fits": objs} if multi
                else next(iter(objs.values())))
         if st is not None:
@@ -57,10 +61,11 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     else:
         if st is not None and st.used not in (None, (0, st.n)):
             out.write(f"recording part used: {st.used_text()}\n")
-        out.write("\n\n".join(fit_text(f.result, source=args.input, name=c if multi else None,
-                                       units=f.units, datasheet=f.datasheet, check=f.check,
-                                       verdict=f.verdict)
-                              for c, f in fits.items()) + "\n")
+        out.write("\n\n".join(
+            ("" if f.choice is None else choice_text(f.choice) + "\n")
+            + fit_text(f.result, source=args.input, name=c if multi else None, units=f.units,
+                       datasheet=f.datasheet, check=f.check, verdict=f.verdict)
+            for c, f in fits.items()) + "\n")
     return fit_status(fits, err, multi)
 
 
@@ -88,13 +93,22 @@ def fit_columns(args: argparse.Namespace, err: TextIO, require_time: str | None 
     settings = fit_settings(args)
     got = read_fit_data(args, err, require_time)
     specs = models_by_column(args.model, list(got.data))
-    models = {c: Model(specs[c], freq=got.freq) for c in got.data}
+    auto = {c for c, m in specs.items() if m.strip().lower() == AUTO}
+    if auto and settings.method != "gmwm":
+        raise InputError(f"the automatic model choice fits GMWM candidates; with --method "
+                         f"{settings.method} give a model")
+    models = {c: Model(specs[c], freq=got.freq) for c in got.data if c not in auto}
     fits = {}
     for c, d in got.data.items():
-        args.progress(f"fitting {models[c].spec} to {c}")
         # a WV (a table, streamed, pooled segments) is already cut to --levels
         s = settings if isinstance(d, np.ndarray) else settings.replace(levels=None)
-        res = gmwm.fit(d, models[c], settings=s, freq=got.freq)
+        choice = None
+        if c in auto:
+            choice = _choose(args, c, d, s, got.freq, got.units[c])
+            res = choice.result
+        else:
+            args.progress(f"fitting {models[c].spec} to {c}")
+            res = gmwm.fit(d, models[c], settings=s, freq=got.freq)
         if c in got.streamed:
             res = _streamed(res, got.streamed[c])
         check = None
@@ -104,8 +118,46 @@ def fit_columns(args: argparse.Namespace, err: TextIO, require_time: str | None 
             args.progress(f"identifiability check of {c}")
             check = identify.check(res)
         units = got.units[c]
-        fits[c] = ColumnFit(res, units, datasheet(res, units or None), check)
+        fits[c] = ColumnFit(res, units, datasheet(res, units or None), check, choice=choice)
     return got, fits
+
+
+#: the model argument that asks for the automatic choice (gmwm.automodel.choose_model)
+AUTO = "auto"
+
+
+def _choose(args: argparse.Namespace, name: str, data: Any, settings: Any, freq: float | None,
+            units: str) -> Any:
+    """The automatic model choice of one channel (:func:`gmwm.automodel.choose_model`): the
+    sensor kind from its unit; without one every sum of the candidate terms is tried."""
+    from gmwm.automodel import choose_model
+    from gmwm.datasheet import unit_system
+
+    kind = unit_system(units or None).sensor if units else None
+    args.progress(f"choosing the model of {name}"
+                  + (f" ({kind})" if kind else " (no sensor unit: every candidate sum)"))
+    choice = choose_model(
+        data, freq=freq, kind=kind, levels=settings.levels, robust=settings.robust,
+        eff=settings.eff, seed=settings.seed,
+        n_starts=settings.n_starts if args.n_starts is not None else None,
+        progress=lambda i, n, m: args.progress(f"{name}: candidate {i}/{n}: {m}"))
+    return choice
+
+
+def choice_json(choice: Any) -> dict[str, Any] | None:
+    """The automatic choice without its fit (the fit is the surrounding JSON): the ranking, the
+    goodness-of-fit p-values, notes and warnings (:meth:`gmwm.automodel.Choice.to_json_dict`)."""
+    if choice is None:
+        return None
+    obj = choice.to_json_dict()
+    obj.pop("result", None)
+    return obj
+
+
+def choice_text(choice: Any) -> str:
+    """The automatic choice's headline, ranking table, notes and warning (its
+    :meth:`~gmwm.automodel.Choice.summary` without the fit's own summary)."""
+    return choice.summary().split("\n\n", 1)[0]
 
 
 def _streamed(res: Any, channel: Any) -> Any:
@@ -125,6 +177,8 @@ def fit_status(fits: dict[str, ColumnFit], err: TextIO, multi: bool) -> int:
     status = EXIT_OK
     for name, f in fits.items():
         prefix = f"{name}: " if multi else ""
+        if f.choice is not None and not f.choice.passed:
+            err.write(f"gmwm: warning: {prefix}{f.choice.warnings[0]}\n")
         err.writelines(f"gmwm: warning: {prefix}{w}\n" for w in fit_warnings(f.result))
         if not f.result.converged:
             msg = str(f.result.message).strip().splitlines()

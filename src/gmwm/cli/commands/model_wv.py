@@ -7,11 +7,11 @@ from typing import TextIO
 
 import numpy as np
 
-from gmwm.formatting import json_text, table
 from gmwm.cli.inputs import model_theta
 from gmwm.cli.outputs import save_plot
 from gmwm.cli.parser import EXIT_OK, MAX_MODEL_LEVELS
 from gmwm.errors import InputError
+from gmwm.formatting import json_text, table
 
 
 def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:

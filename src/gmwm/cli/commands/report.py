@@ -8,7 +8,13 @@ import argparse
 from pathlib import Path
 from typing import TextIO
 
-from gmwm.cli.commands.fit import attach_verdicts, fit_columns, fit_status, load_datasheet
+from gmwm.cli.commands.fit import (
+    attach_verdicts,
+    choice_json,
+    fit_columns,
+    fit_status,
+    load_datasheet,
+)
 from gmwm.formatting import fit_json, fit_warnings, json_text, spans
 
 
@@ -23,7 +29,8 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     fits = attach_verdicts(fits, sheet, err, True)
     args.progress(f"writing the report to {args.output}")
     axes = {c: {"result": f.result, "units": f.units, "warnings": fit_warnings(f.result),
-                "datasheet": f.datasheet, "verdict": f.verdict} for c, f in fits.items()}
+                "datasheet": f.datasheet, "verdict": f.verdict, "choice": f.choice}
+            for c, f in fits.items()}
     st = got.stationarity
     if st is not None:  # each flagged axis says so in its own section and in the summary
         a, b = st.used or (0, st.n)
@@ -43,11 +50,15 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             timing.append(gaps.message)
     files = write_report(args.output, axes, source=args.input,
                          title=args.title or f"Calibration report: {Path(args.input).name}",
-                         timing=timing, stationarity=st, targets=targets, inflation=inflation)
+                         timing=timing, stationarity=st, targets=targets, inflation=inflation,
+                         # a bag's topic is the filter's rostopic; a ULog topic is not a ROS one
+                         topic=rec.topic if rec is not None and rec.format.startswith("ros")
+                         else None)
     if args.json:
         obj = {"command": "report", "input": args.input, "files": [str(p) for p in files],
                "fits": {c: fit_json(f.result, source=args.input, units=f.units,
                                     datasheet=f.datasheet, verdict=f.verdict)
+                        | ({} if f.choice is None else {"model_choice": choice_json(f.choice)})
                         for c, f in fits.items()}}
         if st is not None:
             obj["stationarity"] = st.to_json_dict()

@@ -7,9 +7,9 @@ import argparse
 import time
 from typing import Any, TextIO
 
-from gmwm.formatting import json_text, table
 from gmwm.cli.inputs import check_levels, read_signals, stream_wvs
 from gmwm.cli.parser import EXIT_OK
+from gmwm.formatting import json_text, table
 
 
 def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:

@@ -9,10 +9,10 @@ from typing import TextIO
 
 import numpy as np
 
-from gmwm.formatting import json_text
 from gmwm.cli.inputs import model_theta
 from gmwm.cli.parser import EXIT_OK
 from gmwm.errors import InputError
+from gmwm.formatting import json_text
 
 
 def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:

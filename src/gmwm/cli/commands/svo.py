@@ -10,11 +10,11 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from gmwm.formatting import WV_HEADERS, json_text, wv_rows
 from gmwm.cli.inputs import read_signals
 from gmwm.cli.outputs import save_plot, write_table
 from gmwm.cli.parser import EXIT_OK
 from gmwm.errors import InputError
+from gmwm.formatting import WV_HEADERS, json_text, wv_rows
 
 
 def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:

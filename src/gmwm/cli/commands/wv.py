@@ -10,10 +10,10 @@ import threading
 import time
 from typing import Any, TextIO
 
-from gmwm.formatting import WV_HEADERS, json_text, table, wv_channel_table, wv_channel_text, wv_rows
 from gmwm.cli.inputs import Inputs, check_levels, read_signals, stream_wvs
 from gmwm.cli.outputs import plot_channels, write_table
 from gmwm.cli.parser import EXIT_OK
+from gmwm.formatting import WV_HEADERS, json_text, table, wv_channel_table, wv_channel_text, wv_rows
 
 #: samples of the warm-up call that loads the compiled WV kernel (reported as the first-call cost)
 WARMUP_SAMPLES = 1024
