@@ -197,3 +197,47 @@ def test_nonfinite_sample_is_named_and_counts_are_checked() -> None:
         st.finish()
     with pytest.raises(InputError, match="more than the 100"):
         st.push(np.zeros(41))
+
+
+# ---- the command line: a streamed file gets the same check as one read whole ----------------------
+
+
+@pytest.mark.parametrize("extra", [[], ["--segment", "longest-static"], ["--start", "100"]])
+def test_cli_streamed_input_warns_like_the_in_memory_path(tmp_path, monkeypatch, capsys, extra):
+    import json
+
+    from gmwm.cli import main
+
+    rng = np.random.default_rng(5)
+    x = rng.standard_normal((60_000, 2))
+    x[30_000:30_400] += 40.0  # a knock in the middle
+    path = tmp_path / "x.npy"
+    np.save(path, x)
+    argv = ["fit", str(path), "WN", "--freq", "100", "--columns", "all", "--json", "-q", *extra]
+    runs = {}
+    for label, size in (("memory", str(1 << 40)), ("streamed", "0")):
+        monkeypatch.setenv("GMWM_STREAM_MIN_BYTES", size)
+        code = main(argv)
+        cap = capsys.readouterr()
+        runs[label] = (code, json.loads(cap.out), cap.err)
+    (c_m, j_m, e_m), (c_s, j_s, e_s) = runs["memory"], runs["streamed"]
+    assert c_m == c_s == 0
+    assert "not static" in e_s and "is read into memory" not in e_s
+    drop = ("seconds", "cpu_seconds")
+    assert ({k: v for k, v in j_s["stationarity"].items() if k not in drop}
+            == {k: v for k, v in j_m["stationarity"].items() if k not in drop})
+    for c in ("0", "1"):
+        assert j_s["fits"][c]["wv"]["n_samples"] == j_m["fits"][c]["wv"]["n_samples"]
+        assert j_s["fits"][c]["params"] == pytest.approx(j_m["fits"][c]["params"], rel=1e-9)
+
+
+def test_cli_streamed_strict_refuses_a_moving_recording(tmp_path, monkeypatch, capsys):
+    from gmwm.cli import main
+
+    x = np.random.default_rng(6).standard_normal(60_000)
+    x[30_000:30_400] += 40.0
+    np.save(tmp_path / "x.npy", x)
+    monkeypatch.setenv("GMWM_STREAM_MIN_BYTES", "0")
+    code = main(["fit", str(tmp_path / "x.npy"), "WN", "--freq", "100", "--strict", "-q"])
+    err = capsys.readouterr().err
+    assert code == 1 and "--strict" in err and err.count("gmwm: error") == 1

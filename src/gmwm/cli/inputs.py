@@ -208,17 +208,49 @@ def stream_wvs(args: argparse.Namespace, err: TextIO, require_time: str | None =
             err.write(f"gmwm: note: {args.input} is read into memory, not streamed "
                       f"({one_line(exc)})\n")
             return None
-    from gmwm.stream import wvar_stream
-
     with src:
         units = units_by_column(args, list(src.names), {})
         freq = resolve_freq(args, src.freq, src.freq_source, units, require_time)
         _warn(err, src.notes)
-        check_levels(src.n_samples, args.levels)
-        args.progress(f"streaming {args.input} ({src.n_samples} samples x {len(src.names)} "
-                      "channels)")
-        got = wvar_stream(src, levels=args.levels, alpha=getattr(args, "alpha", 0.05), freq=freq)
-    return Inputs({c: v.wv for c, v in got.items()}, freq, units, streamed=got)
+        got, st = _stream_checked(args, src, units, freq, err)
+    return Inputs({c: v.wv for c, v in got.items()}, freq, units, stationarity=st, streamed=got)
+
+
+def _stream_checked(args: argparse.Namespace, src: Any, units: Mapping[str, str],
+                    freq: float, err: TextIO) -> tuple[dict[str, Any], Any]:
+    """The streamed WVs of the part to use and the stationarity report, in bounded memory. The
+    whole recording (no --start/--end/--segment/--strict): one read, the check riding along
+    with the WV. Otherwise the check reads first (the part must be known before its WV), then
+    the WV reads only that part."""
+    from gmwm.stationarity import StationarityStream, check_stationarity_stream
+    from gmwm.stream import uniform_sample_range, wvar_stream
+
+    n = src.n_samples
+    chk_units = {c: (u or None) for c, u in units.items()}
+    chk_freq = None if src.freq is None and args.freq is None else freq
+    kw = {"levels": args.levels, "alpha": getattr(args, "alpha", 0.05), "freq": freq}
+    start, end = getattr(args, "start", None), getattr(args, "end", None)
+    whole = start is None and end is None and getattr(args, "segment", "all") == "all"
+    if whole and not getattr(args, "strict", False):
+        check_levels(n, args.levels)
+        args.progress(f"streaming {args.input} ({n} samples x {len(src.names)} channels): WV "
+                      "and stationarity check in one read")
+        check = StationarityStream.for_source(src, freq=chk_freq, units=chk_units)
+        got = wvar_stream(src, observe=check.push, **kw)
+        st, _, _ = _choose_part(args, check.finish(), 0, n, err)
+        return got, st
+    args.progress(f"checking stationarity of {args.input} (streamed)")
+    st = check_stationarity_stream(src, freq=chk_freq, units=chk_units)
+    if start is None and end is None:
+        i0, i1 = 0, n
+    else:
+        if chk_freq is None:
+            raise InputError(f"{args.input} has no sampling rate: --start/--end need --freq (Hz)")
+        i0, i1 = uniform_sample_range(n, freq, start, end, args.input)
+    st, i0, i1 = _choose_part(args, st, i0, i1, err)
+    check_levels(i1 - i0, args.levels)
+    args.progress(f"streaming {args.input} (samples {i0}-{i1} of {n})")
+    return wvar_stream(src, start=i0, stop=i1, **kw), st
 
 
 # -- what fit and report fit --------------------------------------------------------------------
@@ -339,13 +371,27 @@ def _static_part(args: argparse.Namespace, rec: Any, units: Mapping[str, str], e
     (``--start/--end``, ``--segment longest-static``), print the warnings, and with ``--strict``
     refuse a used part that moved. Returns that part and the report (its ``used`` range set)."""
     from gmwm.readers.recording import sample_range, select_samples
-    from gmwm.stationarity import NonStationaryError, check_stationarity
+    from gmwm.stationarity import check_stationarity
 
     args.progress("checking stationarity")
     st = check_stationarity(rec, units={c: (u or None) for c, u in units.items()})
     start, end = getattr(args, "start", None), getattr(args, "end", None)
     i0, i1 = (0, rec.n) if start is None and end is None else sample_range(rec, start, end)
-    how = "the whole recording" if (i0, i1) == (0, rec.n) else "--start/--end"
+    st, i0, i1 = _choose_part(args, st, i0, i1, err)
+    if (i0, i1) != (0, rec.n):
+        rec = select_samples(rec, i0, i1)
+    return rec, st
+
+
+def _choose_part(args: argparse.Namespace, st: Any, i0: int, i1: int, err: TextIO
+                 ) -> tuple[Any, int, int]:
+    """The part of a checked recording to use: samples ``[i0, i1)`` of ``--start/--end`` (the
+    whole recording without them), narrowed by ``--segment longest-static``; prints the
+    warnings, refuses a part that moved under ``--strict``. Returns the report (its ``used``
+    range set) and the range; shared by recordings read whole and streamed ones."""
+    from gmwm.stationarity import NonStationaryError
+
+    how = "the whole recording" if (i0, i1) == (0, st.n) else "--start/--end"
     if getattr(args, "segment", "all") == "longest-static":
         a, b = st.clean_segment(i0, i1)
         if b <= a:
@@ -363,11 +409,9 @@ def _static_part(args: argparse.Namespace, rec: Any, units: Mapping[str, str], e
                                  "and --strict is set: calibrate a static part with --segment "
                                  "longest-static or --start/--end")
     _warn(err, st.warnings())
-    if (i0, i1) != (0, rec.n):
-        if not st.segments:
-            err.write(f"gmwm: note: the estimate uses {st.used_text()}\n")
-        rec = select_samples(rec, i0, i1)
-    return rec, st
+    if (i0, i1) != (0, st.n) and not st.segments:
+        err.write(f"gmwm: note: the estimate uses {st.used_text()}\n")
+    return st, i0, i1
 
 
 def _flagged(st: Any) -> str:
