@@ -202,3 +202,42 @@ def test_prepare_imu_longest_static_avoids_the_flagged_range(tmp_path):
     assert a == 0 and b - a > N // 2 and prep["recording"].n == b - a
     with pytest.raises(NonStationaryError, match="not static in the part used"):
         prepare_imu(rec, strict=True)
+
+
+def test_cli_report_topic_all_and_repeated_topics(two_imu_bags, tmp_path, capsys):
+    import json
+
+    from gmwm.cli import main
+
+    bag = str(two_imu_bags["ros1"])
+    out = tmp_path / "rep"
+    code = main(["report", bag, "--topic", "all", "-o", str(out), "--json", "-q",
+                 "--export", "kalibr,openvins"])
+    cap = capsys.readouterr()
+    assert code == 0, cap.err
+    obj = json.loads(cap.out)
+    assert list(obj["imus"]) == list(TRUTH)
+    for topic, (rate, gd, _) in TRUTH.items():
+        fits = obj["imus"][topic]["fits"]
+        assert set(fits) == {"gx", "gy", "gz", "ax", "ay", "az"}
+        # no model given: chosen per axis, with the WN and RW terms filters need
+        assert all("WN" in f["model_choice"]["model"] and "RW" in f["model_choice"]["model"]
+                   for f in fits.values())
+        folder = imu_folders(list(TRUTH))[topic]
+        vals = yaml.safe_load((out / folder / "imu.yaml").read_text())
+        assert vals["rostopic"] == topic and vals["update_rate"] == rate
+        assert vals["gyroscope_noise_density"] == pytest.approx(gd, rel=0.1)
+        assert (out / folder / "kalibr_imu_chain.yaml").is_file()
+    # the same two topics named one by one, with an explicit model
+    out2 = tmp_path / "rep2"
+    assert main(["report", bag, "WN+RW", "--topic", "/imu1/data", "--topic", "/imu0/data",
+                 "-o", str(out2), "-q"]) == 0
+    md = (out2 / "report.md").read_text()
+    assert md.index("## IMU /imu1/data") < md.index("## IMU /imu0/data")
+    capsys.readouterr()
+    # several topics are for the report only, and 'all' stands alone
+    assert main(["fit", bag, "WN+RW", "--topic", "all"]) == 2
+    assert main(["report", bag, "--topic", "all", "--topic", "/imu0/data", "-o",
+                 str(tmp_path / "r3")]) == 2
+    err = capsys.readouterr().err
+    assert "gmwm report" in err and "give it alone" in err

@@ -100,13 +100,27 @@ def prepare_imu(rec: Any, *, units: Mapping[str, str | None] | None = None,
             "freq": tb.freq, "timing": timing, "notes": notes}
 
 
+#: the model string asking for the automatic choice (:func:`gmwm.automodel.choose_model`)
+AUTO = "auto"
+
+
 def _fit_one(data: Any, spec: str, freq: float, levels: int | None,
-             options: Mapping[str, Any]) -> Any:
-    """One axis's GMWM fit (runs in a worker)."""
+             options: Mapping[str, Any], unit: str | None = None) -> Any:
+    """One axis's GMWM fit (runs in a worker); with ``spec`` "auto" the
+    :class:`gmwm.automodel.Choice` of the axis (the sensor kind from ``unit``)."""
     import gmwm
     from gmwm.model import Model
 
     lv = levels if isinstance(data, np.ndarray) else None  # a pooled WV is already subset
+    if spec.strip().lower() == AUTO:
+        from gmwm.automodel import choose_model
+        from gmwm.datasheet import unit_system
+
+        kind = unit_system(unit).sensor if unit else None
+        opts = {k: v for k, v in options.items() if k in ("seed", "n_starts", "robust", "eff")}
+        if options.get("method", "gmwm") != "gmwm":
+            raise InputError("the automatic model choice fits GMWM candidates; give a model")
+        return choose_model(data, freq=freq, kind=kind, levels=lv, **opts)
     return gmwm.fit(data, Model(spec, freq=freq), levels=lv, freq=freq, **dict(options))
 
 
@@ -175,7 +189,7 @@ def calibrate_imus(recordings: Mapping[str, Any], model: str | Mapping[str, str]
         raise InputError("no IMU to calibrate")
     say = progress or (lambda _msg: None)
     prepared: dict[str, dict[str, Any]] = {}
-    jobs: list[tuple[str, str, Any, str, float]] = []
+    jobs: list[tuple[str, str, Any, str, float, str | None]] = []
     for topic, rec in recordings.items():
         say(f"checking stationarity of {topic}")
         prep = prepare_imu(rec, units=(units or {}).get(topic), levels=levels, gaps=gaps,
@@ -187,20 +201,21 @@ def calibrate_imus(recordings: Mapping[str, Any], model: str | Mapping[str, str]
             spec = model if isinstance(model, str) else model.get(c)
             if spec is None:
                 raise InputError(f"no model given for channel {c} of {topic}")
-            Model(spec, freq=prep["freq"])  # a wrong model string fails before any fit
-            jobs.append((topic, c, d, spec, prep["freq"]))
+            if spec.strip().lower() != AUTO:
+                Model(spec, freq=prep["freq"])  # a wrong model string fails before any fit
+            jobs.append((topic, c, d, spec, prep["freq"], prep["units"].get(c)))
     n = min(len(jobs), available_cores() if workers is None else max(1, int(workers)))
     opts = dict(fit_options or {})
     results: dict[tuple[str, str], Any] = {}
     if n <= 1:
-        for topic, c, d, spec, freq in jobs:
+        for topic, c, d, spec, freq, unit in jobs:
             say(f"fitting {spec} to {c} of {topic}")
-            results[(topic, c)] = _fit_one(d, spec, freq, levels, opts)
+            results[(topic, c)] = _fit_one(d, spec, freq, levels, opts, unit)
     else:
         say(f"fitting {len(jobs)} axes in {n} parallel {executor}s")
         with _executor(executor, n) as pool:
-            futures = {(t, c): pool.submit(_fit_one, d, spec, freq, levels, opts)
-                       for t, c, d, spec, freq in jobs}
+            futures = {(t, c): pool.submit(_fit_one, d, spec, freq, levels, opts, unit)
+                       for t, c, d, spec, freq, unit in jobs}
             results = {k: f.result() for k, f in futures.items()}
     out: dict[str, Any] = {}
     for topic, prep in prepared.items():
@@ -208,10 +223,13 @@ def calibrate_imus(recordings: Mapping[str, Any], model: str | Mapping[str, str]
         axes = {}
         for c in prep["data"]:
             res = results[(topic, c)]
+            choice = None
+            if hasattr(res, "ranking"):  # an automatic choice: its fit, its ranking
+                choice, res = res, res.result
             unit = prep["units"].get(c)
             axes[c] = {"result": res, "units": unit or "",
                        "warnings": _axis_warnings(res, st, c),
-                       "datasheet": datasheet(res, unit or None)}
+                       "datasheet": datasheet(res, unit or None), "choice": choice}
         label = f"{rec.format}, {rec.n} samples"
         out[topic] = ImuSection(axes, tuple(prep["timing"]), st, _rostopic(rec), label)
     return out

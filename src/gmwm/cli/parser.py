@@ -165,9 +165,11 @@ def _add_input(p: argparse.ArgumentParser, what: str = "signal") -> None:
                         "processed on its own; 'all' = every numeric column except a time column")
     p.add_argument("--dataset", default=None,
                    help="HDF5 dataset path (default: the only 1-D dataset in the file)")
-    p.add_argument("--topic", default=None,
+    p.add_argument("--topic", action="append", default=None, metavar="TOPIC",
                    help="bag topic (sensor_msgs/Imu or Vector3Stamped) or ULog topic "
-                        "(sensor_combined, sensor_gyro:N, sensor_accel:N); default: the only one")
+                        "(sensor_combined, sensor_gyro:N, sensor_accel:N); default: the only one. "
+                        "gmwm report: repeat it, or 'all', to calibrate several IMUs of one file "
+                        "in one run (a section per IMU, a configuration folder per topic)")
     p.add_argument("--time-unit", choices=("s", "ms", "us", "ns"), default=None,
                    help="unit of an unlabelled time column (default: from its name, else from "
                         "the magnitude of the stamps; an ambiguous case is an error)")
@@ -608,6 +610,20 @@ def check_args(args: argparse.Namespace) -> None:
             raise InputError(f"--{opt} {path} is a directory: give a file name")
     if args.command == "report" and Path(args.output).exists() and not Path(args.output).is_dir():
         raise InputError(f"--output {args.output} exists and is not a directory")
+    topics = getattr(args, "topic", None)
+    if topics is not None:
+        several = len(topics) > 1 or topics == ["all"]
+        if several and args.command != "report":
+            raise UsageError("several topics (or --topic all) are calibrated by 'gmwm report'; "
+                             f"'gmwm {args.command}' reads one")
+        if several and ("all" in topics and len(topics) > 1):
+            raise UsageError("--topic all already takes every IMU topic: give it alone")
+        if several and (getattr(args, "robust", False) or getattr(args, "method", "gmwm") == "avsm"
+                        or getattr(args, "dtype", None) is not None):
+            raise UsageError("several topics: --robust, --method avsm and --dtype apply to one "
+                             "recording")
+        args.topics = topics if several else None
+        args.topic = None if several else topics[0]
     table = args.output if args.command in ("wv", "av", "svo") else None
     if table and Path(table).suffix.lower() != ".csv":
         raise UsageError(f"--output {table}: the table is written as CSV, use a .csv name")

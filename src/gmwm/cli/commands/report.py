@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 from gmwm.cli.commands.fit import (
     attach_verdicts,
@@ -25,6 +25,8 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     targets = parse_targets(args.export)  # bad targets or factors before any fit
     inflation = parse_inflation(args.inflate)
     sheet = load_datasheet(args)
+    if getattr(args, "topics", None):
+        return _several(args, out, err, targets, inflation, sheet)
     got, fits = fit_columns(args, err, require_time="a calibration report")
     fits = attach_verdicts(fits, sheet, err, True)
     args.progress(f"writing the report to {args.output}")
@@ -68,3 +70,77 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         out.write(f"report of {len(fits)} axes of {args.input} written to: "
                   + ", ".join(shown) + "\n")
     return fit_status(fits, err, True)
+
+
+def _several(args: argparse.Namespace, out: TextIO, err: TextIO, targets: Any, inflation: Any,
+             sheet: Any) -> int:
+    """``--topic all`` / several ``--topic``: every IMU of one file on one page
+    (:func:`gmwm.calibrate.calibrate_imus`, :func:`gmwm.report.write_multi_report`), one
+    configuration folder per topic."""
+    from gmwm.calibrate import calibrate_imus
+    from gmwm.cli.inputs import models_by_column, units_by_column, wanted_columns
+    from gmwm.readers import read_recordings
+    from gmwm.report import write_multi_report
+    from gmwm.sensor_datasheet import judge
+
+    topics = "all" if args.topics == ["all"] else list(args.topics)
+    args.progress(f"reading {args.input} ({'every IMU topic' if topics == 'all' else topics})")
+    recs = read_recordings(args.input, topics, columns=wanted_columns(args), freq=args.freq)
+    units = {t: {c: (u or None) for c, u in units_by_column(args, list(r.channels), r.units)
+                 .items()} for t, r in recs.items()}
+    models = {t: models_by_column(args.model, list(r.channels)) for t, r in recs.items()}
+    first = next(iter(models.values()))
+    model = args.model if all(m == first for m in models.values()) and "=" not in args.model \
+        else first
+    options = {"method": args.method, "seed": args.seed}
+    options.update({k: v for k, v in {"weights": args.weights, "n_starts": args.n_starts,
+                                      "reweight": args.reweight}.items() if v is not None})
+
+    def say(msg: str) -> None:
+        if msg.startswith("warning: "):
+            err.write(f"gmwm: {msg}\n")
+        else:
+            args.progress(msg)
+
+    imus = calibrate_imus(recs, model, units=units, levels=args.levels, gaps=args.gaps,
+                          start_s=args.start, end_s=args.end, segment=args.segment,
+                          strict=args.strict, fit_options=options, progress=say)
+    status = 0
+    for topic, sec in imus.items():
+        for c, axis in sec.axes.items():
+            res = axis["result"]
+            if sheet is not None and axis["units"]:
+                from gmwm.datasheet import parse_unit
+
+                kind = parse_unit(axis["units"])
+                if kind is not None and kind[2] in sheet.sensors:
+                    axis["verdict"] = judge(res, sheet, axis["units"])
+            choice = axis.get("choice")
+            if choice is not None and not choice.passed:
+                err.write(f"gmwm: warning: {topic} {c}: {choice.warnings[0]}\n")
+            err.writelines(f"gmwm: warning: {topic} {c}: {w}\n" for w in fit_warnings(res))
+            if not res.converged:
+                err.write(f"gmwm: warning: {topic} {c}: the optimizer did not converge; treat "
+                          "the estimate with care (exit status 3)\n")
+                status = 3
+    args.progress(f"writing the report to {args.output}")
+    files = write_multi_report(args.output, imus, source=args.input,
+                               title=args.title or f"Calibration report: {Path(args.input).name}",
+                               targets=targets, inflation=inflation)
+    if args.json:
+        obj = {"command": "report", "input": args.input, "files": [str(p) for p in files],
+               "imus": {t: {"stationarity": None if s.stationarity is None
+                            else s.stationarity.to_json_dict(),
+                            "fits": {c: fit_json(a["result"], source=args.input,
+                                                 units=a["units"], datasheet=a["datasheet"],
+                                                 verdict=a.get("verdict"))
+                                     | ({} if a.get("choice") is None
+                                        else {"model_choice": choice_json(a["choice"])})
+                                     for c, a in s.axes.items()}}
+                        for t, s in imus.items()}}
+        out.write(json_text(obj))
+    else:
+        shown = [str(p) for p in files if p.suffix in (".md", ".html", ".yaml", ".json")]
+        out.write(f"report of {len(imus)} IMUs ({', '.join(imus)}) of {args.input} written to: "
+                  + ", ".join(shown) + "\n")
+    return status
