@@ -300,7 +300,7 @@ def test_bad_input_is_one_line_error(capsys, bad_files, case):
     assert "Traceback" not in err
 
 
-# ---- diagnostics a user sees (issue 9 part 3) -----------------------------------------------------
+# ---- diagnostics a user sees -----------------------------------------------------
 
 
 @pytest.fixture(scope="module")
@@ -345,7 +345,7 @@ def test_python_warnings_never_reach_stderr(capsys, white_noise, monkeypatch):
     assert all(line.startswith("gmwm: ") for line in err.splitlines())
 
 
-# ---- a whole IMU (issue 11 part 1) ---------------------------------------------------------------
+# ---- a whole IMU ---------------------------------------------------------------
 
 
 @pytest.fixture(scope="module")
@@ -434,7 +434,7 @@ def test_hdf5_attribute_gives_the_frequency(capsys, tmp_path, signal_files):
     assert code == 0 and json.loads(out)["freq"] == 25.0
 
 
-# ---- datasheet readings from av (issue 11 part 2) -------------------------------------------------
+# ---- datasheet readings from av -------------------------------------------------
 
 
 def test_av_readings_text_json_and_adev_plot(capsys, imu, tmp_path):
@@ -501,7 +501,7 @@ def test_report_export_targets_and_inflation(capsys, imu, tmp_path):
         assert not (tmp_path / "bad").exists()
 
 
-# ---- tables that round-trip (issue 11 part 3) ---------------------------------------------------
+# ---- tables that round-trip ---------------------------------------------------
 
 
 def test_wv_table_refits_with_its_recorded_frequency(capsys, tmp_path):
@@ -533,7 +533,7 @@ def test_av_table_is_readable_by_fit(capsys, signal_files, tmp_path):
     assert code == 1 and "looks like a WV/AV table" in err
 
 
-# ---- edge cases found by a new user (issue 11 part 7) ----------------------------------------------
+# ---- edge cases found by a new user ----------------------------------------------
 
 
 @pytest.fixture(scope="module")
@@ -608,7 +608,7 @@ def test_wv_command_never_loads_numba(tmp_path):
     assert last == "0 []", last
 
 
-# ---- fast start and progress (issue 11 part 6) ---------------------------------------------------
+# ---- fast start and progress ---------------------------------------------------
 
 
 def test_help_and_usage_errors_load_no_numerics():

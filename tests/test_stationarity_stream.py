@@ -221,6 +221,7 @@ def test_cli_streamed_input_warns_like_the_in_memory_path(tmp_path, monkeypatch,
         cap = capsys.readouterr()
         runs[label] = (code, json.loads(cap.out), cap.err)
     (c_m, j_m, e_m), (c_s, j_s, e_s) = runs["memory"], runs["streamed"]
+    assert ("not static" in e_m) == ("not static" in e_s)
     assert c_m == c_s == 0
     assert "not static" in e_s and "is read into memory" not in e_s
     drop = ("seconds", "cpu_seconds")

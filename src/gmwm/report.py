@@ -25,6 +25,8 @@ from pathlib import Path
 from typing import Any
 
 from gmwm import __version__
+from gmwm.datasheet import allan_readings
+from gmwm.errors import InputError
 from gmwm.formatting import (
     datasheet_rows,
     html_table,
@@ -34,8 +36,6 @@ from gmwm.formatting import (
     reading_rows,
     verdict_rows,
 )
-from gmwm.datasheet import allan_readings
-from gmwm.errors import InputError
 
 __all__ = ["ImuSection", "choice_section", "imu_folders", "write_multi_report", "write_report"]
 

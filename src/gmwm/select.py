@@ -67,7 +67,7 @@ __all__ = ["CRITERIA", "DEFAULT", "RankedModel", "Ranking", "auto_candidates", "
            "optimism", "rank_models", "rerank", "select_model"]
 
 _LOG10E = np.log10(np.e)
-# caps of the automatic candidate set (issue 11): up to 3 AR1/GM and 2 SIN components
+# caps of the automatic candidate set: up to 3 AR1/GM and 2 SIN components
 MAX_AR = 3
 MAX_SIN = 2
 _SINGLE = tuple(n for n in PROCESSES if n in SINGLETONS)  # QN, WN, RW, DR

@@ -412,12 +412,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_svo_parser(sub: Any) -> None:
-    """``gmwm svo``: virtual gyroscope from redundant signals of one axis (paper 003)."""
+    """``gmwm svo``: virtual gyroscope from redundant signals of one axis ([SVO])."""
     p = sub.add_parser(
         "svo", formatter_class=_Formatter,
         help="virtual gyroscope from redundant gyros (Scale-wise Variance Optimisation)",
         description="Combine p signals of one axis into S = c'X (sum of c = 1) minimising the\n"
-                    "omega-weighted Haar wavelet variance of S (SVO, paper 003), with moving-block\n"
+                    "omega-weighted Haar wavelet variance of S (SVO, [SVO]), with moving-block\n"
                     "bootstrap CIs for c. --method rdvg / equal give the comparison methods.",
         epilog="examples:\n  gmwm svo array.csv --columns g1,g2,g3,g4,g5,g6 --weights short --freq 10\n"
                "  gmwm svo array.npy --columns all --weights long -o virtual_wv.csv --plot svo.png\n"
@@ -439,7 +439,7 @@ def _add_svo_parser(sub: Any) -> None:
     p.add_argument("--block-const", type=_positive_float, default=10.0, metavar="A",
                    help="block length l = A * T^(1/3) samples")
     p.add_argument("--mbb", choices=("paper", "time"), default="paper",
-                   help="bootstrap scheme: paper (Algorithm 1 of paper 003) or time (blocks over "
+                   help="bootstrap scheme: paper (Algorithm 1 of [SVO]) or time (blocks over "
                         "the whole time axis, no refill stretch)")
     p.add_argument("--seed", type=_nonneg_int, default=0, help="seed of the bootstrap draws")
     p.add_argument("--alpha", type=_alpha, default=0.05, help="CI level is 1 - alpha")
