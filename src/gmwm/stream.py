@@ -39,6 +39,7 @@ from typing import Any, Self
 import numpy as np
 
 from gmwm.errors import InputError
+from gmwm.readers.tables import _existing_file
 from gmwm.wv import (
     AllanVariance,
     WaveletVariance,
@@ -105,15 +106,6 @@ class Source:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def _existing(path: str | os.PathLike) -> Path:
-    p = Path(path)
-    if not p.exists():
-        raise InputError(f"file not found: {p}")
-    if not p.is_file():
-        raise InputError(f"not a regular file: {p}")
-    return p
 
 
 def _check_dtype(dtype: np.dtype, where: str) -> np.dtype:
@@ -195,7 +187,7 @@ class NpySource(_FileRows):
     ``"0"``, ``"1"``, ...; ``columns`` as in :func:`gmwm.readers.read_channels`)."""
 
     def __init__(self, path: str | os.PathLike, columns: Any = None) -> None:
-        p = _existing(path)
+        p = _existing_file(path)
         with open(p, "rb") as fh:
             try:
                 version = np.lib.format.read_magic(fh)
@@ -232,7 +224,7 @@ class RawSource(_FileRows):
 
     def __init__(self, path: str | os.PathLike, dtype: Any, channels: int = 1, offset: int = 0,
                  columns: Any = None) -> None:
-        p = _existing(path)
+        p = _existing_file(path)
         try:
             dt = np.dtype(dtype)
         except TypeError:
@@ -265,7 +257,7 @@ class HDF5Source(Source):
                  dataset: str | None = None) -> None:
         import h5py
 
-        p = _existing(path)
+        p = _existing_file(path)
         self.where = str(p)
         try:
             self._fh = h5py.File(p, "r")
@@ -528,14 +520,9 @@ def uniform_sample_range(n: int, freq: float, start_s: float | None, end_s: floa
     ``i / freq`` s) whose time lies in [``start_s``, ``end_s``), as
     :func:`gmwm.readers.recording.sample_range` does with time stamps; None: from the first / to
     the last sample. An empty or out-of-range request is an :class:`InputError`."""
-    last = (n - 1) / freq if n else 0.0
-    a = 0.0 if start_s is None else float(start_s)
-    b = math.inf if end_s is None else float(end_s)
-    if a < 0 or not b > a:
-        raise InputError(f"--start {a:g} / --end {b:g}: need 0 <= start < end (seconds since "
-                         "the first sample)")
-    if a > last:
-        raise InputError(f"--start {a:g} s is after the end of {where} ({last:.6g} s)")
+    from gmwm.readers.recording import time_window
+
+    a, b = time_window(start_s, end_s, (n - 1) / freq if n else 0.0, where)
 
     def first_at(v: float) -> int:  # the first i with i / freq >= v (exact, as searchsorted)
         if v == math.inf:

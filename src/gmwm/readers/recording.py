@@ -482,6 +482,21 @@ def with_units(rec: Recording, units: Mapping[str, str | None]) -> Recording:
     return replace(rec, units=out_u, roles=out_r)
 
 
+def time_window(start_s: float | None, end_s: float | None, last: float, where: str
+                ) -> tuple[float, float]:
+    """``--start/--end`` in seconds since the first sample, checked against a recording whose
+    last sample is at ``last`` s: ``(a, b)`` with ``b`` infinite when open; an empty or
+    out-of-range request is an :class:`InputError` (shared by recordings and streamed files)."""
+    a = 0.0 if start_s is None else float(start_s)
+    b = math.inf if end_s is None else float(end_s)
+    if a < 0 or not b > a:
+        raise InputError(f"--start {a:g} / --end {b:g}: need 0 <= start < end (seconds since "
+                         "the first sample)")
+    if a > last:
+        raise InputError(f"--start {a:g} s is after the end of {where} ({last:.6g} s)")
+    return a, b
+
+
 def sample_range(rec: Recording, start_s: float | None, end_s: float | None) -> tuple[int, int]:
     """Samples ``(i0, i1)`` whose time (seconds since the first sample) lies in
     [``start_s``, ``end_s``); None: from the first / to the last sample. An empty or
@@ -490,14 +505,7 @@ def sample_range(rec: Recording, start_s: float | None, end_s: float | None) -> 
     if t is None:
         raise InputError(f"{rec.path} has no time stamps and no sampling rate: --start/--end "
                          "need --freq (Hz)")
-    last = float(t[-1]) if t.size else 0.0
-    a = 0.0 if start_s is None else float(start_s)
-    b = math.inf if end_s is None else float(end_s)
-    if a < 0 or not b > a:
-        raise InputError(f"--start {a:g} / --end {b:g}: need 0 <= start < end (seconds since "
-                         "the first sample)")
-    if a > last:
-        raise InputError(f"--start {a:g} s is after the end of {rec.path} ({last:.6g} s)")
+    a, b = time_window(start_s, end_s, float(t[-1]) if t.size else 0.0, str(rec.path))
     i0, i1 = int(np.searchsorted(t, a, "left")), int(np.searchsorted(t, b, "left"))
     if i1 - i0 < 2:
         raise InputError(f"--start/--end select {i1 - i0} sample(s) of {rec.path}")
