@@ -37,7 +37,9 @@ from .wv import WaveletVariance
 
 _LOG10E = np.log10(np.e)
 METHODS = ("gmwm", "armav")
-WEIGHT_KINDS = ("ci", "gaussian", "identity", "efficient")
+WEIGHT_KINDS = ("ci", "ci-eta3", "ci-mixture", "gaussian", "identity", "efficient")
+#: The interval whose widths the default ``"ci"`` weights use (docs/METHODS.md §5.2).
+CI_WEIGHTS = "ci-eta3"
 #: Half-width of the bounded search box in free coordinates around a start (a factor e^40).
 BOX = 40.0
 
@@ -128,12 +130,29 @@ def weight_matrix(wv: WaveletVariance, weights: str | np.ndarray, method: str = 
         return np.eye(J)
     if method == "armav":
         return np.diag(wv.edof / (2 * _LOG10E**2))
-    if weights == "ci" and model_wv is None:
-        low, high = wv.eta3_ci()   # eta_3 widths whatever the WV's interval kind
-        width = high - low
-        return np.diag(1.0 / width**2)
+    if weights.startswith("ci") and model_wv is None:
+        low, high = ci_bounds(wv, CI_WEIGHTS if weights == "ci" else weights)
+        return np.diag(1.0 / (high - low) ** 2)
     nu = wv.variance if model_wv is None else model_wv
     return np.diag(wv.edof / (2 * nu**2))
+
+
+def ci_bounds(wv: WaveletVariance, kind: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(low, high)`` of the WV interval behind the weights ``kind``: ``"ci-eta3"`` the eta_3
+    interval (:meth:`WaveletVariance.eta3_ci`: a table's own bounds), ``"ci-mixture"`` the
+    mixture-EDF interval (:mod:`gmwm.wvci`; computed from the WV when it carries another kind),
+    whatever interval the WV itself carries."""
+    if kind == "ci-eta3":
+        return wv.eta3_ci()
+    if kind != "ci-mixture":
+        raise InputError(f"unknown CI weights {kind!r}; use ci-eta3 or ci-mixture")
+    if wv.ci_kind == "mixture":
+        return wv.ci_low, wv.ci_high
+    from .wv import chi2_ci
+    from .wvci import edof_for
+
+    edof = edof_for("mixture", wv.variance, wv.scales, wv.n, wv.n_samples, wv.efficiency)
+    return chi2_ci(wv.variance, edof, wv.alpha)
 
 
 def whitener(omega: np.ndarray) -> np.ndarray:

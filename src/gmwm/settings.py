@@ -25,7 +25,7 @@ __all__ = ["METHODS", "N_STARTS", "SE_COV_KINDS", "WEIGHT_KINDS", "FitSettings",
 #: slope method, :mod:`gmwm.avsm`).
 METHODS = ("gmwm", "armav", "avsm")
 #: Named weight matrices (otherwise a (J, J) covariance of the WV estimate).
-WEIGHT_KINDS = ("ci", "gaussian", "identity", "efficient")
+WEIGHT_KINDS = ("ci", "ci-eta3", "ci-mixture", "gaussian", "identity", "efficient")
 #: Named covariances of the WV estimate behind the standard errors (otherwise a (J, J) matrix).
 SE_COV_KINDS = ("model", "gaussian")
 #: Default number of starts refined per model and submodel.
