@@ -20,10 +20,10 @@ SIM1 = {"WN[1].sigma2": 1.0, "RW[1].gamma2": 4e-4, "AR1[1].phi": 0.975,
         "AR1[1].sigma2": 0.03, "SIN[1].alpha": 0.85, "SIN[1].beta": 0.35}
 
 
-def _fit(true_spec: str, values: dict, fit_spec: str, T: int, seed: int = 1):
+def _fit(true_spec: str, values: dict, fit_spec: str, T: int, seed: int = 1, **kw):
     model = Model(true_spec)
     x = model.simulate(model.theta(values), T, np.random.default_rng(seed))
-    return gmwm.fit(x, fit_spec)
+    return gmwm.fit(x, fit_spec, **kw)
 
 
 @pytest.fixture(scope="module")
@@ -83,9 +83,12 @@ def test_two_ar1_with_equal_phi_is_flagged():
 
 
 def test_sinusoid_beyond_longest_scale_is_flagged():
-    # period 3e4 samples, longest Haar scale 2^13 = 8192
+    # period 3e4 samples, longest Haar scale 2^13 = 8192. The check judges the fitted period,
+    # which is poorly determined here: with the eta_3 weights this signal's fit has its SIN WV
+    # peak beyond the longest scale (the case under test); with the default mixture weights it
+    # lands just inside (period 1.09e4, peak at 8.1e3 samples) and the check passes
     res = _fit("WN+SIN", {"WN[1].sigma2": 1.0, "SIN[1].alpha": 5.0,
-                          "SIN[1].beta": 2 * np.pi / 3e4}, "WN+SIN", 2**14)
+                          "SIN[1].beta": 2 * np.pi / 3e4}, "WN+SIN", 2**14, weights="ci-eta3")
     rep = idf.check(res)
     assert rep.status == "warn"
     assert any("SIN[1]" in r and "drift" in r for r in rep.reasons), rep.reasons

@@ -37,7 +37,10 @@ from .wv import WaveletVariance
 
 _LOG10E = np.log10(np.e)
 METHODS = ("gmwm", "armav")
-WEIGHT_KINDS = ("ci", "gaussian", "identity", "efficient")
+WEIGHT_KINDS = ("ci", "ci-eta3", "ci-mixture", "gaussian", "identity", "efficient")
+#: The interval whose widths the default ``"ci"`` weights use: the mixture-EDF interval, chosen
+#: over eta_3 by the bench_ci_weights section of benchmarks/README.md (docs/METHODS.md §5.2).
+CI_WEIGHTS = "ci-mixture"
 #: Half-width of the bounded search box in free coordinates around a start (a factor e^40).
 BOX = 40.0
 
@@ -112,7 +115,11 @@ def weight_matrix(wv: WaveletVariance, weights: str | np.ndarray, method: str = 
                   model_wv: np.ndarray | None = None) -> np.ndarray:
     """Weight matrix Omega for ``f(nu_hat)``.
 
-    ``"ci"``: inverse squared CI width (``simts`` "fast"); ``"gaussian"``: ``eta_j / (2 nu_j^2)``
+    ``"ci"``: inverse squared width of the WV interval :data:`CI_WEIGHTS` (the mixture-EDF
+    interval of :mod:`gmwm.wvci`; the evidence for this default is the bench_ci_weights section of
+    benchmarks/README.md); ``"ci-mixture"`` / ``"ci-eta3"`` name the interval explicitly
+    (``"ci-eta3"``: the eta_3 interval, the ``simts`` "fast" rule of the papers' software, kept
+    for the studies that reproduce the papers' tables); ``"gaussian"``: ``eta_j / (2 nu_j^2)``
     with ``nu = model_wv`` if given (re-weighting with the fitted model) else ``nu_hat``;
     ``"identity"``; a (J, J) covariance V of nu_hat: ``(F V F')^-1``. ARMAV's named kinds use
     the delta method ``Var(log10 nu_hat_j) ~ 2 (log10 e)^2 / eta_j`` (``"ci"``/``"gaussian"``).
@@ -128,12 +135,29 @@ def weight_matrix(wv: WaveletVariance, weights: str | np.ndarray, method: str = 
         return np.eye(J)
     if method == "armav":
         return np.diag(wv.edof / (2 * _LOG10E**2))
-    if weights == "ci" and model_wv is None:
-        low, high = wv.eta3_ci()   # eta_3 widths whatever the WV's interval kind
-        width = high - low
-        return np.diag(1.0 / width**2)
+    if weights.startswith("ci") and model_wv is None:
+        low, high = ci_bounds(wv, CI_WEIGHTS if weights == "ci" else weights)
+        return np.diag(1.0 / (high - low) ** 2)
     nu = wv.variance if model_wv is None else model_wv
     return np.diag(wv.edof / (2 * nu**2))
+
+
+def ci_bounds(wv: WaveletVariance, kind: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(low, high)`` of the WV interval behind the weights ``kind``: ``"ci-eta3"`` the eta_3
+    interval (:meth:`WaveletVariance.eta3_ci`: a table's own bounds), ``"ci-mixture"`` the
+    mixture-EDF interval (:mod:`gmwm.wvci`; computed from the WV when it carries another kind),
+    whatever interval the WV itself carries."""
+    if kind == "ci-eta3":
+        return wv.eta3_ci()
+    if kind != "ci-mixture":
+        raise InputError(f"unknown CI weights {kind!r}; use ci-eta3 or ci-mixture")
+    if wv.ci_kind == "mixture":
+        return wv.ci_low, wv.ci_high
+    from .wv import chi2_ci
+    from .wvci import edof_for
+
+    edof = edof_for("mixture", wv.variance, wv.scales, wv.n, wv.n_samples, wv.efficiency)
+    return chi2_ci(wv.variance, edof, wv.alpha)
 
 
 def whitener(omega: np.ndarray) -> np.ndarray:

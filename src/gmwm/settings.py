@@ -25,7 +25,7 @@ __all__ = ["METHODS", "N_STARTS", "SE_COV_KINDS", "WEIGHT_KINDS", "FitSettings",
 #: slope method, :mod:`gmwm.avsm`).
 METHODS = ("gmwm", "armav", "avsm")
 #: Named weight matrices (otherwise a (J, J) covariance of the WV estimate).
-WEIGHT_KINDS = ("ci", "gaussian", "identity", "efficient")
+WEIGHT_KINDS = ("ci", "ci-eta3", "ci-mixture", "gaussian", "identity", "efficient")
 #: Named covariances of the WV estimate behind the standard errors (otherwise a (J, J) matrix).
 SE_COV_KINDS = ("model", "gaussian")
 #: Default number of starts refined per model and submodel.
@@ -83,7 +83,9 @@ class FitSettings:
     """Every option of a fit, validated (one-line :class:`~gmwm.errors.InputError`).
 
     method : ``"gmwm"``, ``"armav"`` or ``"avsm"``.
-    weights : ``"ci"`` (inverse squared CI width), ``"gaussian"`` (eta_j / (2 nu_j^2)),
+    weights : ``"ci"`` (inverse squared width of the mixture-EDF WV interval; ``"ci-mixture"``
+        names it explicitly, ``"ci-eta3"`` uses the eta_3 interval), ``"gaussian"``
+        (eta_j / (2 nu_j^2)),
         ``"identity"``, ``"efficient"`` (two-step: CI weights, then the inverse of the model
         covariance of the WV estimate at the first estimate), or a (J, J) covariance of
         ``nu_hat`` whose inverse is the weight and which also feeds the standard errors.

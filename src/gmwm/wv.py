@@ -324,7 +324,8 @@ class WaveletVariance:
     (``"mixture"``, ``"eta3"``) or ``"table"`` (bounds given with a table); ``ci_edof``: the
     chi-square edof of those bounds (None: computed for the kind; for ``"table"`` the edof
     implied by the bounds' ratio). ``edof`` (a property) stays Percival's eta_3: the estimator's
-    ``"ci"``/``"gaussian"`` weights use it (and :meth:`eta3_ci`), whatever the interval kind."""
+    ``"gaussian"`` and ``"ci-eta3"`` weights use it (and :meth:`eta3_ci`), whatever the interval
+    kind; the default ``"ci"`` weights use the mixture interval (:func:`gmwm.inference.ci_bounds`)."""
 
     levels: np.ndarray
     scales: np.ndarray
@@ -372,8 +373,8 @@ class WaveletVariance:
 
     def eta3_ci(self) -> tuple[np.ndarray, np.ndarray]:
         """``(low, high)`` of the eta_3 chi-square CI (``ci="eta3"``; the given bounds when the CI
-        came with a table). The GMWM's ``"ci"`` weights are the inverse squared widths of these,
-        whatever ``ci_kind``."""
+        came with a table). The GMWM's ``"ci-eta3"`` weights are the inverse squared widths of
+        these, whatever ``ci_kind``."""
         if self.ci_kind in ("eta3", "table"):
             return self.ci_low, self.ci_high
         return chi2_ci(self.variance, self.edof, self.alpha)
