@@ -681,3 +681,10 @@ def test_auto_refuses_the_slope_method(capsys, signal_files):
     code, _, err = run(capsys, "fit", signal_files["npy"], "auto", "--freq", "100",
                        "--method", "avsm")
     assert code == 1 and err.count("\n") == 1 and "automatic model choice" in err
+
+
+def test_weight_choices_are_the_librarys():
+    from gmwm.cli.parser import _WEIGHTS
+    from gmwm.settings import WEIGHT_KINDS
+
+    assert set(_WEIGHTS) == set(WEIGHT_KINDS)

@@ -449,13 +449,19 @@ def _add_svo_parser(sub: Any) -> None:
     p.set_defaults(**_INPUT_DEFAULTS)
 
 
+#: gmwm.settings.WEIGHT_KINDS (the parser stays free of NumPy; tests/test_cli.py checks they agree)
+_WEIGHTS = ("ci", "ci-eta3", "ci-mixture", "gaussian", "identity", "efficient")
+
+
 def _add_fit_options(p: argparse.ArgumentParser) -> None:
     # weights, starts and reweighting are passed to the fit only when given: the library's
     # defaults (gmwm.settings.FitSettings) apply otherwise, and with AVSM, which has none of them,
     # giving one is an error rather than silently ignored
-    p.add_argument("--weights", choices=("ci", "gaussian", "identity", "efficient"), default=None,
-                   help="weight matrix: inverse squared CI width, Gaussian approximation, identity, "
-                        "efficient (two-step, inverse model covariance of the WV) (default: ci)")
+    p.add_argument("--weights", choices=_WEIGHTS, default=None,
+                   help="weight matrix: inverse squared CI width (ci = ci-mixture: the default WV "
+                        "intervals; ci-eta3: the eta_3 intervals of R and the papers), Gaussian "
+                        "approximation, identity, efficient (two-step, inverse model covariance "
+                        "of the WV) (default: ci)")
     p.add_argument("--method", choices=("gmwm", "armav", "avsm"), default="gmwm",
                    help="gmwm: WV moments; armav: log10 Allan variance; avsm: Allan-variance slopes")
     p.add_argument("--n-samples", type=_positive_int, default=None, metavar="T",
@@ -514,8 +520,8 @@ def _add_select_parser(sub: Any) -> None:
                    help="sampling frequency in Hz (default: from the file, else 1)")
     p.add_argument("--levels", "-J", type=_positive_int, default=None, metavar="J",
                    help=_DEFAULT_LEVELS)
-    p.add_argument("--weights", choices=("ci", "gaussian", "identity"), default="ci",
-                   help="GMWM weight matrix of every fit")
+    p.add_argument("--weights", choices=tuple(w for w in _WEIGHTS if w != "efficient"),
+                   default="ci", help="GMWM weight matrix of every fit")
     p.add_argument("--n-starts", type=_positive_int, default=None, metavar="K",
                    help="optimizer starts per fit (default: the library's)")
     p.add_argument("--seed", type=int, default=0, help="seed for the random starting values")
