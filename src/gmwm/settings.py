@@ -83,8 +83,8 @@ class FitSettings:
     """Every option of a fit, validated (one-line :class:`~gmwm.errors.InputError`).
 
     method : ``"gmwm"``, ``"armav"`` or ``"avsm"``.
-    weights : ``"ci"`` (inverse squared width of the mixture-EDF WV interval; ``"ci-mixture"``
-        names it explicitly, ``"ci-eta3"`` uses the eta_3 interval), ``"gaussian"``
+    weights : ``"ci"`` (inverse squared width of the eta_3 WV interval; ``"ci-eta3"`` names it
+        explicitly, ``"ci-mixture"`` uses the mixture-EDF interval), ``"gaussian"``
         (eta_j / (2 nu_j^2)),
         ``"identity"``, ``"efficient"`` (two-step: CI weights, then the inverse of the model
         covariance of the WV estimate at the first estimate), or a (J, J) covariance of

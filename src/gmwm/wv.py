@@ -325,7 +325,7 @@ class WaveletVariance:
     chi-square edof of those bounds (None: computed for the kind; for ``"table"`` the edof
     implied by the bounds' ratio). ``edof`` (a property) stays Percival's eta_3: the estimator's
     ``"gaussian"`` and ``"ci-eta3"`` weights use it (and :meth:`eta3_ci`), whatever the interval
-    kind; the default ``"ci"`` weights use the mixture interval (:func:`gmwm.inference.ci_bounds`)."""
+    kind (the default ``"ci"`` weights are ``"ci-eta3"``, :data:`gmwm.inference.CI_WEIGHTS`)."""
 
     levels: np.ndarray
     scales: np.ndarray

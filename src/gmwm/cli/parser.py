@@ -458,8 +458,8 @@ def _add_fit_options(p: argparse.ArgumentParser) -> None:
     # defaults (gmwm.settings.FitSettings) apply otherwise, and with AVSM, which has none of them,
     # giving one is an error rather than silently ignored
     p.add_argument("--weights", choices=_WEIGHTS, default=None,
-                   help="weight matrix: inverse squared CI width (ci = ci-mixture: the default WV "
-                        "intervals; ci-eta3: the eta_3 intervals of R and the papers), Gaussian "
+                   help="weight matrix: inverse squared CI width (ci = ci-eta3: the eta_3 intervals "
+                        "of R and the papers; ci-mixture: the default WV intervals), Gaussian "
                         "approximation, identity, efficient (two-step, inverse model covariance "
                         "of the WV) (default: ci)")
     p.add_argument("--method", choices=("gmwm", "armav", "avsm"), default="gmwm",
