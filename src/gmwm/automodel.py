@@ -31,8 +31,11 @@ The rule
    criterion still decides.
 3. Stages. Candidates with k GM terms are fitted as stage k, k = 0, 1, ...: stage k + 1 is fitted
    only while stage k improved the best criterion of the earlier stages, or while no candidate
-   fitted so far passes the goodness-of-fit test. A further GM term costs the most (its shape is
-   searched jointly with the others) and rarely helps once the previous one did not.
+   fitted so far passes the goodness-of-fit test and stage k improved it by at least a near tie
+   (:data:`gmwm.criteria.TIE_CHI2` chi-square units): when every candidate is rejected (motion,
+   a process outside the candidates) and a GM term no longer helps, a further one will not make
+   a candidate pass. A further GM term costs the most (its shape is searched jointly with the
+   others). All stages share one search memo (:func:`gmwm.search.shared_memo`).
 4. Choice. The candidates are ranked by the criterion (default :data:`gmwm.criteria.DEFAULT`,
    WIC with k = 2). The chosen model is the best-ranked one whose goodness-of-fit p-value is at
    least ``alpha`` (5 %); a candidate whose test cannot be computed does not pass. When every
@@ -52,9 +55,10 @@ from typing import Any
 
 import numpy as np
 
-from .criteria import DEFAULT
+from .criteria import DEFAULT, TIE_CHI2, _chi2_unit
 from .errors import GMWMError, InputError
 from .model import Model, parse_model, spec_of
+from .search import shared_memo
 from .select import Ranking, merge, rank_models
 from .settings import prepare_wv
 
@@ -365,48 +369,58 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
         if progress is not None:
             progress(done + i, n_total, spec)
 
-    rankings: list[Ranking] = []
-    p_values: dict[str, float] = {}
-    not_fitted: list[tuple[int, str]] = []
-    best_so_far = best_before = stage_best = np.inf
-    for k in range(max_gm + 1):
-        stage = [m for m in candidate_models(kind, max_gm=max_gm, sin=use_sin, slow=slow, n_gm=k)
-                 if m not in excluded]
-        if not stage:
-            continue
-        if rankings:
-            passing = any(p >= alpha for p in p_values.values() if np.isfinite(p))
-            if passing and stage_best >= best_before:
-                why = (f"{k - 1} {slow} did not lower the best {criterion.upper()} of the "
-                       f"candidates with fewer, and a candidate already passes the "
-                       "goodness-of-fit test")
-                not_fitted += [(m, why) for m in range(k, max_gm + 1)]
-                break
-        try:
-            r = rank_models(data, stage, criterion=criterion, freq=freq, seed=seed,
-                            n_starts=n_starts, progress=report, **wv_opts)
-        except GMWMError:
-            if rankings:  # every candidate of this stage failed: the earlier stages stand
-                not_fitted.append((k, "no candidate with this many terms could be fitted"))
+    # one memo for every stage and the refit: a stage's candidates nest the earlier stages'
+    with shared_memo():
+        rankings: list[Ranking] = []
+        p_values: dict[str, float] = {}
+        not_fitted: list[tuple[int, str]] = []
+        best_so_far = best_before = stage_best = np.inf
+        for k in range(max_gm + 1):
+            stage = [m for m in candidate_models(kind, max_gm=max_gm, sin=use_sin, slow=slow, n_gm=k)
+                     if m not in excluded]
+            if not stage:
                 continue
-            raise
-        done += len(stage)
-        rankings.append(r)
-        for e in r.ranked:
-            p_values[e.model] = float(gof_test(e.result).p_value)
-        best_before, stage_best = best_so_far, r.best.criterion
-        best_so_far = min(best_so_far, stage_best)
-    if not rankings:
-        raise GMWMError("no candidate model could be fitted")
-    ranking = merge(rankings)
-    ranked = ranking.ranked
-    pick = next((e for e in ranked if p_values[e.model] >= alpha), None)
-    passed = pick is not None
-    pick = pick if pick is not None else ranked[0]
-    result = fit(data, pick.model, freq=wv.freq, seed=seed, alpha=wv.alpha,
-                 **({"n_starts": n_starts} if n_starts is not None else {}), **wv_opts)
-    if result.gof is not None:  # the refit's own test (the same estimate: the same p-value)
-        p_values[pick.model] = float(result.gof.p_value)
-        passed = passed and p_values[pick.model] >= alpha
+            if rankings:
+                passing = any(p >= alpha for p in p_values.values() if np.isfinite(p))
+                tie = TIE_CHI2 * _chi2_unit(merge(rankings).ranked[0])
+                if passing and stage_best >= best_before:
+                    why = (f"{k - 1} {slow} did not lower the best {criterion.upper()} of the "
+                           f"candidates with fewer, and a candidate already passes the "
+                           "goodness-of-fit test")
+                    not_fitted += [(m, why) for m in range(k, max_gm + 1)]
+                    break
+                if not passing and np.isfinite(tie) and stage_best > best_before - tie:
+                    why = (f"{k - 1} {slow} lowered the best {criterion.upper()} of the "
+                           f"candidates with fewer by less than a near tie ({TIE_CHI2:g} "
+                           "chi-square units) and every candidate is rejected: a further term "
+                           "would not make one pass")
+                    not_fitted += [(m, why) for m in range(k, max_gm + 1)]
+                    break
+            try:
+                r = rank_models(data, stage, criterion=criterion, freq=freq, seed=seed,
+                                n_starts=n_starts, progress=report, **wv_opts)
+            except GMWMError:
+                if rankings:  # every candidate of this stage failed: the earlier stages stand
+                    not_fitted.append((k, "no candidate with this many terms could be fitted"))
+                    continue
+                raise
+            done += len(stage)
+            rankings.append(r)
+            for e in r.ranked:
+                p_values[e.model] = float(gof_test(e.result).p_value)
+            best_before, stage_best = best_so_far, r.best.criterion
+            best_so_far = min(best_so_far, stage_best)
+        if not rankings:
+            raise GMWMError("no candidate model could be fitted")
+        ranking = merge(rankings)
+        ranked = ranking.ranked
+        pick = next((e for e in ranked if p_values[e.model] >= alpha), None)
+        passed = pick is not None
+        pick = pick if pick is not None else ranked[0]
+        result = fit(data, pick.model, freq=wv.freq, seed=seed, alpha=wv.alpha,
+                     **({"n_starts": n_starts} if n_starts is not None else {}), **wv_opts)
+        if result.gof is not None:  # the refit's own test (the same estimate: the same p-value)
+            p_values[pick.model] = float(result.gof.p_value)
+            passed = passed and p_values[pick.model] >= alpha
     return Choice(result, ranking, p_values, passed, alpha, kind, bump if use_sin else None,
                   not_fitted, excluded, time.process_time() - cpu0, time.perf_counter() - wall0)

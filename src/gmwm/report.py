@@ -108,12 +108,54 @@ def _verdict_rows(v: Mapping[str, Any]) -> list[tuple[str, str, str, str, str, s
             for term, ds, measured, ci, unit, verdict in verdict_rows(v, readable=True)]
 
 
-def _stationarity_section(st: Any, out: Path, lv: int = 2, prefix: str = ""
-                          ) -> tuple[list[str], list[str], list[Path]]:
-    """Markdown lines, HTML parts and files of the stationarity section (timeline figure
-    ``<prefix>stationarity.png``) under a heading of level ``lv``."""
+@dataclass(frozen=True)
+class _Figure:
+    """A figure of a report page, drawn by :func:`_render` (kind, target file, data)."""
+
+    kind: str
+    path: Path
+    data: tuple[Any, ...]
+
+
+def _draw(fig: _Figure) -> list[Path]:
+    """Draw and save one report figure (in a worker process or not)."""
     from gmwm.atomic import save_figure
-    from gmwm.plots import plot_stationarity
+    from gmwm.plots import add_datasheet_line, plot_av, plot_stationarity, plot_wv
+    from gmwm.wv import AllanVariance
+
+    if fig.kind == "stationarity":
+        return save_figure(plot_stationarity(fig.data[0]), fig.path)
+    name, res, units, verdict = fig.data
+    if fig.kind == "wv":
+        ax = plot_wv(res.wv, result=res, units=units)
+        ax.set_title(f"{name}: {res.model.spec}")
+        if verdict is not None:
+            c = verdict["curves"]
+            add_datasheet_line(ax, c["scales_s"], c["wv"], verdict["label"])
+    else:
+        ax = plot_av(AllanVariance.from_wv(res.wv), deviation=True, units=units)
+        add_datasheet_line(ax, verdict["curves"]["tau_s"], verdict["curves"]["adev"],
+                           verdict["label"])
+        ax.set_title(f"{name}: Allan deviation")
+    return save_figure(ax.figure, fig.path)
+
+
+def _render(figures: Sequence[_Figure]) -> list[Path]:
+    """Draw the figures of a page, in worker processes when there are several and more than one
+    core (a figure costs ~0.5 s of matplotlib layout and rasterising, all of it in Python)."""
+    from gmwm.calibrate import _executor, available_cores
+
+    n = min(len(figures), available_cores())
+    if n < 2:
+        return [f for fig in figures for f in _draw(fig)]
+    with _executor("process", n) as pool:
+        return [f for paths in pool.map(_draw, figures) for f in paths]
+
+
+def _stationarity_section(st: Any, out: Path, lv: int = 2, prefix: str = ""
+                          ) -> tuple[list[str], list[str], list[_Figure]]:
+    """Markdown lines, HTML parts and figures (to draw) of the stationarity section (timeline
+    figure ``<prefix>stationarity.png``) under a heading of level ``lv``."""
 
     unit = "s" if st.freq else "samples"
     intro = (f"Windowed means of every axis (and of the accelerometer norm |a|) at window lengths "
@@ -157,10 +199,10 @@ def _stationarity_section(st: Any, out: Path, lv: int = 2, prefix: str = ""
         body.append(f"<p>{html.escape(n)}</p>")
     if st.alerts or st.notes:
         md.append("")
-    files: list[Path] = []
+    files: list[_Figure] = []
     if st.tested and st.timeline:
         png = out / f"{prefix}stationarity.png"
-        files += save_figure(plot_stationarity(st), png)
+        files.append(_Figure("stationarity", png, (st,)))
         md += [f"![Timeline of every axis, flagged ranges shaded]({png.name})", ""]
         body.append(f'<img src="{png.name}" alt="stationarity timeline" width="700">')
     return md, body, files
@@ -212,15 +254,12 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
     stationarity, summary, one part per axis and the Kalibr block; headings of level ``lv``,
     figure names starting with ``prefix``; ``config_dir`` the folder of its configuration files
     when they are not beside the page."""
-    from gmwm.atomic import save_figure
     from gmwm.exports import kalibr_text
-    from gmwm.plots import add_datasheet_line, plot_av, plot_wv
-    from gmwm.wv import AllanVariance
 
     h = "#" * lv
     md: list[str] = []
     body: list[str] = []
-    written: list[Path] = []
+    figures: list[_Figure] = []
     st = stationarity
     if st is not None and (st.moving or st.alerts):
         lines = st.warnings(limit=10)
@@ -234,10 +273,10 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
         body += [f"<h{lv}>Time base</h{lv}>",
                  "<ul>" + "".join(f"<li>{html.escape(t)}</li>" for t in timing) + "</ul>"]
     if st is not None:
-        smd, sbody, sfiles = _stationarity_section(st, out, lv, prefix)
+        smd, sbody, sfigs = _stationarity_section(st, out, lv, prefix)
         md += smd
         body += sbody
-        written += sfiles
+        figures += sfigs
     summary = []
     for name, a in axes.items():
         res = a["result"]
@@ -254,13 +293,8 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
     for name, a in axes.items():
         res = a["result"]
         png = out / f"{prefix}{_slug(name)}_wv.png"
-        ax = plot_wv(res.wv, result=res, units=a["units"] or "")
-        ax.set_title(f"{name}: {res.model.spec}")
         verdict = a.get("verdict")
-        if verdict is not None:
-            c = verdict["curves"]
-            add_datasheet_line(ax, c["scales_s"], c["wv"], verdict["label"])
-        written += save_figure(ax.figure, png)
+        figures.append(_Figure("wv", png, (name, res, a["units"] or "", verdict)))
         rows = _rows(a["datasheet"])
         th = ["term", "quantity", "value", "95% CI", "unit"]
         md += [f"{h} {name}", "",
@@ -280,11 +314,7 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
             body.append(cbody)
         if verdict is not None:
             adev_png = out / f"{prefix}{_slug(name)}_adev.png"
-            ax = plot_av(AllanVariance.from_wv(res.wv), deviation=True, units=a["units"] or "")
-            add_datasheet_line(ax, verdict["curves"]["tau_s"], verdict["curves"]["adev"],
-                               verdict["label"])
-            ax.set_title(f"{name}: Allan deviation")
-            written += save_figure(ax.figure, adev_png)
+            figures.append(_Figure("adev", adev_png, (name, res, a["units"] or "", verdict)))
             vh = ["term", "datasheet", "measured", "95% CI", "unit", "verdict"]
             vrows = _verdict_rows(verdict)
             src = f" ({verdict['source']})" if verdict["source"] else ""
@@ -332,7 +362,7 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
                "unit, so neither the sensor nor the SI scale is known (give --units).")
         md += [f"{h} Noise densities", "", why, ""]
         body += [f"<h{lv}>Noise densities</h{lv}>", f"<p>{html.escape(why)}</p>"]
-    return md, body, written
+    return md, body, _render(figures)
 
 
 def _page(title: str, body: list[str]) -> str:

@@ -32,12 +32,20 @@ nested submodels, and the refinement of the best starts (no user starting values
    from the best distinct starts; the best objective wins.
 
 :class:`Search` runs it for one model and problem and keeps the fitted submodels, from which
-:func:`gmwm.fit` judges whether each component is supported by the data.
+:func:`gmwm.fit` judges whether each component is supported by the data. Inside
+:func:`shared_memo` the fits of several models on the same objective (a ranking of candidates)
+share the memoised nodes: each distinct (sub)model is searched once. This is exact: a node's
+search depends only on its model, its mode, the objective and the search settings (its random
+stream is seeded by its own model string), never on the model that nested it.
 """
 
 from __future__ import annotations
 
+import hashlib
 import zlib
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -50,7 +58,7 @@ from .model import Model, spec_of
 from .processes import Process
 from .settings import N_STARTS
 
-__all__ = ["EXPLORE_NFEV", "Node", "Search"]
+__all__ = ["EXPLORE_NFEV", "Node", "Search", "shared_memo"]
 
 #: Evaluation budget of each exploratory solve (the winner continues to max_nfev).
 EXPLORE_NFEV = 60
@@ -626,6 +634,46 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
     return node
 
 
+_MEMO: ContextVar[dict[str, dict[str, Any]] | None] = ContextVar("gmwm_search_memo",
+                                                                  default=None)
+
+
+@contextmanager
+def shared_memo() -> Iterator[None]:
+    """Within this block, searches on the same objective (WV, weight matrix, method, starts,
+    seed, drift sign, budget) share their memoised nodes (module docstring); re-entrant: an inner
+    block joins the outer one."""
+    if _MEMO.get() is not None:
+        yield
+        return
+    token = _MEMO.set({})
+    try:
+        yield
+    finally:
+        _MEMO.reset(token)
+
+
+def _objective_key(problem: Problem, *settings: Any) -> str:
+    h = hashlib.blake2b(digest_size=16)
+    for a in (problem.nu_hat, problem.omega, problem.tau):
+        h.update(np.ascontiguousarray(a, dtype=float).tobytes())
+    h.update(repr((problem.method, *settings)).encode())
+    return h.hexdigest()
+
+
+def _tree(model: Model, mode: str) -> Iterator[tuple[str, Model, str]]:
+    """(key, model, mode) of every node the nested search of ``model`` in ``mode`` visits
+    (the recursion of :func:`_search`; repeated keys possible)."""
+    yield _node_key(model.spec, mode), model, mode
+    if mode == "off" or len(model.components) < 2:
+        return
+    for sub, k in _drop_one(model):
+        linear_drop = model.components[k].process.linear
+        if mode == "shaped" and linear_drop:
+            continue
+        yield from _tree(sub, "shaped" if linear_drop else mode)
+
+
 class Search:
     """The search with one configuration: ``run(problem)`` finds the optimum of
     ``problem.model`` (memoising the submodels), ``drop_one(model)`` then returns the fitted
@@ -637,16 +685,26 @@ class Search:
         self.max_nfev = max_nfev
         self.mode = "full" if nested else "off"
         self.cache: dict[str, Any] = {}
+        self._model: Model | None = None
 
     def run(self, problem: Problem, extra_starts: list[np.ndarray] | None = None) -> Node:
         """The best node of ``problem.model`` (``extra_starts``: further starting points)."""
-        self.cache = {}
+        memo = _MEMO.get()
+        if memo is None:
+            self.cache = {}
+        else:
+            self.cache = memo.setdefault(_objective_key(
+                problem, self.n_starts, self.seed, self.drift_sign, self.max_nfev, self.mode), {})
+        self._model = problem.model
         return _search(problem, problem.model, self.n_starts, self.seed, self.drift_sign,
                        self.max_nfev, self.mode, self.cache, extra_starts)
 
     @property
     def n_models_searched(self) -> int:
-        return sum(k != "__columns__" for k in self.cache)
+        """Distinct nodes of the last run's nested search (found in the shared memo or not)."""
+        if self._model is None:
+            return 0
+        return len({key for key, _, _ in _tree(self._model, self.mode) if key in self.cache})
 
     def drop_one(self, model: Model) -> list[tuple[int, Node]]:
         """(index of the dropped component, node) of every drop-one submodel of ``model`` that

@@ -60,6 +60,7 @@ from .criteria import CRITERIA, DEFAULT, disagreements, factor, near_ties, ranki
 from .errors import GMWMError, InputError, ModelError
 from .model import Model, as_model, parse_model, spec_of
 from .processes import PROCESSES, SINGLETONS
+from .search import shared_memo
 from .settings import prepare_wv
 from .wv import WaveletVariance
 
@@ -323,27 +324,29 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = DE
     if n_starts is not None:
         options["n_starts"] = n_starts
     entries: list[RankedModel] = []
-    for i, spec in enumerate(specs, 1):
-        if progress is not None:
-            progress(i, len(specs), spec)
-        model = Model(spec, wv.freq)
-        try:
-            res = fit(wv, model, weights=weights, seed=seed, **options)
-        except GMWMError as exc:
-            entries.append(RankedModel(spec, np.inf, np.inf, np.nan, model.n_params, False,
-                                       error=str(exc).splitlines()[0]))
-            continue
-        res = _fix_drift_sign(res, drift_sign)
-        V = user_cov
-        if V is None and cov == "model":
-            V = getattr(res, "wv_cov", None)
-            if V is not None and wv.robust:  # the model covariance is the classical WV's
-                V = np.asarray(V) / wv.efficiency
-        pen = optimism(res, V)
-        crit = float(res.objective) + k * pen
-        entries.append(RankedModel(spec, crit if np.isfinite(crit) else np.inf,
-                                   float(res.objective), pen, model.n_params,
-                                   bool(res.converged), res))
+    # the candidates nest each other: in one memo each distinct (sub)model is searched once
+    with shared_memo():
+        for i, spec in enumerate(specs, 1):
+            if progress is not None:
+                progress(i, len(specs), spec)
+            model = Model(spec, wv.freq)
+            try:
+                res = fit(wv, model, weights=weights, seed=seed, **options)
+            except GMWMError as exc:
+                entries.append(RankedModel(spec, np.inf, np.inf, np.nan, model.n_params, False,
+                                           error=str(exc).splitlines()[0]))
+                continue
+            res = _fix_drift_sign(res, drift_sign)
+            V = user_cov
+            if V is None and cov == "model":
+                V = getattr(res, "wv_cov", None)
+                if V is not None and wv.robust:  # the model covariance is the classical WV's
+                    V = np.asarray(V) / wv.efficiency
+            pen = optimism(res, V)
+            crit = float(res.objective) + k * pen
+            entries.append(RankedModel(spec, crit if np.isfinite(crit) else np.inf,
+                                       float(res.objective), pen, model.n_params,
+                                       bool(res.converged), res))
     bad = [e for e in entries if e.error is not None]
     if len(bad) == len(entries):
         raise GMWMError("no candidate model could be fitted: " + "; ".join(

@@ -98,13 +98,15 @@ def fit_columns(args: argparse.Namespace, err: TextIO, require_time: str | None 
         raise InputError(f"the automatic model choice fits GMWM candidates; with --method "
                          f"{settings.method} give a model")
     models = {c: Model(specs[c], freq=got.freq) for c in got.data if c not in auto}
+    chosen = _choose_parallel(args, {c: got.data[c] for c in got.data if c in auto}, settings,
+                              got.freq, got.units)
     fits = {}
     for c, d in got.data.items():
         # a WV (a table, streamed, pooled segments) is already cut to --levels
         s = settings if isinstance(d, np.ndarray) else settings.replace(levels=None)
         choice = None
         if c in auto:
-            choice = _choose(args, c, d, s, got.freq, got.units[c])
+            choice = chosen.get(c) or _choose(args, c, d, s, got.freq, got.units[c])
             res = choice.result
         else:
             args.progress(f"fitting {models[c].spec} to {c}")
@@ -142,6 +144,31 @@ def _choose(args: argparse.Namespace, name: str, data: Any, settings: Any, freq:
         n_starts=settings.n_starts if args.n_starts is not None else None,
         progress=lambda i, n, m: args.progress(f"{name}: candidate {i}/{n}: {m}"))
     return choice
+
+
+def _choose_parallel(args: argparse.Namespace, data: dict[str, Any], settings: Any,
+                     freq: float | None, units: dict[str, str]) -> dict[str, Any]:
+    """The automatic choices of several channels at once, one worker process per core
+    (:func:`gmwm.calibrate.calibrate_imus`' executor: a choice is mostly Python, which threads
+    would serialise); {} with one channel or one core (then :func:`_choose` runs each, with
+    per-candidate progress). The choices are the same as one after the other (seeded)."""
+    from gmwm.calibrate import _executor, _fit_one, available_cores
+
+    n = min(len(data), available_cores())
+    if n < 2:
+        return {}
+    args.progress(f"choosing the models of {len(data)} channels in {n} parallel processes")
+    opts: dict[str, Any] = {"seed": settings.seed, "robust": settings.robust, "eff": settings.eff}
+    if args.n_starts is not None:
+        opts["n_starts"] = settings.n_starts
+    with _executor("process", n) as pool:
+        futures = {c: pool.submit(_fit_one, d, "auto", freq, settings.levels, opts,
+                                  units.get(c) or None) for c, d in data.items()}
+        out = {}
+        for c, f in futures.items():
+            out[c] = f.result()
+            args.progress(f"{c}: {out[c].headline()}")
+    return out
 
 
 def choice_json(choice: Any) -> dict[str, Any] | None:
