@@ -219,3 +219,29 @@ def test_report_renders_the_choice_and_its_warning(tmp_path) -> None:
     assert axes["gy"]["choice"].headline()[1:] in gy and "| chosen |" in gy
     assert "every candidate model is rejected" not in gy
     assert "every candidate model is rejected" in page and "GOF p" in page
+
+
+def test_the_shared_search_memo_is_exact() -> None:
+    """A ranking searches each distinct (sub)model once (gmwm.search.shared_memo); every
+    candidate's fit is bit for bit the fit of that candidate alone."""
+    x = GYRO.simulate_fast(GYRO_THETA, 2**15, rng=np.random.default_rng(71))
+    specs = ["WN+RW", "WN+GM+RW", "QN+WN+GM+RW", "WN+2*GM+RW"]
+    ranking = rank_models(x, specs, freq=F)
+    for e in ranking.ranked:
+        alone = gmwm.fit(x, Model(e.model, F), se_cov="gaussian")
+        assert np.array_equal(e.result.params, alone.params), e.model
+        assert e.result.objective == alone.objective
+        assert (e.result.diagnostics["n_models_searched"]
+                == alone.diagnostics["n_models_searched"])
+
+
+def test_the_climb_stops_when_every_candidate_is_rejected_and_a_gm_no_longer_helps() -> None:
+    """A square wave no candidate describes: every candidate is rejected, and once a GM term
+    gains less than a near tie the further stages are not fitted (they would not pass)."""
+    t = np.arange(2**15)
+    x = np.random.default_rng(3).standard_normal(t.size) + 3.0 * np.sign(np.sin(2 * np.pi * t / 16))
+    c = choose_model(x, freq=F, kind="gyroscope", sin=False)
+    assert not c.passed and c.warnings and "every candidate" in c.warnings[0]
+    assert [k for k, _ in c.not_fitted] == [2, 3]
+    assert "near tie" in c.not_fitted[0][1]
+    assert not any("2*GM" in r["model"] or "3*GM" in r["model"] for r in c.rows())
