@@ -111,13 +111,26 @@ def write_euroc(path: Path, n: int) -> None:
             fh.write("\n".join(",".join(r) for r in zip(*cols, strict=True)) + "\n")
 
 
+#: real recordings of ../shared/data/external (provenance in its README), timed end to end
+EXTERNAL_FILES = {
+    "ros1-rl-husky/test1.bag": "ROS 1 bag, Husky robot driving, 30 Hz, 395 s",
+    "ros1-imutools-phidgets/phidgets_imu_upside_down.bag": "ROS 1 bag, Phidgets IMU, 248 Hz, moved",
+    "px4-pyulog-sample/sample.ulg": "PX4 ULog, 248 Hz, 69 s, in flight",
+    "euroc-kimera-v101/mav0/imu0/data.csv": "EuRoC CSV, 200 Hz, 146 s, MAV flight",
+}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dir", default=None)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--messages", type=int, default=720_000)
     ap.add_argument("--euroc-rows", type=int, default=10_000_000)
-    ap.add_argument("--no-report", action="store_true", help="skip the `gmwm report` run")
+    ap.add_argument("--no-report", action="store_true", help="skip the `gmwm report` runs")
+    ap.add_argument("--external", type=Path,
+                    default=Path(__file__).resolve().parents[2] / "shared" / "data" / "external",
+                    help="folder of real recordings written by other software: `gmwm report` "
+                         "(automatic model) on each of EXTERNAL_FILES found there")
     ap.add_argument("--readme", action="store_true", help="write the tables into README.md")
     args = ap.parse_args()
     tmp = None
@@ -159,10 +172,10 @@ def main() -> None:
         bag = files["ROS 1 bag"][0]
         out = d / "report_out"
         shutil.rmtree(out, ignore_errors=True)
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [
+            str(Path(__file__).resolve().parents[1] / "src"), os.environ.get("PYTHONPATH")]))}
         r = run_measured([sys.executable, "-m", "gmwm", "report", str(bag), "-o", str(out)],
-                         env={**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [
-                             str(Path(__file__).resolve().parents[1] / "src"),
-                             os.environ.get("PYTHONPATH")]))})
+                         env=env)
         if r["code"] != 0:
             print(r["err"], file=sys.stderr)
         report = ("\n\n| run | exit | wall [s] | CPU of the child [s] | peak RSS [MB] |\n"
@@ -170,6 +183,15 @@ def main() -> None:
                   f"| `gmwm report {bag.name} -o DIR` ({n} messages, 200 Hz, six axes) | "
                   f"{r['code']} | {r['wall']:.2f} | {r['cpu']:.2f} | {r['rss_mb']:.0f} |")
         shutil.rmtree(out, ignore_errors=True)
+        for rel, what in EXTERNAL_FILES.items():
+            f = args.external / rel
+            if not f.exists():
+                continue
+            r = run_measured([sys.executable, "-m", "gmwm", "report", str(f), "-o", str(out)],
+                             env=env)
+            report += (f"\n| `gmwm report {f.name} -o DIR` ({what}; real file) | {r['code']} | "
+                       f"{r['wall']:.2f} | {r['cpu']:.2f} | {r['rss_mb']:.0f} |")
+            shutil.rmtree(out, ignore_errors=True)
     info = (f"`python benchmarks/bench_readers.py`: `read_recording`, best of {args.repeat} after "
             f"a warm-up call; {machine()}; load average {before} before, {load_avg()} after.")
     print(info)
