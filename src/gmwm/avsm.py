@@ -99,6 +99,11 @@ class AVSMResult:
         return "avsm"
 
     @property
+    def objective(self) -> float:
+        """NaN: the AVSM reads slopes, it minimises no objective (JSON: null)."""
+        return float("nan")
+
+    @property
     def se(self) -> np.ndarray:
         """No standard errors: NaN per parameter."""
         return readonly(np.full(len(self.param_names), np.nan))

@@ -125,6 +125,20 @@ class GMWMResult:
         """Keyword arguments of :func:`fit` that repeat this fit on another WV (bootstrap)."""
         return self.settings.fit_kwargs()
 
+    def with_drift_sign(self, sign: float | None) -> GMWMResult:
+        """This fit with the sign of every drift (DR) set to ``sign`` (+1/-1, from the signal:
+        its last sample against its first, as :func:`fit` takes it). A WV does not see the sign,
+        so a fit of a WV has |omega| and a warning saying so; ``sign`` None: unchanged."""
+        signed = [c for c in self.model.components if c.process.signed]
+        if sign is None or not signed:
+            return self
+        params = np.array(self.params, dtype=float)
+        for c in signed:
+            params[c.slice] = sign * np.abs(params[c.slice])
+        warnings = [w for w in self.diagnostics.get("warnings", []) if "drift sign" not in w]
+        return dataclasses.replace(self, params=params,
+                                   diagnostics=dict(self.diagnostics, warnings=warnings))
+
     def model_wv(self, scales: np.ndarray | None = None) -> np.ndarray:
         return self.model.wv(self.params, self.wv.scales if scales is None else scales)
 

@@ -17,6 +17,7 @@ other filter configuration files asked for. Every file is written atomically.
 from __future__ import annotations
 
 import html
+import math
 import os
 import re
 from collections.abc import Mapping, Sequence
@@ -95,6 +96,11 @@ def choice_section(choice: Any) -> tuple[list[str], str]:
             + ("<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in choice.notes) + "</ul>"
                if choice.notes else ""))
     return md, body
+
+
+def _objective(res: Any) -> str:
+    """The fit's objective for the page ("none" for the AVSM, which minimises nothing)."""
+    return "none" if not math.isfinite(res.objective) else f"{res.objective:.4g}"
 
 
 def _gof_line(res: Any) -> str | None:
@@ -299,8 +305,8 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
         th = ["term", "quantity", "value", "95% CI", "unit"]
         md += [f"{h} {name}", "",
                (f"Model `{res.model.spec}`, T = {res.wv.n_samples} samples, J = {res.wv.n_levels} "
-                f"scales, objective {float(getattr(res, 'objective', float('nan'))):.4g}, converged "
-                f"{'yes' if getattr(res, 'converged', True) else 'NO'}."), "",
+                f"scales, objective {_objective(res)}, converged "
+                f"{'yes' if res.converged else 'NO'}."), "",
                f"![WV of {name} with the fitted model]({png.name})", "", *md_table(th, rows), ""]
         body += [f"<h{lv}>{html.escape(name)}</h{lv}>",
                  (f"<p>Model <code>{html.escape(res.model.spec)}</code>, T = {res.wv.n_samples} "

@@ -260,19 +260,6 @@ def auto_candidates(base: str | Model, *, max_ar: int = MAX_AR, max_sin: int = M
 
 
 # -- ranking --------------------------------------------------------------------------------------
-def _fix_drift_sign(res: Any, sign: float | None) -> Any:
-    """The WV does not see the sign of a drift; take it from the signal (as ``fit`` does)."""
-    signed = [c for c in res.model.components if c.process.signed]
-    if sign is None or not signed:
-        return res
-    params = np.array(res.params, dtype=float)
-    for c in signed:
-        params[c.slice] = sign * np.abs(params[c.slice])
-    warnings = [w for w in res.diagnostics.get("warnings", []) if "drift sign" not in w]
-    return dataclasses.replace(res, params=params,
-                               diagnostics=dict(res.diagnostics, warnings=warnings))
-
-
 def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = DEFAULT,
                 levels: int | None = None, freq: float | None = None,
                 weights: str | np.ndarray = "ci", robust: bool = False, eff: float = 0.6,
@@ -336,7 +323,7 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = DE
                 entries.append(RankedModel(spec, np.inf, np.inf, np.nan, model.n_params, False,
                                            error=str(exc).splitlines()[0]))
                 continue
-            res = _fix_drift_sign(res, drift_sign)
+            res = res.with_drift_sign(drift_sign)
             V = user_cov
             if V is None and cov == "model":
                 V = getattr(res, "wv_cov", None)
@@ -416,5 +403,5 @@ def select_model(data: Any, models: Sequence[str | Model] | str | Model, **kwarg
     best = ranking.best.result
     if kwargs.get("fit_kwargs") is None and kwargs.get("cov", "gaussian") == "gaussian":
         options = {k: kwargs[k] for k in ("weights", "seed", "n_starts") if kwargs.get(k) is not None}
-        best = _fix_drift_sign(fit(ranking.wv, best.model, **options), ranking.drift_sign)
+        best = fit(ranking.wv, best.model, **options).with_drift_sign(ranking.drift_sign)
     return best

@@ -192,9 +192,7 @@ def _streamed(res: Any, channel: Any) -> Any:
     the signal's first and last samples, as :func:`gmwm.fit` takes it from a signal) and the
     seconds the streamed WV took."""
     if res.settings.method != "avsm":
-        from gmwm.select import _fix_drift_sign
-
-        res = _fix_drift_sign(res, channel.drift_sign)
+        res = res.with_drift_sign(channel.drift_sign)
     return dataclasses.replace(res, seconds_wv=channel.seconds)
 
 
