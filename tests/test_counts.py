@@ -28,12 +28,12 @@ TRUTH = {"WN[1].sigma2": 1.0, "SIN[1].alpha": 1.0, "SIN[1].beta": 0.5,
          "SIN[2].alpha": 0.1, "SIN[2].beta": 0.01}
 # J = 10: the ridge starts at period 2 pi / beta > 100 * 2**10, i.e. beta < 6.1e-5
 ROWS = [  # replicate, WN, SIN1 alpha, beta, SIN2 alpha, beta, converged, at_boundary, switched
-    (0, 1.0, 1.0, 0.5, 0.1, 0.01, 1, "", 0),         # the truth
-    (1, 1.1, 1.0, 0.5, 0.25, 0.011, 1, "", 0),       # SIN2 alpha x2.5: miss; |beta rel| 0.1
-    (2, 0.0, 1.0, 0.5, 0.1, 0.004, 1, "WN[1].sigma2", 0),  # beta x0.4: miss; 0.6
-    (3, 1.0, 1.0, 0.5, 500.0, 1e-7, 1, "", 0),       # ridge, alpha 500: miss; 0.99999
-    (4, NAN, NAN, NAN, NAN, NAN, 0, "", 0),          # not converged: counted only there
-    (5, 1.0, 1.0, 0.5, 50.0, 2e-6, 1, "", 1),        # ridge, alpha 50, switched: miss; 0.9998
+    (0, 1.0, 1.0, 0.5, 0.1, 0.01, 1, "", ""),         # the truth
+    (1, 1.1, 1.0, 0.5, 0.25, 0.011, 1, "", ""),       # SIN2 alpha x2.5: miss; |beta rel| 0.1
+    (2, 0.0, 1.0, 0.5, 0.1, 0.004, 1, "WN[1].sigma2", ""),  # beta x0.4: miss; 0.6
+    (3, 1.0, 1.0, 0.5, 500.0, 1e-7, 1, "", ""),       # ridge, alpha 500: miss; 0.99999
+    (4, NAN, NAN, NAN, NAN, NAN, 0, "", "SIN"),       # not converged: counted only there
+    (5, 1.0, 1.0, 0.5, 50.0, 2e-6, 1, "", "SIN"),     # ridge, alpha 50, switched: miss; 0.9998
 ]
 
 
@@ -53,7 +53,9 @@ def test_study_counts_hand_checked():
     assert c["toy.gmwm.not_converged"] == 1
     assert c["toy.gmwm.at_boundary.WN1.sigma2"] == 1
     assert c["toy.gmwm.at_boundary.SIN2.alpha"] == 0
-    assert c["toy.gmwm.label_switched"] == 1
+    assert c["toy.gmwm.label_switched"] == 1  # replicate 4 is not converged
+    assert c["toy.gmwm.label_switched.SIN"] == 1
+    assert "toy.gmwm.label_switched.WN" not in c  # one WN: nothing to switch
     assert c["toy.gmwm.SIN1.factor2_miss"] == 0
     assert c["toy.gmwm.SIN2.factor2_miss"] == 4  # replicates 1, 2, 3, 5
     assert c["toy.gmwm.SIN2.beta_median_abs_rel_err"] == pytest.approx(0.6)
@@ -114,6 +116,19 @@ def test_dataset_table_flags_and_round_trip(tmp_path):
     np.testing.assert_array_equal(back["RW[1].gamma2"].to_numpy(), df["RW[1].gamma2"].to_numpy())
     c = {x.name: x.value for x in study_counts("toy", back, rec2, "x")}
     assert c["toy.gmwm.at_boundary.RW1.gamma2"] == 1 and c["toy.gmwm.not_converged"] == 1
+
+
+def test_dataset_table_names_the_switched_type():
+    truth = [0.5, 1.0, 0.05, 0.1]  # SIN[1] (alpha, beta) fast, SIN[2] slow
+    est = np.array([truth, [0.1, 0.05, 0.5, 1.0]])  # replicate 1: the two swapped
+    ds = xr.Dataset(
+        {"estimate": (("replicate", "parameter"), est),
+         "converged": ("replicate", np.array([True, True]))},
+        coords={"replicate": [0, 1],
+                "parameter": ["SIN[1].alpha", "SIN[1].beta", "SIN[2].alpha", "SIN[2].beta"],
+                "truth": ("parameter", truth)},
+        attrs={"model": "2*SIN", "n_samples": 4096, "estimator": "gmwm"})
+    assert dataset_table(ds)["label_switched"].tolist() == ["", "SIN"]
 
 
 def test_quoted_matches_uses_the_quoted_precision():

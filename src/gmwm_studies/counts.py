@@ -87,8 +87,8 @@ def _num(x: Any) -> float | int | None:
     return None if not math.isfinite(x) else x
 
 
-def _boundary_sets(df: pd.DataFrame) -> list[set[str]]:
-    return [set(s.split(";")) if s else set() for s in df["at_boundary"].fillna("").astype(str)]
+def _sets(df: pd.DataFrame, column: str) -> list[set[str]]:
+    return [set(s.split(";")) if s else set() for s in df[column].fillna("").astype(str)]
 
 
 def _sin_counts(sub: pd.DataFrame, prefix: str, truth: Mapping[str, float], J: int | None,
@@ -169,7 +169,7 @@ def study_counts(study: str, df: pd.DataFrame, record: Mapping[str, Any], source
     """Every named count of one per-replicate table (one study at one T).
 
     Per estimator (and fitted model): ``n``, ``not_converged``, ``at_boundary.<param>`` for each
-    parameter, ``label_switched`` when the table has it, per sinusoid ``SIN<k>.factor2_miss``,
+    parameter, ``label_switched`` (and ``label_switched.<type>``) when the table has it, per sinusoid ``SIN<k>.factor2_miss``,
     ``SIN<k>.beta_median_abs_rel_err`` and the ridge fits (``SIN<k>.ridge``, ``SIN<k>.ridge<i>.*``,
     see :data:`RIDGE_FACTOR`), and for STIM-300 ``wild.<param>`` (:data:`WILD_ROBUST_SD`).
     ``label_T``: put ``T<T>`` in the names (a study with several sample sizes).
@@ -188,16 +188,24 @@ def study_counts(study: str, df: pd.DataFrame, record: Mapping[str, Any], source
         out.append(Count(f"{prefix}.not_converged", int((~conv).sum()),
                          "fits that did not converge", source))
         ok = sub[conv]
-        sets = _boundary_sets(ok)
+        sets = _sets(ok, "at_boundary")
         for name in params:
             out.append(Count(f"{prefix}.at_boundary.{_pname(name)}", sum(name in s for s in sets),
                              f"converged fits with {name} at the boundary (at_boundary column: "
                              "a scale parameter below 1e-8 x its truth, AR1 |phi| at 1, SIN beta "
                              "at pi)", source))
         if "label_switched" in ok.columns:
-            out.append(Count(f"{prefix}.label_switched", int(ok["label_switched"].sum()),
+            switched = _sets(ok, "label_switched")
+            out.append(Count(f"{prefix}.label_switched", sum(bool(s) for s in switched),
                              "converged fits with a true component in another component's column "
-                             "(label_switched column)", source))
+                             "(label_switched column not empty)", source))
+            types = dict.fromkeys(n.split("[", 1)[0] for n in params)
+            for kind in (t for t in types
+                         if len({n.split(".")[0] for n in params if n.startswith(f"{t}[")}) > 1):
+                out.append(Count(f"{prefix}.label_switched.{kind}",
+                                 sum(kind in s for s in switched),
+                                 f"converged fits with a {kind} component in another {kind}'s "
+                                 "column (the tables' n_switched of its parameters)", source))
         out += _sin_counts(ok, prefix, truth, J, source)
         if "sensor" in record:
             out += _wild_counts(ok, prefix, params, record, source)

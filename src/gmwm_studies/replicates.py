@@ -14,8 +14,9 @@ converged, at_boundary[, label_switched]``
 * ``at_boundary``: the parameters flagged by :func:`montecarlo.replicate_flags` (the rule of the
   tables' ``n_boundary``), joined by ``;``, empty if none. For STIM-300 the flags are computed in
   Table I units, as its report does;
-* ``label_switched`` 1/0, only for models with two components of one type (the rule of the
-  tables' ``n_switched``).
+* ``label_switched``: the process types (``AR1``, ``SIN``) with a true component estimated in
+  another component's column, ``;``-joined, empty if none; only for models with two components of
+  one type (the rule of the tables' ``n_switched``).
 
 A ``truth_T<T>.json`` beside each CSV holds what the counts need besides the estimates: the model,
 the true values, the number of WV levels J and, for STIM-300, the sensor and sampling rate.
@@ -81,7 +82,11 @@ def dataset_table(ds: xr.Dataset, *, estimator: str | None = None,
     bnd = flags["boundary"].values
     df["at_boundary"] = [";".join(n for n, b in zip(names, row, strict=True) if b) for row in bnd]
     if _has_switch_check(str(ds.attrs["model"])):
-        df["label_switched"] = flags["switched"].values.any(axis=1).astype(np.int8)
+        sw = flags["switched"].values
+        df["label_switched"] = [";".join(dict.fromkeys(n.split("[", 1)[0]
+                                                       for n, s in zip(names, row, strict=True)
+                                                       if s))
+                                for row in sw]
     return df
 
 
@@ -179,8 +184,11 @@ def read_replicates(csv_path: str | os.PathLike) -> tuple[pd.DataFrame, dict[str
     if not os.path.isfile(csv_path):
         raise InputError(f"per-replicate table not found: {csv_path}")
     df = pd.read_csv(csv_path, keep_default_na=False, na_values=[""],
-                     dtype={"at_boundary": str, "estimator": str, "fit_model": str})
-    df["at_boundary"] = df["at_boundary"].fillna("") if "at_boundary" in df else ""
+                     dtype={"at_boundary": str, "label_switched": str, "estimator": str,
+                            "fit_model": str})
+    for col in ("at_boundary", "label_switched"):
+        if col in df:
+            df[col] = df[col].fillna("")
     head, tail = os.path.split(csv_path)
     json_path = os.path.join(head, tail.replace("estimates_", "truth_").replace(".csv", ".json"))
     if not os.path.isfile(json_path):
