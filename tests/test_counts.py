@@ -148,6 +148,7 @@ Sim 2's slow sinusoid misses by a factor 2 in [37](counts.md#sim2.gmwm.SIN2.fact
 [80](counts.md#sim2.gmwm_eff.SIN2.factor2_miss) of 500; median
 [0.112](counts.md#sim2.gmwm.SIN2.beta_median_abs_rel_err). A plain link
 [table](sim2/bias_sd_rmse.md) is no marker; Navchip: [0.43](navchip/counts.md#navchip.gx.q10).
+An example in code, `[1](counts.md#no.such.count)`, is no marker either.
 """
 
 

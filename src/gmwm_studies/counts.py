@@ -317,10 +317,12 @@ class Mismatch:
 
 
 def find_markers(text: str) -> list[tuple[int, str, str, str]]:
-    """Count markers of a Markdown text: (line number, quote, counts.md path, count name)."""
+    """Count markers of a Markdown text: (line number, quote, counts.md path, count name).
+
+    Inline code spans are skipped: a marker shown as an example in backticks is not a quote."""
     out = []
     for i, line in enumerate(text.splitlines(), start=1):
-        for m in MARKER.finditer(line):
+        for m in MARKER.finditer(re.sub(r"`[^`]*`", "", line)):
             out.append((i, m.group("quote"), m.group("file"), m.group("name")))
     return out
 
