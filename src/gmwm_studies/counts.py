@@ -157,10 +157,11 @@ def _wild_counts(sub: pd.DataFrame, prefix: str, params: Sequence[str], record: 
         d = (f"converged fits with {name} (Table I units) more than {WILD_ROBUST_SD:g} robust SDs "
              f"(1.4826 MAD) from the median")
         out.append(Count(p, int(wild.sum()), d, src))
-        out.append(Count(f"{p}.min_z", _num(z[wild].min()) if wild.any() else None,
-                         "smallest |x - median| / robust SD among those", src))
-        out.append(Count(f"{p}.max_z", _num(z[wild].max()) if wild.any() else None,
-                         "largest |x - median| / robust SD among those", src))
+        if wild.any():  # their distances, only when there are some
+            out.append(Count(f"{p}.min_z", _num(z[wild].min()),
+                             "smallest |x - median| / robust SD among those", src))
+            out.append(Count(f"{p}.max_z", _num(z[wild].max()),
+                             "largest |x - median| / robust SD among those", src))
     return out
 
 

@@ -161,6 +161,12 @@ def study_table(kind: str, paths: Sequence[str | os.PathLike], *,
     else:
         raise InputError(f"no per-replicate table for study kind {kind!r}")
     df = pd.concat(frames, ignore_index=True)
+    # misspec: the fitted models' parameter columns in the truth's order, flags last
+    params = [c for c in df.columns if "[" in c]
+    params.sort(key=lambda n: list(record["truth"]).index(n) if n in record["truth"] else 1 << 30)
+    ids = [c for c in ("replicate", "estimator", "fit_model", "T", "J") if c in df.columns]
+    tail = [c for c in ("objective", "converged", "at_boundary", "label_switched") if c in df.columns]
+    df = df[[*ids, *params, *tail]]
     T = int(df["T"].iloc[0])
     if (df["T"] != T).any():
         raise InputError(f"estimates of several sample sizes given: {sorted(set(df['T']))}")
