@@ -153,7 +153,7 @@ An example in code, `[1](counts.md#no.such.count)`, is no marker either.
 
 
 def write_sample(root: Path, text: str, navchip: bool = True) -> Path:
-    write_counts([Count("sim2.gmwm.SIN2.factor2_miss", 37, "d", "s.csv"),
+    write_counts([Count("sim2.gmwm.SIN2.factor2_miss", 37, "d |x| > 2", "s.csv"),
                   Count("sim2.gmwm_eff.SIN2.factor2_miss", 80, "d", "s.csv"),
                   Count("sim2.gmwm.SIN2.beta_median_abs_rel_err", 0.11234, "d", "s.csv")],
                  root / "counts.json", root / "counts.md")
@@ -174,7 +174,9 @@ def test_checker_passes_and_fails(tmp_path):
     n, bad = check_markers(md)
     assert n == 4 and bad == []
     assert read_counts(tmp_path / "counts.json")["sim2.gmwm_eff.SIN2.factor2_miss"] == 80
-    assert 'id="sim2.gmwm.SIN2.factor2_miss"' in (tmp_path / "counts.md").read_text()
+    page = (tmp_path / "counts.md").read_text()
+    assert 'id="sim2.gmwm.SIN2.factor2_miss"' in page
+    assert all(line.count(" | ") == 3 for line in page.splitlines() if line.startswith("| <a"))
     # a wrong number, an unknown name and a counts file that does not exist all fail
     wrong = SAMPLE.replace("[80]", "[81]").replace("beta_median_abs_rel_err", "nope")
     n, bad = check_markers(write_sample(tmp_path, wrong))

@@ -262,7 +262,8 @@ def render_counts_markdown(counts: Sequence[Count], title: str = TITLE) -> str:
     for c in counts:
         v = "undefined" if c.value is None else (str(c.value) if isinstance(c.value, int)
                                                  else f"{c.value:.6g}")
-        lines.append(f'| <a id="{c.name}"></a>`{c.name}` | {v} | {c.definition} | '
+        text = c.definition.replace("|", "\\|")  # a literal | would end the table cell
+        lines.append(f'| <a id="{c.name}"></a>`{c.name}` | {v} | {text} | '
                      f"[{c.source}]({c.source}) |")
     return "\n".join(lines) + "\n"
 
