@@ -46,6 +46,7 @@ include: "workflow/rules/misspec.smk"
 include: "workflow/rules/navigation.smk"
 include: "workflow/rules/svo.smk"
 include: "workflow/rules/allan.smk"
+include: "workflow/rules/replicates.smk"
 include: "workflow/rules/report.smk"
 
 

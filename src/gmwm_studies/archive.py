@@ -126,7 +126,8 @@ def render_index(studies: Sequence[Mapping[str, Any]], summary: pd.DataFrame,
         "# GMWM reproduction: studies at a glance",
         "",
         ("Verdict for every figure and table of the papers (agrees / differs / not reproducible): "
-         "[REPRODUCTION.md](REPRODUCTION.md)."),
+         "[REPRODUCTION.md](REPRODUCTION.md); the per-replicate counts it quotes: "
+         "[counts.md](counts.md)."),
         "",
         f"Config hash `{config_id}`; generated {datetime.now(UTC):%Y-%m-%d %H:%M} UTC.",
         "",

@@ -24,6 +24,7 @@ rule index:
     input:
         all_study_targets(),
         SECTION_TARGETS,
+        COUNTS_FILES,  # reports/counts.{json,md} (replicates.smk): recounted with every index
     output:
         report("reports/index.md", caption="../report/index.rst", category="Overview"),
     params:
@@ -65,7 +66,8 @@ rule index:
 # to date outputs: nothing to do; any rerun of a study output or a new config: a new archive.
 rule archive:
     input:
-        files=[*all_study_targets(), *SECTION_TARGETS, *NAVCHIP_REPORTS, "reports/index.md"],
+        files=[*all_study_targets(), *SECTION_TARGETS, *NAVCHIP_REPORTS, *COUNTS_FILES,
+               "reports/index.md"],
     output:
         f"results/archive/{CONFIG_ID}.json",
     params:

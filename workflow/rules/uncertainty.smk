@@ -108,6 +108,8 @@ def uncertainty_navchip_targets():
         "reports/navchip/identifiability.csv",
         "reports/navchip/identifiability.md",
         *[unc_corner(f) for f in fits],
+        *NAVCHIP_DRAWS,  # per-draw table and its counts (replicates.smk)
+        *NAVCHIP_COUNTS,
     ]
 
 

@@ -1,0 +1,354 @@
+"""Named counts over the per-replicate tables, and the checker of the numbers quoted from them.
+
+Prose that quotes a per-replicate count ("the slow sinusoid is off by more than a factor 2 in 37
+of 500 replicates") cites it by a stable name; :func:`study_counts` computes every such count from
+the committed per-replicate tables (:mod:`gmwm_studies.replicates`), :func:`write_counts` writes
+``counts.json`` and ``counts.md`` (name, value, definition, source file), and
+:func:`check_markers` compares each quoted number of a Markdown page with ``counts.json``.
+
+Count names: ``<study>[.T<T>][.<fitted model>].<estimator>.<quantity>`` (``T<T>`` only for studies
+with several sample sizes), parameter names without brackets (``RW[1].gamma2`` -> ``RW1.gamma2``).
+Every count is over the converged fits (a non-converged fit is counted in ``not_converged`` only).
+
+Marker syntax in Markdown: a link whose text is the quoted number and whose target is a
+``counts.md`` with the count's name as fragment, e.g.
+``[37](counts.md#sim2.gmwm.SIN2.factor2_miss)`` (rendered: the number, linking to its row). The
+``counts.json`` beside the linked ``counts.md`` holds the value. A quoted number matches when the value rounded to the quoted number's significant
+digits equals it (``0.112`` matches 0.11234; ``37`` matches 37 only).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import re
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from gmwm.atomic import write_json_atomic, write_text_atomic
+from gmwm.errors import InputError
+
+__all__ = [
+    "MARKER",
+    "RIDGE_FACTOR",
+    "WILD_ROBUST_SD",
+    "Count",
+    "Mismatch",
+    "check_markers",
+    "draw_counts",
+    "find_markers",
+    "quoted_matches",
+    "read_counts",
+    "render_counts_markdown",
+    "study_counts",
+    "write_counts",
+]
+
+RIDGE_FACTOR = 100.0
+"""A sinusoid is on the alpha-beta ridge when its period 2 pi / beta exceeds this many times the
+longest WV scale 2^J: its WV is then a drift's and only alpha * beta is identified."""
+WILD_ROBUST_SD = 100.0
+"""An estimate is wild when it lies more than this many robust SDs (1.4826 MAD) from the median."""
+
+MARKER = re.compile(r"\[(?P<quote>[^\]\[]+)\]"
+                    r"\((?P<file>(?:[^()\s#]*/)?counts\.md)#(?P<name>[A-Za-z0-9_.\-]+)\)")
+"""A count marker: ``[<quoted number>](<path>/counts.md#<count name>)``."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Count:
+    """One named count: value (int, float or None when undefined), definition in words, source
+    file (relative to the reports directory)."""
+
+    name: str
+    value: float | None
+    definition: str
+    source: str
+
+
+def _pname(name: str) -> str:
+    return name.replace("[", "").replace("]", "")
+
+
+def _num(x: Any) -> float | int | None:
+    if x is None:
+        return None
+    if isinstance(x, bool | np.bool_):
+        return int(x)
+    if isinstance(x, int | np.integer):
+        return int(x)
+    x = float(x)
+    return None if not math.isfinite(x) else x
+
+
+def _sets(df: pd.DataFrame, column: str) -> list[set[str]]:
+    return [set(s.split(";")) if s else set() for s in df[column].fillna("").astype(str)]
+
+
+def _sin_counts(sub: pd.DataFrame, prefix: str, truth: Mapping[str, float], J: int | None,
+                src: str) -> list[Count]:
+    out: list[Count] = []
+    ks = sorted({int(m.group(1)) for c in sub.columns
+                 if (m := re.match(r"SIN\[(\d+)\]\.alpha$", c))})
+    for k in ks:
+        a_name, b_name = f"SIN[{k}].alpha", f"SIN[{k}].beta"
+        if a_name not in truth or b_name not in truth:
+            continue
+        ta, tb = truth[a_name], truth[b_name]
+        a = sub[a_name].to_numpy(float)
+        b = sub[b_name].to_numpy(float)
+        ra, rb = a / ta, b / tb
+        off = (ra > 2) | (ra < 0.5) | (rb > 2) | (rb < 0.5)
+        p = f"{prefix}.SIN{k}"
+        out.append(Count(f"{p}.factor2_miss", int(np.sum(off & np.isfinite(ra))),
+                         f"converged fits with SIN[{k}] alpha or beta off the truth by more than "
+                         f"a factor 2 (ratio > 2 or < 1/2)", src))
+        med = float(np.median(np.abs(rb - 1.0))) if len(rb) else None
+        out.append(Count(f"{p}.beta_median_abs_rel_err", med,
+                         f"median over converged fits of |SIN[{k}].beta / truth - 1|", src))
+        if J:
+            period = 2 * np.pi / np.where(b > 0, b, np.nan)
+            ridge = np.flatnonzero(np.nan_to_num(period, nan=np.inf) > RIDGE_FACTOR * 2.0 ** J)
+            out.append(Count(f"{p}.ridge", len(ridge),
+                             f"converged fits on the SIN[{k}] alpha-beta ridge: period 2 pi / beta "
+                             f"(samples) > {RIDGE_FACTOR:g} x the longest scale 2^J (J = {J})",
+                             src))
+            for i, row in enumerate(sorted(ridge, key=lambda r: -a[r]), start=1):
+                q = f"{p}.ridge{i}"
+                what = f"ridge fit {i} of SIN[{k}] (by decreasing alpha)"
+                out += [
+                    Count(f"{q}.replicate", int(sub["replicate"].iloc[row]),
+                          f"replicate id of the {what}", src),
+                    Count(f"{q}.alpha", _num(a[row]), f"SIN[{k}].alpha of the {what}", src),
+                    Count(f"{q}.beta", _num(b[row]), f"SIN[{k}].beta of the {what}", src),
+                    Count(f"{q}.alpha_beta", _num(a[row] * b[row]), f"alpha * beta of the {what}",
+                          src),
+                    Count(f"{q}.period", _num(period[row]),
+                          f"period 2 pi / beta (samples) of the {what}", src),
+                    Count(f"{q}.period_over_longest_scale", _num(period[row] / 2.0 ** J),
+                          f"period / 2^J of the {what}", src),
+                ]
+    return out
+
+
+def _wild_counts(sub: pd.DataFrame, prefix: str, params: Sequence[str], record: Mapping[str, Any],
+                 src: str) -> list[Count]:
+    """STIM-300: estimates far from the median in Table I units (the units of its report)."""
+    from gmwm_studies import sensors as units
+
+    out = []
+    for name in params:
+        x = units.to_table_units(name, np.abs(sub[name].to_numpy(float)), record["sensor"],
+                                 float(record["freq"]))
+        x = x[np.isfinite(x)]
+        if len(x) < 3:
+            continue
+        med = float(np.median(x))
+        rsd = 1.4826 * float(np.median(np.abs(x - med)))
+        z = np.abs(x - med) / rsd if rsd > 0 else np.zeros_like(x)
+        wild = z > WILD_ROBUST_SD
+        p = f"{prefix}.wild.{_pname(name)}"
+        d = (f"converged fits with {name} (Table I units) more than {WILD_ROBUST_SD:g} robust SDs "
+             f"(1.4826 MAD) from the median")
+        out.append(Count(p, int(wild.sum()), d, src))
+        if wild.any():  # their distances, only when there are some
+            out.append(Count(f"{p}.min_z", _num(z[wild].min()),
+                             "smallest |x - median| / robust SD among those", src))
+            out.append(Count(f"{p}.max_z", _num(z[wild].max()),
+                             "largest |x - median| / robust SD among those", src))
+    return out
+
+
+def study_counts(study: str, df: pd.DataFrame, record: Mapping[str, Any], source: str, *,
+                 label_T: bool = False) -> list[Count]:
+    """Every named count of one per-replicate table (one study at one T).
+
+    Per estimator (and fitted model): ``n``, ``not_converged``, ``at_boundary.<param>`` for each
+    parameter, ``label_switched`` (and ``label_switched.<type>``) when the table has it, per sinusoid ``SIN<k>.factor2_miss``,
+    ``SIN<k>.beta_median_abs_rel_err`` and the ridge fits (``SIN<k>.ridge``, ``SIN<k>.ridge<i>.*``,
+    see :data:`RIDGE_FACTOR`), and for STIM-300 ``wild.<param>`` (:data:`WILD_ROBUST_SD`).
+    ``label_T``: put ``T<T>`` in the names (a study with several sample sizes).
+    """
+    truth = {str(k): float(v) for k, v in record["truth"].items()}
+    J = record.get("J")
+    T = int(record["T"])
+    keys = ["fit_model", "estimator"] if "fit_model" in df.columns else ["estimator"]
+    out: list[Count] = []
+    for key, sub in df.groupby(keys, sort=False):
+        key = key if isinstance(key, tuple) else (key,)
+        prefix = ".".join([study, *([f"T{T}"] if label_T else []), *map(str, key)])
+        conv = sub["converged"].astype(bool).to_numpy()
+        params = [c for c in sub.columns if "." in c and "[" in c and sub[c].notna().any()]
+        out.append(Count(f"{prefix}.n", len(sub), "fits (replicates) in the table", source))
+        out.append(Count(f"{prefix}.not_converged", int((~conv).sum()),
+                         "fits that did not converge", source))
+        ok = sub[conv]
+        sets = _sets(ok, "at_boundary")
+        for name in params:
+            out.append(Count(f"{prefix}.at_boundary.{_pname(name)}", sum(name in s for s in sets),
+                             f"converged fits with {name} at the boundary (at_boundary column: "
+                             "a scale parameter below 1e-8 x its truth, AR1 |phi| at 1, SIN beta "
+                             "at pi)", source))
+        if "label_switched" in ok.columns:
+            switched = _sets(ok, "label_switched")
+            out.append(Count(f"{prefix}.label_switched", sum(bool(s) for s in switched),
+                             "converged fits with a true component in another component's column "
+                             "(label_switched column not empty)", source))
+            types = dict.fromkeys(n.split("[", 1)[0] for n in params)
+            for kind in (t for t in types
+                         if len({n.split(".")[0] for n in params if n.startswith(f"{t}[")}) > 1):
+                out.append(Count(f"{prefix}.label_switched.{kind}",
+                                 sum(kind in s for s in switched),
+                                 f"converged fits with a {kind} component in another {kind}'s "
+                                 "column (the tables' n_switched of its parameters)", source))
+        out += _sin_counts(ok, prefix, truth, J, source)
+        if "sensor" in record:
+            out += _wild_counts(ok, prefix, params, record, source)
+    return out
+
+
+def draw_counts(fit: str, df: pd.DataFrame, estimate: Mapping[str, float], source: str,
+                quantiles: Sequence[float] = (0.1, 0.5, 0.9)) -> list[Count]:
+    """Counts of one fit's bootstrap draws (table of :func:`replicates.bootstrap_draw_table`).
+
+    ``<fit>.n_failed``; per parameter ``q<pct>`` (numpy's default linear quantile of the converged,
+    label-aligned refits), ``min``, ``max`` and ``at_boundary`` (refits exactly 0, or below 1e-8 x
+    a non-zero estimate)."""
+    conv = df["converged"].astype(bool).to_numpy()
+    ok = df[conv]
+    out = [Count(f"{fit}.n", len(df), "bootstrap draws", source),
+           Count(f"{fit}.n_failed", int((~conv).sum()), "refits that failed or did not converge",
+                 source)]
+    for name, est in estimate.items():
+        x = ok[name].to_numpy(float)
+        p = f"{fit}.{_pname(name)}"
+        for q in quantiles:
+            out.append(Count(f"{p}.q{round(100 * q):d}",
+                             _num(np.quantile(x, q)) if len(x) else None,
+                             f"{100 * q:g} % quantile (numpy linear) of the converged refits of "
+                             f"{name}", source))
+        out.append(Count(f"{p}.min", _num(x.min()) if len(x) else None,
+                         f"smallest refit of {name}", source))
+        out.append(Count(f"{p}.max", _num(x.max()) if len(x) else None,
+                         f"largest refit of {name}", source))
+        tol = 1e-8 * abs(est)
+        out.append(Count(f"{p}.at_boundary", int(np.sum(np.abs(x) <= tol)),
+                         f"refits of {name} at 0 (|x| <= 1e-8 x |estimate|)", source))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# files
+# ---------------------------------------------------------------------------------------------
+
+
+TITLE = "Counts quoted in the reports"
+
+
+def render_counts_markdown(counts: Sequence[Count], title: str = TITLE) -> str:
+    """Markdown table: one row per count with an anchor (``#<name>``) for the markers' links."""
+    lines = [f"# {title}", "",
+             ("Computed by the pipeline (gmwm_studies.counts) from the per-replicate tables "
+              "named in the source column. A number quoted in REPRODUCTION.md as "
+              "`[value](counts.md#name)` links to its row; tests/test_counts.py checks it against "
+              "counts.json. Counts are over the converged fits."), "",
+             "| name | value | definition | source |", "|---|---|---|---|"]
+    for c in counts:
+        v = "undefined" if c.value is None else (str(c.value) if isinstance(c.value, int)
+                                                 else f"{c.value:.6g}")
+        text = c.definition.replace("|", "\\|")  # a literal | would end the table cell
+        lines.append(f'| <a id="{c.name}"></a>`{c.name}` | {v} | {text} | '
+                     f"[{c.source}]({c.source}) |")
+    return "\n".join(lines) + "\n"
+
+
+def write_counts(counts: Sequence[Count], json_path: str | os.PathLike,
+                 md_path: str | os.PathLike, *, title: str = TITLE) -> None:
+    """Write ``counts.json`` ({"counts": {name: {value, definition, source}}}) and ``counts.md``
+    (sources as given: relative to the directory of these files, so the links work)."""
+    names = [c.name for c in counts]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise InputError(f"duplicate count names: {dup[:5]}")
+    write_json_atomic(json_path, {"counts": {c.name: {"value": c.value, "definition": c.definition,
+                                                      "source": c.source} for c in counts}})
+    write_text_atomic(md_path, render_counts_markdown(counts, title))
+
+
+def read_counts(path: str | os.PathLike) -> dict[str, Any]:
+    """{name: value} of a ``counts.json``."""
+    if not os.path.isfile(path):
+        raise InputError(f"counts file not found: {path}")
+    with open(path, encoding="utf-8") as fh:
+        data = json.load(fh)
+    return {k: v["value"] for k, v in data["counts"].items()}
+
+
+# ---------------------------------------------------------------------------------------------
+# checker
+# ---------------------------------------------------------------------------------------------
+
+_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
+
+
+def quoted_matches(quote: str, value: float | None) -> bool:
+    """True when ``value`` rounded to the significant digits of ``quote`` equals it."""
+    q = quote.strip().replace("\u2212", "-")
+    if value is None or not _NUMBER.match(q):
+        return False
+    mantissa = re.split(r"[eE]", q)[0].lstrip("+-").replace(".", "").lstrip("0") or "0"
+    sig = max(1, len(mantissa))
+    return float(f"{float(value):.{sig}g}") == float(q)
+
+
+@dataclasses.dataclass(frozen=True)
+class Mismatch:
+    """A marker whose quoted number is not the count's value (``value`` None: count missing)."""
+
+    line: int
+    name: str
+    quote: str
+    value: Any
+    counts_file: str
+
+
+def find_markers(text: str) -> list[tuple[int, str, str, str]]:
+    """Count markers of a Markdown text: (line number, quote, counts.md path, count name).
+
+    Inline code spans are skipped: a marker shown as an example in backticks is not a quote."""
+    out = []
+    for i, line in enumerate(text.splitlines(), start=1):
+        for m in MARKER.finditer(re.sub(r"`[^`]*`", "", line)):
+            out.append((i, m.group("quote"), m.group("file"), m.group("name")))
+    return out
+
+
+def check_markers(md_path: str | os.PathLike) -> tuple[int, list[Mismatch]]:
+    """Check every count marker of a Markdown file against the counts.json beside the counts.md
+    it links to. Returns (number of markers, mismatches)."""
+    md_path = Path(md_path)
+    markers = find_markers(md_path.read_text(encoding="utf-8"))
+    cache: dict[Path, dict[str, Any] | None] = {}
+    bad = []
+    for line, quote, file, name in markers:
+        json_path = (md_path.parent / file).with_suffix(".json")
+        if json_path not in cache:
+            cache[json_path] = read_counts(json_path) if json_path.is_file() else None
+        values = cache[json_path]
+        value = None if values is None else values.get(name)
+        if values is None or name not in values or not quoted_matches(quote, value):
+            bad.append(Mismatch(line, name, quote, value, str(json_path)))
+    return len(markers), bad
+
+
+def collect(tables: Iterable[tuple[str, pd.DataFrame, Mapping[str, Any], str, bool]]
+            ) -> list[Count]:
+    """:func:`study_counts` over (study, table, record, source, label_T) tuples, concatenated."""
+    return [c for study, df, rec, src, lab in tables
+            for c in study_counts(study, df, rec, src, label_T=lab)]
