@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from _ulog_writer import write_ulog
-from gmwm import Model
+from gmwm import Model, wvar
 from gmwm.errors import InputError
 from gmwm.readers.recording import read_recording
 from gmwm.readers.timebase import decide_gaps, segments_wv, time_base
@@ -369,6 +369,15 @@ def test_combined_segments_pool_coefficients_exactly():
         assert wv.variance[j - 1] == pytest.approx(ss / cnt, rel=1e-10)
         assert wv.n[j - 1] == cnt
     assert decide_gaps(tb, "longest").segments == ((1000, 2500),)
+    # the pooled WV carries the default interval of a contiguous one (mixture EDF)
+    assert wv.ci_kind == "mixture"
+    one = segments_wv(x, ((0, 3000),), levels=5, freq=100.0)
+    ref = wvar(x, levels=5, freq=100.0)
+    assert one.ci_kind == ref.ci_kind
+    np.testing.assert_allclose(one.variance, ref.variance, rtol=1e-13)
+    np.testing.assert_allclose(one.ci_low, ref.ci_low, rtol=1e-12)
+    np.testing.assert_allclose(one.ci_high, ref.ci_high, rtol=1e-12)
+    assert segments_wv(x, dec.segments, levels=5, freq=100.0, ci="eta3").ci_kind == "eta3"
 
 
 # ---- the user's path: gmwm report FILE -o DIR, no options --------------------------------------

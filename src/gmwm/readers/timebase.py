@@ -297,12 +297,15 @@ def decide_gaps(tb: TimeBase, policy: str = "auto", min_segment: int = 4) -> Gap
 
 
 def segments_wv(x: np.ndarray, segments: tuple[tuple[int, int], ...], levels: int | None = None,
-                freq: float = 1.0, alpha: float = 0.05):
+                freq: float = 1.0, alpha: float = 0.05, ci: str = "mixture"):
     """Haar WV of the coefficients of ``x`` inside each ``(start, stop)`` segment, pooled: per
     level the sums of squared coefficients and their counts add over segments (a segment shorter
     than the scale gives none). Default levels: floor(log2 longest segment) - 1. Returns a
-    :class:`gmwm.wv.WaveletVariance` whose ``n`` are the pooled counts."""
-    from gmwm.wv import WaveletVariance, chi2_ci, wvar
+    :class:`gmwm.wv.WaveletVariance` whose ``n`` are the pooled counts, with the interval ``ci``
+    of :func:`gmwm.wv.wvar` (default ``"mixture"``) computed from the pooled counts and the
+    samples used, as for one contiguous signal with that many coefficients (the segments are
+    independent, so this slightly overstates the estimator's variance: on the safe side)."""
+    from gmwm.wv import WaveletVariance, _wv_ci, wvar
 
     x = np.asarray(x, dtype=np.float64)
     longest = max(b - a for a, b in segments)
@@ -327,9 +330,10 @@ def segments_wv(x: np.ndarray, segments: tuple[tuple[int, int], ...], levels: in
     lev = np.arange(1, J + 1)
     scales = 2.0 ** lev
     variance = ss / n
-    low, high = chi2_ci(variance, np.maximum(n / scales, 1.0), alpha)
     used = sum(b - a for a, b in segments)
-    return WaveletVariance(lev, scales, variance, low, high, n, int(used), float(freq), alpha)
+    edof, low, high = _wv_ci(ci, variance, scales, n, int(used), alpha)
+    return WaveletVariance(lev, scales, variance, low, high, n, int(used), float(freq), alpha,
+                           ci_kind=ci, ci_edof=edof)
 
 
 def signal_for_wv(x: np.ndarray, decision: GapDecision, levels: int | None = None,
