@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 import gmwm
-from gmwm.automodel import REQUIRED, Choice, candidate_models, choose_model, wv_bump
+from gmwm.automodel import (REQUIRED, Choice, _sin_variants, candidate_models, choose_model,
+                            wv_bump)
 from gmwm.datasheet import datasheet
 from gmwm.errors import InputError
 from gmwm.model import Model, parse_model
@@ -103,6 +104,15 @@ def test_every_candidate_rejected_is_a_visible_warning() -> None:
     assert not c.passed
     assert c.bump is not None and "SIN" in c.model.spec
     assert all(r["rejected"] for r in c.rows())
+    # SIN variants of each stage's best candidate only (rule 2), not of every candidate
+    models = [r["model"] for r in c.rows()]
+    for k in {parse_model(m).get("GM", 0) for m in models}:
+        stage = [m for m in models if parse_model(m).get("GM", 0) == k]
+        plain = [m for m in stage if "SIN" not in m]
+        allowed = set(_sin_variants(plain[0], "gyroscope")) if plain else set()
+        probes = {Model(m + "+GM").spec for m in models}
+        assert all(m in allowed or m in probes for m in stage if "SIN" in m), (k, stage)
+    assert sum("SIN" in m for m in models) < sum("SIN" not in m for m in models)
     assert c.model.spec == c.ranking.best.model
     assert "every candidate model is rejected" in c.warnings[0]
     assert any("goodness of fit: the model is rejected" in w for w in c.warnings)
@@ -236,12 +246,16 @@ def test_the_shared_search_memo_is_exact() -> None:
 
 
 def test_the_climb_stops_when_every_candidate_is_rejected_and_a_gm_no_longer_helps() -> None:
-    """A square wave no candidate describes: every candidate is rejected, and once a GM term
-    gains less than a near tie the further stages are not fitted (they would not pass)."""
+    """A square wave no candidate describes: every candidate is rejected, and when one more GM
+    term on the best candidate gains less than a near tie the further stages are not fitted (they
+    would not pass)."""
     t = np.arange(2**15)
     x = np.random.default_rng(3).standard_normal(t.size) + 3.0 * np.sign(np.sin(2 * np.pi * t / 16))
     c = choose_model(x, freq=F, kind="gyroscope", sin=False)
     assert not c.passed and c.warnings and "every candidate" in c.warnings[0]
-    assert [k for k, _ in c.not_fitted] == [2, 3]
+    # stage 0 is rejected; one GM on its best candidate (the probe) gains nothing: no further stage
+    assert [k for k, _ in c.not_fitted] == [1, 2, 3]
     assert "near tie" in c.not_fitted[0][1]
-    assert not any("2*GM" in r["model"] or "3*GM" in r["model"] for r in c.rows())
+    gm = [r["model"] for r in c.rows() if "GM" in r["model"]]
+    best0 = min((r for r in c.rows() if "GM" not in r["model"]), key=lambda r: r["rank"])
+    assert gm == [Model(best0["model"] + "+GM").spec]

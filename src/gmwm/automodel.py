@@ -19,7 +19,7 @@ The rule
    from 0 (the filter configuration writes its upper bound) instead of being silently absent.
    Without a kind, every non-empty sum is a candidate. Candidates with as many parameters as
    scales are left out (their fit could not be tested).
-2. Sinusoid. A SIN variant of every candidate is added when the WV shows a *bump*
+2. Sinusoid. SIN candidates are added when the WV shows a *bump*
    (:func:`wv_bump`): between two adjacent scales it falls significantly faster than
    ``tau^-1`` (the upper CI bound of the longer scale below the lower CI bound of the shorter
    one times ``tau_j / tau_{j+1}``) after a significant rise (some shorter scale whose upper CI
@@ -27,15 +27,17 @@ The rule
    (a GM's WV falls at most like ``tau^-1``), and QN, which does (``tau^-2``), is largest at the
    shortest scale, so it cannot follow a rise; a sinusoid rises like ``tau^2`` and falls like
    ``tau^-2`` past its period. A sinusoid whose WV peaks at the first scale (period of a few
-   samples) looks like QN to the WV and is not flagged. The rule only adds candidates: the
-   criterion still decides.
+   samples) looks like QN to the WV and is not flagged. In each stage the SIN candidates are the
+   stage's best candidate plus one SIN, and that without each optional linear term (QN, DR) in
+   turn (:func:`_sin_variants`); the rule only adds candidates: the criterion still decides.
 3. Stages. Candidates with k GM terms are fitted as stage k, k = 0, 1, ...: stage k + 1 is fitted
    only while stage k improved the best criterion of the earlier stages, or while no candidate
-   fitted so far passes the goodness-of-fit test and stage k improved it by at least a near tie
-   (:data:`gmwm.criteria.TIE_CHI2` chi-square units): when every candidate is rejected (motion,
-   a process outside the candidates) and a GM term no longer helps, a further one will not make
-   a candidate pass. A further GM term costs the most (its shape is searched jointly with the
-   others). All stages share one search memo (:func:`gmwm.search.shared_memo`).
+   fitted so far passes the goodness-of-fit test, stage k did not improve it by less than a near
+   tie (:data:`gmwm.criteria.TIE_CHI2` chi-square units) and the *probe* -- the best candidate so
+   far plus one GM, fitted first -- improves it by at least a near tie: when every candidate is
+   rejected (motion, a process outside the candidates) and a GM term no longer helps, a further
+   one will not make a candidate pass. A further GM term costs the most (its shape is searched
+   jointly with the others). All stages share one search memo (:func:`gmwm.search.shared_memo`).
 4. Choice. The candidates are ranked by the criterion (default :data:`gmwm.criteria.DEFAULT`,
    WIC with k = 2). The chosen model is the best-ranked one whose goodness-of-fit p-value is at
    least ``alpha`` (5 %); a candidate whose test cannot be computed does not pass. When every
@@ -321,6 +323,26 @@ def _fmt_p(p: float) -> str:
     return "not testable" if not np.isfinite(p) else fmt(p)
 
 
+def _with(spec: str, term: str, n: int = 1) -> str:
+    """``spec`` with ``n`` more ``term`` components (canonical model string)."""
+    counts = dict(parse_model(spec))
+    counts[term] = counts.get(term, 0) + n
+    return Model(spec_of(counts)).spec
+
+
+def _sin_variants(spec: str, kind: str | None) -> list[str]:
+    """The SIN variants rule 2 fits for a stage whose best candidate is ``spec``: ``spec`` with
+    one SIN, and that without each of its optional linear terms (a sinusoid can stand in for QN
+    or DR)."""
+    required = REQUIRED.get(kind, ()) if kind else ()
+    counts = dict(parse_model(spec))
+    out = [_with(spec, "SIN")]
+    for c in _LINEAR:
+        if counts.get(c) and c not in required and sum(counts.values()) > 1:
+            out.append(_with(Model(spec_of({**counts, c: 0})).spec, "SIN"))
+    return out
+
+
 def choose_model(data: Any, *, freq: float | None = None, kind: str | None = None,
                  max_gm: int = MAX_GM, sin: bool | str = "auto", slow: str = "GM",
                  criterion: str = DEFAULT, alpha: float = 0.05, levels: int | None = None,
@@ -342,8 +364,8 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
     criterion : ranking criterion of :mod:`gmwm.criteria` (default WIC, k = 2).
     alpha : level of the goodness-of-fit test a chosen model must pass (default 0.05).
     levels, robust, eff, seed, n_starts : as in :func:`gmwm.fit` (one WV for all candidates).
-    progress : called as ``progress(i, n, model)`` before fitting candidate ``i`` (``n`` the
-        number of candidates if every stage is fitted).
+    progress : called as ``progress(i, n, model)`` before fitting candidate ``i`` (``n`` an
+        upper bound: the number of candidates if every stage and SIN variant were fitted).
 
     Returns a :class:`Choice`; :class:`~gmwm.errors.GMWMError` if no candidate can be fitted.
     """
@@ -375,14 +397,27 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
         p_values: dict[str, float] = {}
         not_fitted: list[tuple[int, str]] = []
         best_so_far = best_before = stage_best = np.inf
+
+        def rank(specs: list[str]) -> Ranking:
+            nonlocal done
+            r = rank_models(data, specs, criterion=criterion, freq=freq, seed=seed,
+                            n_starts=n_starts, progress=report, **wv_opts)
+            done += len(specs)
+            rankings.append(r)
+            for e in r.ranked:
+                p_values[e.model] = float(gof_test(e.result).p_value)
+            return r
+
         for k in range(max_gm + 1):
-            stage = [m for m in candidate_models(kind, max_gm=max_gm, sin=use_sin, slow=slow, n_gm=k)
-                     if m not in excluded]
-            if not stage:
+            base = [m for m in candidate_models(kind, max_gm=max_gm, slow=slow, n_gm=k)
+                    if m not in excluded]
+            if not base:
                 continue
+            n_before = len(rankings)
             if rankings:
                 passing = any(p >= alpha for p in p_values.values() if np.isfinite(p))
-                tie = TIE_CHI2 * _chi2_unit(merge(rankings).ranked[0])
+                best = merge(rankings).ranked[0]
+                tie = TIE_CHI2 * _chi2_unit(best)
                 if passing and stage_best >= best_before:
                     why = (f"{k - 1} {slow} did not lower the best {criterion.upper()} of the "
                            f"candidates with fewer, and a candidate already passes the "
@@ -396,19 +431,38 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
                            "would not make one pass")
                     not_fitted += [(m, why) for m in range(k, max_gm + 1)]
                     break
+                probe = _with(best.model, slow)
+                if not passing and np.isfinite(tie) and probe not in excluded:
+                    # every candidate is rejected: the stage is fitted only if one more slow term
+                    # on the best candidate gains a near tie (rule 3)
+                    try:
+                        gain = best.criterion - rank([probe]).best.criterion
+                    except GMWMError:
+                        gain = -np.inf
+                    if not gain >= tie:
+                        why = (f"a further {slow} on the best candidate {best.model} lowered its "
+                               f"{criterion.upper()} by less than a near tie ({TIE_CHI2:g} "
+                               "chi-square units) and every candidate is rejected: a further "
+                               "term would not make one pass")
+                        not_fitted += [(m, why) for m in range(k, max_gm + 1)]
+                        break
             try:
-                r = rank_models(data, stage, criterion=criterion, freq=freq, seed=seed,
-                                n_starts=n_starts, progress=report, **wv_opts)
+                todo = [m for m in base if m not in p_values]  # the probe is already fitted
+                if todo:
+                    rank(todo)
+                if use_sin:  # rule 2: SIN variants of the stage's best and its simplifications
+                    fitted = [e for e in merge(rankings).ranked if e.model in base]
+                    sins = [m for m in _sin_variants(fitted[0].model, kind)
+                            if m not in excluded and m not in p_values] if fitted else []
+                    if sins:
+                        rank(sins)
             except GMWMError:
                 if rankings:  # every candidate of this stage failed: the earlier stages stand
                     not_fitted.append((k, "no candidate with this many terms could be fitted"))
                     continue
                 raise
-            done += len(stage)
-            rankings.append(r)
-            for e in r.ranked:
-                p_values[e.model] = float(gof_test(e.result).p_value)
-            best_before, stage_best = best_so_far, r.best.criterion
+            best_before = best_so_far
+            stage_best = min(e.criterion for r_ in rankings[n_before:] for e in r_.ranked)
             best_so_far = min(best_so_far, stage_best)
         if not rankings:
             raise GMWMError("no candidate model could be fitted")
