@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 
 import gmwm
-from gmwm.automodel import (REQUIRED, Choice, _sin_variants, candidate_models, choose_model,
-                            wv_bump)
+from gmwm.automodel import REQUIRED, Choice, _sin_variants, candidate_models, choose_model, wv_bump
 from gmwm.datasheet import datasheet
 from gmwm.errors import InputError
 from gmwm.model import Model, parse_model
