@@ -339,3 +339,29 @@ def test_report_has_stationarity_section(capsys, files):
     assert "stationarity.png" in md and (outdir / "stationarity.png").exists()
     html = (outdir / "report.html").read_text()
     assert "Stationarity" in html and "not static" in html
+
+
+def test_timeline_drawn_while_fitting_is_not_drawn_again(tmp_path):
+    """gmwm.report.warm_up draws the stationarity timeline ahead (the CLI does it while the
+    axes' models are chosen); write_report with it in ``drawn`` lists the file and leaves it."""
+    import gmwm
+    from gmwm.report import warm_up, write_report
+    from gmwm.units import datasheet
+
+    moving = _imu(seed=23, seconds=120.0)
+    bs.inject_tilt(moving, FS, 60.0, 3.0, 5.0)
+    units = {c: ("rad/s" if c.startswith("g") else "m/s^2") for c in moving}
+    st = check_stationarity(moving, freq=FS, units=units)
+    assert st.moving and st.tested and st.timeline
+    drawn = warm_up(st, tmp_path)
+    png = tmp_path / "stationarity.png"
+    assert drawn == [png] and png.stat().st_size > 0
+    before = png.stat().st_mtime_ns
+    res = gmwm.fit(moving["gx"], "WN+RW", freq=FS)
+    axes = {"gx": {"result": res, "units": "rad/s", "warnings": [],
+                   "datasheet": datasheet(res, "rad/s")}}
+    files = write_report(tmp_path, axes, source="sim.csv", title="IMU", stationarity=st,
+                         drawn=drawn)
+    assert png in files and (tmp_path / "gx_wv.png") in files
+    assert png.stat().st_mtime_ns == before
+    assert "stationarity.png" in (tmp_path / "report.md").read_text()

@@ -114,11 +114,14 @@ def save_figure(
     path: str | os.PathLike,
     formats: Sequence[str] = ("png", "pdf"),
     dpi: int = 200,
+    tight: bool = True,
 ) -> list[Path]:
     """Save a matplotlib figure atomically; return the paths written.
 
     If ``path`` ends with a known image extension (``.png``, ``.pdf``, ``.svg``, ...) exactly that
     file is written; otherwise one file per entry of ``formats`` is written as ``path.<format>``.
+    ``tight``: crop to the drawn content (``bbox_inches="tight"``, which draws the figure twice);
+    False for a figure whose layout engine already fills it (about a third faster).
     """
     p = Path(path)
     ext = p.suffix.lower().lstrip(".")
@@ -126,7 +129,7 @@ def save_figure(
     for target in targets:
         with atomic_path(target) as tmp:
             # no creation date in the file: a rerun with the same numbers writes the same bytes
-            fig.savefig(tmp, dpi=dpi, bbox_inches="tight",
+            fig.savefig(tmp, dpi=dpi, bbox_inches="tight" if tight else None,
                         metadata=_NO_DATE.get(target.suffix.lower().lstrip(".")))
     return targets
 

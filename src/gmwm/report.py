@@ -16,6 +16,7 @@ other filter configuration files asked for. Every file is written atomically.
 
 from __future__ import annotations
 
+import contextlib
 import html
 import math
 import os
@@ -130,7 +131,7 @@ def _draw(fig: _Figure) -> list[Path]:
     from gmwm.wv import AllanVariance
 
     if fig.kind == "stationarity":
-        return save_figure(plot_stationarity(fig.data[0]), fig.path)
+        return save_figure(plot_stationarity(fig.data[0]), fig.path, tight=False)
     name, res, units, verdict = fig.data
     if fig.kind == "wv":
         ax = plot_wv(res.wv, result=res, units=units)
@@ -143,19 +144,69 @@ def _draw(fig: _Figure) -> list[Path]:
         add_datasheet_line(ax, verdict["curves"]["tau_s"], verdict["curves"]["adev"],
                            verdict["label"])
         ax.set_title(f"{name}: Allan deviation")
-    return save_figure(ax.figure, fig.path)
+    # no minor ticks on the log axes: their tick objects are half the drawing time of a page
+    # figure (constrained layout measures every tick); major ticks and the grid stay
+    from matplotlib.ticker import NullLocator
+
+    for axis in (ax.xaxis, ax.yaxis):
+        if axis.get_scale() == "log":
+            axis.set_minor_locator(NullLocator())
+    return save_figure(ax.figure, fig.path, tight=False)  # constrained layout fills it
 
 
-def _render(figures: Sequence[_Figure]) -> list[Path]:
+def warm_up(stationarity: Any = None, outdir: str | os.PathLike | None = None) -> list[Path]:
+    """Prepare this process for the rest of a report page while worker processes fit the axes
+    (the CLI calls it then, when this process would otherwise wait): load the compiled kernels
+    of the datasheet's intervals (a tiny fit and its datasheet) and draw the stationarity
+    timeline of ``stationarity`` into ``outdir`` (it needs no fit), which also loads matplotlib,
+    its fonts and mathtext parser for the figure workers forked from this process later
+    (without a timeline, a small figure is drawn in memory instead). Returns the figure files
+    written, for :func:`write_report`'s ``drawn``. A failure only loses the head start, except
+    in drawing the timeline, which is then left to :func:`write_report`."""
+    import io
+
+    import numpy as np
+
+    with contextlib.suppress(Exception):  # a warm-up is an optimisation only
+        import gmwm
+        from gmwm.units import datasheet
+
+        rng = np.random.default_rng(0)
+        x = np.cumsum(rng.standard_normal(4096)) * 1e-3 + rng.standard_normal(4096)
+        datasheet(gmwm.fit(x, "WN+GM+RW", freq=100.0), "rad/s")
+    st = stationarity
+    if st is not None and outdir is not None and st.tested and st.timeline:
+        try:
+            Path(outdir).mkdir(parents=True, exist_ok=True)
+            return _draw(_Figure("stationarity", Path(outdir) / "stationarity.png", (st,)))
+        except Exception:  # noqa: BLE001 - write_report draws it then
+            return []
+    with contextlib.suppress(Exception):
+        from gmwm.plots import new_axes
+
+        ax = new_axes()
+        ax.loglog([1e-2, 1.0, 1e2], [1e-4, 1e-6, 1e-5], label="WV")
+        ax.set_xlabel(r"Scale $\tau$ [s]")
+        ax.legend()
+        ax.figure.savefig(io.BytesIO(), format="png", dpi=40)
+    return []
+
+
+def _render(figures: Sequence[_Figure], drawn: Sequence[Path] = ()) -> list[Path]:
     """Draw the figures of a page, in worker processes when there are several and more than one
-    core (a figure costs ~0.5 s of matplotlib layout and rasterising, all of it in Python)."""
+    core (a figure costs ~0.5 s of matplotlib layout and rasterising, all of it in Python);
+    ``drawn``: files already drawn (:func:`warm_up`), not drawn again."""
     from gmwm.calibrate import _executor, available_cores
 
-    n = min(len(figures), available_cores())
+    todo = [fig for fig in figures if fig.path not in drawn]
+    n = min(len(todo), available_cores())
     if n < 2:
-        return [f for fig in figures for f in _draw(fig)]
-    with _executor("process", n) as pool:
-        return [f for paths in pool.map(_draw, figures) for f in paths]
+        paths = [_draw(fig) for fig in todo]
+    else:
+        with _executor("process", n) as pool:
+            paths = list(pool.map(_draw, todo))
+    done = dict(zip([fig.path for fig in todo], paths, strict=True))
+    return [f for fig in figures for f in done.get(fig.path, [fig.path])]
 
 
 def _stationarity_section(st: Any, out: Path, lv: int = 2, prefix: str = ""
@@ -255,7 +306,8 @@ def _export(axes: Mapping[str, Mapping[str, Any]], freq: float, topic: str | Non
 
 def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
                  timing: Sequence[str] | None, stationarity: Any, lv: int = 2, prefix: str = "",
-                 config_dir: str | None = None) -> tuple[list[str], list[str], list[Path]]:
+                 config_dir: str | None = None, drawn: Sequence[Path] = ()
+                 ) -> tuple[list[str], list[str], list[Path]]:
     """Markdown lines, HTML parts and figures of one IMU: the not-static warning, time base,
     stationarity, summary, one part per axis and the Kalibr block; headings of level ``lv``,
     figure names starting with ``prefix``; ``config_dir`` the folder of its configuration files
@@ -368,7 +420,7 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
                "unit, so neither the sensor nor the SI scale is known (give --units).")
         md += [f"{h} Noise densities", "", why, ""]
         body += [f"<h{lv}>Noise densities</h{lv}>", f"<p>{html.escape(why)}</p>"]
-    return md, body, _render(figures)
+    return md, body, _render(figures, drawn)
 
 
 def _page(title: str, body: list[str]) -> str:
@@ -389,7 +441,7 @@ _INTRO = ("Coefficients are continuous-time datasheet values with 95 % intervals
 def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]], *, source: str,
                  title: str, timing: Sequence[str] | None = None, stationarity: Any = None,
                  topic: str | None = None, targets: str | Sequence[str] = ("kalibr",),
-                 inflation: Any = None) -> list[Path]:
+                 inflation: Any = None, drawn: Sequence[str | os.PathLike] = ()) -> list[Path]:
     """Write ``report.md``, ``report.html``, the filter configuration files of ``targets``
     (:func:`gmwm.exports.parse_targets`; default the Kalibr ``imu.yaml``) and one
     ``<axis>_wv.png`` per axis to ``outdir``; return the paths.
@@ -405,6 +457,7 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     ``topic``: the IMU's ROS topic (written as ``rostopic``); ``inflation``: e.g.
     ``"noise=2,walk=10"`` (:func:`gmwm.exports.parse_inflation`). Without any gyroscope or
     accelerometer unit no configuration file is written and the report says why.
+    ``drawn``: figure files already written for this page (:func:`warm_up`), not drawn again.
     Several IMUs on one page: :func:`write_multi_report`.
     """
     from gmwm.atomic import write_text_atomic
@@ -422,7 +475,8 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     body: list[str] = [f"<h1>{html.escape(title)}</h1>",
                        (f"<p>Input <code>{html.escape(source)}</code>, sampling frequency {freq:g} "
                         f"Hz, {len(axes)} axes; GMWM fits by gmwm {html.escape(__version__)}.</p>")]
-    smd, sbody, written = _imu_section(out, axes, exp, timing=timing, stationarity=stationarity)
+    smd, sbody, written = _imu_section(out, axes, exp, timing=timing, stationarity=stationarity,
+                                       drawn=[Path(p) for p in drawn])
     md += smd
     body += sbody
     written.append(write_text_atomic(out / "report.md", "\n".join(md)))

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, TextIO
 
@@ -82,10 +83,12 @@ def fit_settings(args: argparse.Namespace) -> Any:
     return FitSettings.of(**options)
 
 
-def fit_columns(args: argparse.Namespace, err: TextIO, require_time: str | None = None
+def fit_columns(args: argparse.Namespace, err: TextIO, require_time: str | None = None,
+                while_waiting: Callable[[Inputs], None] | None = None
                 ) -> tuple[Inputs, dict[str, ColumnFit]]:
     """Read the input (:func:`gmwm.cli.inputs.read_fit_data`) and fit every channel with its
-    model; every model is parsed before the first fit."""
+    model; every model is parsed before the first fit. ``while_waiting(inputs)``: run in this
+    process while worker processes choose the channels' models (the report's warm-up)."""
     import gmwm
     from gmwm.model import Model
     from gmwm.units import datasheet
@@ -99,7 +102,8 @@ def fit_columns(args: argparse.Namespace, err: TextIO, require_time: str | None 
                          f"{settings.method} give a model")
     models = {c: Model(specs[c], freq=got.freq) for c in got.data if c not in auto}
     chosen = _choose_parallel(args, {c: got.data[c] for c in got.data if c in auto}, settings,
-                              got.freq, got.units)
+                              got.freq, got.units,
+                              None if while_waiting is None else lambda: while_waiting(got))
     fits = {}
     for c, d in got.data.items():
         # a WV (a table, streamed, pooled segments) is already cut to --levels
@@ -147,11 +151,13 @@ def _choose(args: argparse.Namespace, name: str, data: Any, settings: Any, freq:
 
 
 def _choose_parallel(args: argparse.Namespace, data: dict[str, Any], settings: Any,
-                     freq: float | None, units: dict[str, str]) -> dict[str, Any]:
+                     freq: float | None, units: dict[str, str],
+                     while_waiting: Callable[[], None] | None = None) -> dict[str, Any]:
     """The automatic choices of several channels at once, one worker process per core
     (:func:`gmwm.calibrate.calibrate_imus`' executor: a choice is mostly Python, which threads
     would serialise); {} with one channel or one core (then :func:`_choose` runs each, with
-    per-candidate progress). The choices are the same as one after the other (seeded)."""
+    per-candidate progress). The choices are the same as one after the other (seeded).
+    ``while_waiting`` runs here once the choices are submitted."""
     from gmwm.calibrate import _executor, _fit_one, available_cores
 
     n = min(len(data), available_cores())
@@ -164,6 +170,8 @@ def _choose_parallel(args: argparse.Namespace, data: dict[str, Any], settings: A
     with _executor("process", n) as pool:
         futures = {c: pool.submit(_fit_one, d, "auto", freq, settings.levels, opts,
                                   units.get(c) or None) for c, d in data.items()}
+        if while_waiting is not None:
+            while_waiting()
         out = {}
         for c, f in futures.items():
             out[c] = f.result()

@@ -20,14 +20,17 @@ from gmwm.formatting import fit_json, fit_warnings, json_text, spans
 
 def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from gmwm.exports import parse_inflation, parse_targets
-    from gmwm.report import write_report
+    from gmwm.report import warm_up, write_report
 
     targets = parse_targets(args.export)  # bad targets or factors before any fit
     inflation = parse_inflation(args.inflate)
     sheet = load_datasheet(args)
     if getattr(args, "topics", None):
         return _several(args, out, err, targets, inflation, sheet)
-    got, fits = fit_columns(args, err, require_time="a calibration report")
+    drawn: list[Path] = []  # the stationarity timeline, drawn while the axes are fitted
+    got, fits = fit_columns(args, err, require_time="a calibration report",
+                            while_waiting=lambda g: drawn.extend(warm_up(g.stationarity,
+                                                                         args.output)))
     fits = attach_verdicts(fits, sheet, err, True)
     args.progress(f"writing the report to {args.output}")
     axes = {c: {"result": f.result, "units": f.units, "warnings": fit_warnings(f.result),
@@ -55,7 +58,7 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                          timing=timing, stationarity=st, targets=targets, inflation=inflation,
                          # a bag's topic is the filter's rostopic; a ULog topic is not a ROS one
                          topic=rec.topic if rec is not None and rec.format.startswith("ros")
-                         else None)
+                         else None, drawn=drawn)
     if args.json:
         obj = {"command": "report", "input": args.input, "files": [str(p) for p in files],
                "fits": {c: fit_json(f.result, source=args.input, units=f.units,
