@@ -167,7 +167,7 @@ def _choose_parallel(args: argparse.Namespace, data: dict[str, Any], settings: A
     opts: dict[str, Any] = {"seed": settings.seed, "robust": settings.robust, "eff": settings.eff}
     if args.n_starts is not None:
         opts["n_starts"] = settings.n_starts
-    with _executor("process", n) as pool:
+    with _executor("process", n, warm=True) as pool:
         futures = {c: pool.submit(_fit_one, d, "auto", freq, settings.levels, opts,
                                   units.get(c) or None) for c, d in data.items()}
         if while_waiting is not None:
