@@ -418,21 +418,18 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
                 passing = any(p >= alpha for p in p_values.values() if np.isfinite(p))
                 best = merge(rankings).ranked[0]
                 tie = TIE_CHI2 * _chi2_unit(best)
+                why = None
+                probe = _with(best.model, slow)
                 if passing and stage_best >= best_before:
                     why = (f"{k - 1} {slow} did not lower the best {criterion.upper()} of the "
                            f"candidates with fewer, and a candidate already passes the "
                            "goodness-of-fit test")
-                    not_fitted += [(m, why) for m in range(k, max_gm + 1)]
-                    break
-                if not passing and np.isfinite(tie) and stage_best > best_before - tie:
+                elif not passing and np.isfinite(tie) and stage_best > best_before - tie:
                     why = (f"{k - 1} {slow} lowered the best {criterion.upper()} of the "
                            f"candidates with fewer by less than a near tie ({TIE_CHI2:g} "
                            "chi-square units) and every candidate is rejected: a further term "
                            "would not make one pass")
-                    not_fitted += [(m, why) for m in range(k, max_gm + 1)]
-                    break
-                probe = _with(best.model, slow)
-                if not passing and np.isfinite(tie) and probe not in excluded:
+                elif not passing and np.isfinite(tie) and probe not in excluded:
                     # every candidate is rejected: the stage is fitted only if one more slow term
                     # on the best candidate gains a near tie (rule 3)
                     try:
@@ -444,8 +441,9 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
                                f"{criterion.upper()} by less than a near tie ({TIE_CHI2:g} "
                                "chi-square units) and every candidate is rejected: a further "
                                "term would not make one pass")
-                        not_fitted += [(m, why) for m in range(k, max_gm + 1)]
-                        break
+                if why is not None:
+                    not_fitted += [(m, why) for m in range(k, max_gm + 1)]
+                    break
             try:
                 todo = [m for m in base if m not in p_values]  # the probe is already fitted
                 if todo:
