@@ -306,9 +306,9 @@ def _export(axes: Mapping[str, Mapping[str, Any]], freq: float, topic: str | Non
 
 def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
                  timing: Sequence[str] | None, stationarity: Any, lv: int = 2, prefix: str = "",
-                 config_dir: str | None = None, drawn: Sequence[Path] = ()
-                 ) -> tuple[list[str], list[str], list[Path]]:
-    """Markdown lines, HTML parts and figures of one IMU: the not-static warning, time base,
+                 config_dir: str | None = None) -> tuple[list[str], list[str], list[_Figure]]:
+    """Markdown lines, HTML parts and figures (to draw, :func:`_render`) of one IMU: the
+    not-static warning, time base,
     stationarity, summary, one part per axis and the Kalibr block; headings of level ``lv``,
     figure names starting with ``prefix``; ``config_dir`` the folder of its configuration files
     when they are not beside the page."""
@@ -420,7 +420,7 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
                "unit, so neither the sensor nor the SI scale is known (give --units).")
         md += [f"{h} Noise densities", "", why, ""]
         body += [f"<h{lv}>Noise densities</h{lv}>", f"<p>{html.escape(why)}</p>"]
-    return md, body, _render(figures, drawn)
+    return md, body, figures
 
 
 def _page(title: str, body: list[str]) -> str:
@@ -475,8 +475,8 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     body: list[str] = [f"<h1>{html.escape(title)}</h1>",
                        (f"<p>Input <code>{html.escape(source)}</code>, sampling frequency {freq:g} "
                         f"Hz, {len(axes)} axes; GMWM fits by gmwm {html.escape(__version__)}.</p>")]
-    smd, sbody, written = _imu_section(out, axes, exp, timing=timing, stationarity=stationarity,
-                                       drawn=[Path(p) for p in drawn])
+    smd, sbody, figures = _imu_section(out, axes, exp, timing=timing, stationarity=stationarity)
+    written = _render(figures, [Path(p) for p in drawn])
     md += smd
     body += sbody
     written.append(write_text_atomic(out / "report.md", "\n".join(md)))
@@ -548,7 +548,7 @@ def write_multi_report(outdir: str | os.PathLike, imus: Mapping[str, ImuSection]
             (f"<p>Input <code>{html.escape(source)}</code>, {len(imus)} IMUs; GMWM fits by gmwm "
              f"{html.escape(__version__)}. Each IMU has its own section and its own folder of "
              "filter configuration files.</p>"), html_table(oh, overview)]
-    written: list[Path] = []
+    figures: list[_Figure] = []  # every IMU's, drawn by one pool of workers
     for t, sec in imus.items():
         md += [f"## IMU {t}", ""]
         body.append(f"<h2>IMU {html.escape(t)}</h2>")
@@ -562,7 +562,8 @@ def write_multi_report(outdir: str | os.PathLike, imus: Mapping[str, ImuSection]
             prefix=folders[t] + "_", config_dir=folders[t] if names else None)
         md += smd
         body += sbody
-        written += files
+        figures += files
+    written = _render(figures)
     written.append(write_text_atomic(out / "report.md", "\n".join(md)))
     written.append(write_text_atomic(out / "report.html", _page(title, body)))
     if names:
