@@ -308,10 +308,9 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
                  timing: Sequence[str] | None, stationarity: Any, lv: int = 2, prefix: str = "",
                  config_dir: str | None = None) -> tuple[list[str], list[str], list[_Figure]]:
     """Markdown lines, HTML parts and figures (to draw, :func:`_render`) of one IMU: the
-    not-static warning, time base,
-    stationarity, summary, one part per axis and the Kalibr block; headings of level ``lv``,
-    figure names starting with ``prefix``; ``config_dir`` the folder of its configuration files
-    when they are not beside the page."""
+    not-static warning, time base, stationarity, summary, one part per axis and the Kalibr block;
+    headings of level ``lv``, figure names starting with ``prefix``; ``config_dir`` the folder of
+    its configuration files when they are not beside the page."""
     from gmwm.exports import kalibr_text
 
     h = "#" * lv
