@@ -233,7 +233,7 @@ def calibrate_imus(recordings: Mapping[str, Any], model: str | Mapping[str, str]
             results[(topic, c)] = _fit_one(d, spec, freq, levels, opts, unit)
     else:
         say(f"fitting {len(jobs)} axes in {n} parallel {executor}s")
-        with _executor(executor, n) as pool:
+        with _executor(executor, n, warm=True) as pool:
             futures = {(t, c): pool.submit(_fit_one, d, spec, freq, levels, opts, unit)
                        for t, c, d, spec, freq, unit in jobs}
             results = {k: f.result() for k, f in futures.items()}

@@ -107,7 +107,8 @@ def _several(args: argparse.Namespace, out: TextIO, err: TextIO, targets: Any, i
 
     imus = calibrate_imus(recs, model, units=units, levels=args.levels, gaps=args.gaps,
                           start_s=args.start, end_s=args.end, segment=args.segment,
-                          strict=args.strict, fit_options=options, progress=say)
+                          strict=args.strict, fit_options=options, progress=say,
+                          executor="process")  # choices are mostly Python: threads serialise
     status = 0
     for topic, sec in imus.items():
         for c, axis in sec.axes.items():
