@@ -71,6 +71,17 @@ def test_study_counts_hand_checked():
     assert "toy.T4096.gmwm.n" in {x.name for x in study_counts("toy", df, rec, "x", label_T=True)}
 
 
+def test_a_sinusoid_the_fitted_model_lacks_has_no_counts():
+    """A misspecified model without the true sinusoids (its SIN columns all NaN): no SIN counts
+    and no ridge fits (a NaN beta is not an infinite period)."""
+    df, rec = toy_table()
+    for c in ("SIN[2].alpha", "SIN[2].beta"):
+        df[c] = NAN
+    names = {x.name for x in study_counts("toy", df, rec, "x")}
+    assert "toy.gmwm.SIN1.factor2_miss" in names
+    assert not any(n.startswith("toy.gmwm.SIN2.") for n in names), sorted(names)
+
+
 def test_draw_counts_hand_checked():
     df = pd.DataFrame({"fit": "a", "draw": range(6), "converged": [1, 1, 1, 1, 1, 0],
                        "WN[1].sigma2": [0.0, 1.0, 2.0, 3.0, 4.0, NAN]})

@@ -103,18 +103,22 @@ def _sin_counts(sub: pd.DataFrame, prefix: str, truth: Mapping[str, float], J: i
         ta, tb = truth[a_name], truth[b_name]
         a = sub[a_name].to_numpy(float)
         b = sub[b_name].to_numpy(float)
+        fitted = np.isfinite(a) & np.isfinite(b)
+        if not fitted.any():  # the fitted model has no such sinusoid (e.g. a misspecified one)
+            continue
         ra, rb = a / ta, b / tb
         off = (ra > 2) | (ra < 0.5) | (rb > 2) | (rb < 0.5)
         p = f"{prefix}.SIN{k}"
         out.append(Count(f"{p}.factor2_miss", int(np.sum(off & np.isfinite(ra))),
                          f"converged fits with SIN[{k}] alpha or beta off the truth by more than "
                          f"a factor 2 (ratio > 2 or < 1/2)", src))
-        med = float(np.median(np.abs(rb - 1.0))) if len(rb) else None
+        med = float(np.median(np.abs(rb[fitted] - 1.0)))
         out.append(Count(f"{p}.beta_median_abs_rel_err", med,
                          f"median over converged fits of |SIN[{k}].beta / truth - 1|", src))
         if J:
-            period = 2 * np.pi / np.where(b > 0, b, np.nan)
-            ridge = np.flatnonzero(np.nan_to_num(period, nan=np.inf) > RIDGE_FACTOR * 2.0 ** J)
+            with np.errstate(divide="ignore"):  # beta at 0: an infinite period
+                period = np.where(b > 0, 2 * np.pi / np.where(b > 0, b, 1.0), np.inf)
+            ridge = np.flatnonzero(fitted & (period > RIDGE_FACTOR * 2.0 ** J))
             out.append(Count(f"{p}.ridge", len(ridge),
                              f"converged fits on the SIN[{k}] alpha-beta ridge: period 2 pi / beta "
                              f"(samples) > {RIDGE_FACTOR:g} x the longest scale 2^J (J = {J})",
