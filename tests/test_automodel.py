@@ -258,3 +258,24 @@ def test_the_climb_stops_when_every_candidate_is_rejected_and_a_gm_no_longer_hel
     gm = [r["model"] for r in c.rows() if "GM" in r["model"]]
     best0 = min((r for r in c.rows() if "GM" not in r["model"]), key=lambda r: r["rank"])
     assert gm == [Model(best0["model"] + "+GM").spec]
+
+
+def test_linear_terms_at_zero_are_not_tried_with_more_gm(six_axes) -> None:
+    """Rule 3: from one GM on, an optional linear term (QN, DR) at zero in every candidate of a
+    stage that has it is not tried with more GM terms; the notes and the JSON say so."""
+    seen = 0
+    for c in six_axes.values():
+        models = [r["model"] for r in c.rows()]
+        for term, k in c.dropped_terms:
+            seen += 1
+            assert k >= 2
+            assert not any(parse_model(m).get(term) and parse_model(m).get("GM", 0) >= k
+                           for m in models), (term, k, models)
+            before = [e for e in c.ranking.ranked if parse_model(e.model).get(term)
+                      and parse_model(e.model).get("GM", 0) == k - 1]
+            assert before and all(f"{term}[1]" in e.result.diagnostics["at_boundary"]
+                                  for e in before)
+            assert any(f"{term} not tried with {k} or more GM" in n for n in c.notes)
+        d = c.to_json_dict()
+        assert d["dropped_terms"] == [{"term": t, "from_n_gm": k} for t, k in c.dropped_terms]
+    assert seen > 0  # the six-axis case drops QN or DR somewhere (stage 2 is fitted there)

@@ -37,7 +37,9 @@ The rule
    far plus one GM, fitted first -- improves it by at least a near tie: when every candidate is
    rejected (motion, a process outside the candidates) and a GM term no longer helps, a further
    one will not make a candidate pass. A further GM term costs the most (its shape is searched
-   jointly with the others). All stages share one search memo (:func:`gmwm.search.shared_memo`).
+   jointly with the others). From stage 1 on, an optional linear term (QN, DR) at zero in every
+   candidate of a stage that has it is left out of the later stages (:attr:`Choice.dropped_terms`).
+   All stages share one search memo (:func:`gmwm.search.shared_memo`).
 4. Choice. The candidates are ranked by the criterion (default :data:`gmwm.criteria.DEFAULT`,
    WIC with k = 2). The chosen model is the best-ranked one whose goodness-of-fit p-value is at
    least ``alpha`` (5 %); a candidate whose test cannot be computed does not pass. When every
@@ -162,7 +164,9 @@ class Choice:
     every candidate is rejected); ``kind`` the sensor kind; ``bump`` the WV bump that admitted
     SIN candidates (None: none seen, or ``sin`` given); ``not_fitted``: (stage, reason) of the
     GM stages left out; ``excluded``: candidates left out for having as many parameters as
-    scales; ``cpu_seconds``/``seconds``: process CPU and wall time of the whole choice."""
+    scales; ``cpu_seconds``/``seconds``: process CPU and wall time of the whole choice;
+    ``dropped_terms``: (term, stage) of the optional linear terms no longer tried from that stage
+    on (rule 3: at zero in every candidate of the stage before)."""
 
     result: Any
     ranking: Ranking
@@ -175,6 +179,7 @@ class Choice:
     excluded: list[str] = field(default_factory=list)
     cpu_seconds: float = 0.0
     seconds: float = 0.0
+    dropped_terms: list[tuple[str, int]] = field(default_factory=list)
 
     # -- the result protocol, delegated to the chosen fit ---------------------------------------
     @property
@@ -222,10 +227,16 @@ class Choice:
         if self.not_fitted:
             ks = ", ".join(str(k) for k, _ in self.not_fitted)
             out.append(f"candidates with {ks} slow terms not fitted: {self.not_fitted[0][1]}")
+        for term, k in self.dropped_terms:
+            out.append(f"{term} not tried with {k} or more {self._slow()} terms: it was at zero in "
+                       f"every candidate with {k - 1}")
         if self.excluded:
             out.append(f"{len(self.excluded)} candidate(s) left out: as many parameters as "
                        f"scales ({', '.join(self.excluded)})")
         return out
+
+    def _slow(self) -> str:
+        return "AR1" if any("AR1" in e.model for e in self.ranking.ranked) else "GM"
 
     @property
     def warnings(self) -> list[str]:
@@ -301,7 +312,7 @@ class Choice:
 
     def to_json_dict(self) -> dict[str, Any]:
         """model, kind, passed, alpha, rank, criterion, candidates (:meth:`rows`), near_ties,
-        notes, warnings, bump, not_fitted, excluded, cpu_seconds, seconds, result (the chosen
+        notes, warnings, bump, not_fitted, dropped_terms, excluded, cpu_seconds, seconds, result (the chosen
         fit's :meth:`~gmwm.estimator.GMWMResult.to_json_dict`)."""
         from .results import json_safe
 
@@ -313,6 +324,7 @@ class Choice:
             "warnings": self.warnings,
             "bump": None if self.bump is None else self.bump.to_json_dict(),
             "not_fitted": [{"n_gm": k, "reason": why} for k, why in self.not_fitted],
+            "dropped_terms": [{"term": t, "from_n_gm": k} for t, k in self.dropped_terms],
             "excluded": list(self.excluded), "cpu_seconds": self.cpu_seconds,
             "seconds": self.seconds, "result": self.result.to_json_dict()})
 
@@ -396,6 +408,7 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
         rankings: list[Ranking] = []
         p_values: dict[str, float] = {}
         not_fitted: list[tuple[int, str]] = []
+        dropped: list[tuple[str, int]] = []  # (optional linear term, first stage without it)
         best_so_far = best_before = stage_best = np.inf
 
         def rank(specs: list[str]) -> Ranking:
@@ -409,8 +422,9 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
             return r
 
         for k in range(max_gm + 1):
+            gone = {t for t, _ in dropped}
             base = [m for m in candidate_models(kind, max_gm=max_gm, slow=slow, n_gm=k)
-                    if m not in excluded]
+                    if m not in excluded and not gone & set(parse_model(m))]
             if not base:
                 continue
             n_before = len(rankings)
@@ -459,8 +473,20 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
                     not_fitted.append((k, "no candidate with this many terms could be fitted"))
                     continue
                 raise
+            # rule 3: from one slow term on, an optional linear term at zero in every candidate
+            # of this stage that has it is not tried with more slow terms (a further one takes
+            # scales from it rather than give; not from stage 0, where the first slow term moves
+            # the whole fit: measured, QN at zero without a GM was needed with one)
+            stage_entries = [e for r_ in rankings[n_before:] for e in r_.ranked]
+            for term in _LINEAR:
+                if k == 0 or term in gone or term in (REQUIRED.get(kind, ()) if kind else ()):
+                    continue
+                having = [e for e in stage_entries if parse_model(e.model).get(term)]
+                if having and all(f"{term}[1]" in (e.result.diagnostics or {}).get("at_boundary", ())
+                                  for e in having):
+                    dropped.append((term, k + 1))
             best_before = best_so_far
-            stage_best = min(e.criterion for r_ in rankings[n_before:] for e in r_.ranked)
+            stage_best = min(e.criterion for e in stage_entries)
             best_so_far = min(best_so_far, stage_best)
         if not rankings:
             raise GMWMError("no candidate model could be fitted")
@@ -475,4 +501,6 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
             p_values[pick.model] = float(result.gof.p_value)
             passed = passed and p_values[pick.model] >= alpha
     return Choice(result, ranking, p_values, passed, alpha, kind, bump if use_sin else None,
-                  not_fitted, excluded, time.process_time() - cpu0, time.perf_counter() - wall0)
+                  not_fitted, excluded, time.process_time() - cpu0, time.perf_counter() - wall0,
+                  [(t, k) for t, k in dropped  # the drops that shaped a fitted stage
+                   if k in {parse_model(e.model).get(slow, 0) for e in ranking.ranked}])
