@@ -25,7 +25,8 @@ Second table: the IEEE 952 Allan-deviation readings (``gmwm.datasheet.allan_read
 gyroscope-like signals at 100 Hz (WN + RW; WN + a flicker floor made of 16 Gauss-Markov terms of
 equal variance with correlation times 0.25-8192 s). Coverage of the value the same rule reads on the
 exact Allan deviation (the readings' estimand: their sampling uncertainty), old (eta_3 points, the
-line through the points' bounds) against new (mixture points, correlated chi-square combination);
+line through the points' bounds) against new (mixture points; N: correlated chi-square
+combination, K and B: percentile interval over re-read perturbed curves, docs/METHODS.md §9.3);
 the new intervals' coverage of the true N and K; the interval half-width in Monte Carlo SDs of the
 reading (log scale); the bias of the exact-curve reading against the true N, K (the rule's own
 error, e.g. from the other noise near a crossover).

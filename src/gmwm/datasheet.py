@@ -23,6 +23,7 @@ NumPy at load (fast CLI start).
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from collections.abc import Mapping, Sequence
@@ -595,6 +596,87 @@ def _inv_trigamma_half(v: float) -> float:
     return math.sqrt(lo * hi)
 
 
+def _line_value(tau: np.ndarray, adev: np.ndarray, var_i: np.ndarray, slope: float,
+                tau_read: float, run: tuple[int, int]) -> float:
+    """The fixed-slope line's reading at ``tau_read``: the inverse-variance (``var_i`` of ln AD
+    over the run) weighted mean intercept of ``ln AD - slope ln tau`` over ``run = [a, b)``."""
+    a, b = run
+    w = (1.0 / var_i) / np.sum(1.0 / var_i)
+    c = float(w @ (np.log(adev[a:b]) - slope * np.log(tau[a:b])))
+    return math.exp(c + slope * math.log(tau_read))
+
+
+def _reading_runs(local: np.ndarray, edof: np.ndarray, i_min: int, tol: float
+                  ) -> dict[str, tuple[int, int] | None]:
+    """The run of points each reading uses (:func:`allan_readings`): N and K the heaviest (by
+    summed edof) run of at least 2 points of their slope; B the slope-0 points within two levels
+    of the minimum when a flat run of at least 3 contains it (None: no such run)."""
+    out: dict[str, tuple[int, int] | None] = {}
+    for key, slope in (("N", -0.5), ("K", 0.5)):
+        runs = _slope_runs(local, slope, tol, 2)     # one point is no slope region
+        out[key] = max(runs, key=lambda r: float(edof[r[0]:r[1]].sum())) if runs else None
+    flat = [r for r in _slope_runs(local, 0.0, tol, 3) if r[0] <= i_min < r[1]]
+    out["B"] = (max(flat[0][0], i_min - 2), min(flat[0][1], i_min + 3)) if flat else None
+    return out
+
+
+#: perturbed curves behind a K or B interval (:func:`_resampled_interval`)
+RESAMPLED_DRAWS = 200
+_READ_AT = {"N": (-0.5, 1.0), "K": (0.5, 3.0)}
+
+
+@functools.lru_cache(maxsize=16)
+def _level_corr(kind: str, levels: tuple[int, ...], n_samples: int) -> np.ndarray:
+    """Correlation of the levels' WV (AV) estimates under the power law ``kind`` (cached: the
+    axes of one recording share their levels and length)."""
+    from gmwm.wvci import power_law_wv_cov
+
+    C = power_law_wv_cov(kind, np.asarray(levels), n_samples)
+    d = np.sqrt(np.diag(C))
+    return C / np.outer(d, d)
+
+
+def _level_cov_chol(kind: str, levels: tuple[int, ...], n_samples: int, sd: np.ndarray
+                    ) -> np.ndarray:
+    """Cholesky factor of the covariance of ln AD over ``levels``: the points' SDs ``sd`` and the
+    correlation of the levels' estimates under the power law ``kind``."""
+    S = _level_corr(kind, levels, n_samples) * np.outer(sd, sd)
+    return np.linalg.cholesky(S + 1e-12 * np.diag(np.diag(S)))
+
+
+def _resampled_interval(key: str, tau: np.ndarray, adev: np.ndarray, edof: np.ndarray,
+                        levels: np.ndarray, n_samples: int, tol: float, alpha: float
+                        ) -> list[float] | None:
+    """Percentile interval of the ``key`` reading (K or B) over :data:`RESAMPLED_DRAWS` Allan
+    deviation curves drawn around the observed one (ln AD_i with its chi-square variance
+    ``trigamma(eta_i / 2) / 4`` and the levels' correlation under the reading's own noise type,
+    RW for K, flicker for B), each read again by the same rule: the interval then carries the
+    choice of the run and, for K, the read-out far outside it, which a line's own interval does
+    not (docs/METHODS.md §9.3). Seeded (the same curve gives the same interval); None when fewer
+    than half of the curves give the reading."""
+    from scipy.special import polygamma
+
+    var_i = np.asarray(polygamma(1, edof / 2.0), dtype=np.float64) / 4.0
+    L = _level_cov_chol("RW" if key == "K" else "FN", tuple(int(v) for v in levels),
+                        int(n_samples), np.sqrt(var_i))
+    rng = np.random.default_rng(0)
+    E = rng.standard_normal((RESAMPLED_DRAWS, adev.size)) @ L.T
+    lt = np.log10(tau)
+    vals = []
+    for e in E:
+        ad = adev * np.exp(e)
+        runs = _reading_runs(np.gradient(np.log10(ad), lt), edof, int(np.argmin(ad)), tol)
+        run = runs[key]
+        if run is None:
+            continue
+        slope, at = _READ_AT.get(key, (0.0, float(tau[int(np.argmin(ad))])))
+        vals.append(_line_value(tau, ad, var_i[run[0]:run[1]], slope, at, run))
+    if len(vals) < RESAMPLED_DRAWS // 2:
+        return None
+    lo, hi = np.quantile(np.log(vals), [alpha / 2.0, 1.0 - alpha / 2.0])
+    return [float(math.exp(lo)), float(math.exp(hi))]
+
+
 def _line_reading(tau: np.ndarray, adev: np.ndarray, edof: np.ndarray, levels: np.ndarray,
                   n_samples: int, slope: float, tau_read: float, run: tuple[int, int],
                   alpha: float) -> dict[str, Any]:
@@ -613,9 +695,7 @@ def _line_reading(tau: np.ndarray, adev: np.ndarray, edof: np.ndarray, levels: n
     a, b = run
     var_i = np.asarray(polygamma(1, edof[a:b] / 2.0), dtype=np.float64) / 4.0   # Var(ln AD_i)
     w = (1.0 / var_i) / np.sum(1.0 / var_i)
-    lt = np.log(tau[a:b])
-    c = float(w @ (np.log(adev[a:b]) - slope * lt))
-    value = math.exp(c + slope * math.log(tau_read))
+    value = _line_value(tau, adev, var_i, slope, tau_read, run)
     cov = power_law_wv_cov(_LINE_NOISE[slope], levels[a:b], n_samples)
     d = np.sqrt(np.diag(cov))
     sd = np.sqrt(var_i)
@@ -643,8 +723,11 @@ def allan_readings(av: Any, units: str | None = None, tol: float = 0.15) -> dict
       the minimum is the longest cluster time).
 
     Slope lines use the heaviest (by summed edof) run of at least 2 adjacent points whose local
-    slope is within ``tol`` of the nominal one; the CI (``ci95``, level ``1 - av.alpha``) combines the points'
-    chi-square intervals with the correlation of the levels (see :func:`_line_reading`). A line
+    slope is within ``tol`` of the nominal one. The CI (``ci95``, level ``1 - av.alpha``): for N
+    the points' chi-square intervals combined with the correlation of the levels (see
+    :func:`_line_reading`); for K and a flat-region B a percentile interval over re-read perturbed
+    curves (:func:`_resampled_interval`; ``ci_method: "resampled"``), which carries the choice of
+    the run and K's read-out far outside it (docs/METHODS.md §9.3). A line
     read outside its run whose near end is within two levels (a factor 4 in tau) of the AD
     minimum carries a ``warning``: near the crossover the other noise still adds to the deviation,
     so the extrapolated reading is too high. Values in the datasheet units of ``units`` (N, K, B
@@ -670,16 +753,20 @@ def allan_readings(av: Any, units: str | None = None, tol: float = 0.15) -> dict
     adev, dlo, dhi = np.sqrt(var), np.sqrt(lo), np.sqrt(hi)
     local = np.gradient(np.log10(adev), np.log10(tau))
     i_min = int(np.argmin(adev))
+    chosen = _reading_runs(local, edof, i_min, tol)
     out: dict[str, dict] = {}
     for key, slope, tau_read, (label, factor), name in (
             ("N", -0.5, 1.0, us.white, us.white_name), ("K", 0.5, 3.0, us.rw, us.rw_name)):
-        runs = _slope_runs(local, slope, tol, 2)     # one point is no slope region
-        if not runs:
+        run = chosen[key]
+        if run is None:
             out[key] = {"value": None, "unit": label, "ci95": None, "name": name,
                         "note": f"no region of slope {slope:+g} in the Allan deviation"}
             continue
-        run = max(runs, key=lambda r: float(edof[r[0]:r[1]].sum()))
         r = _line_reading(tau, adev, edof, levels, T, slope, tau_read, run, alpha)
+        if key == "K":  # the line's own interval misses the run choice and the read-out far out
+            ci = _resampled_interval("K", tau, adev, edof, levels, T, tol, alpha)
+            if ci is not None:
+                r.update(ci95=ci, ci_method="resampled")
         r["value"] *= factor
         r["ci95"] = [c * factor for c in r["ci95"]]
         near = run[1] - 1 if slope < 0 else run[0]   # the run's end towards the crossover
@@ -692,15 +779,17 @@ def allan_readings(av: Any, units: str | None = None, tol: float = 0.15) -> dict
         out[key] = entry
     label, factor = us.level
     at_end = bool(i_min == adev.size - 1)
-    flat = [r for r in _slope_runs(local, 0.0, tol, 3) if r[0] <= i_min < r[1]]
     entry: dict[str, Any] = {"name": "bias instability", "unit": label, "tau_s": float(tau[i_min]),
                              "at_end": at_end}
-    if flat:
+    if chosen["B"] is not None:
         # the floor: the slope-0 line through the flat points within two levels of the minimum
         # (their mean lacks the downward selection bias of the minimum of noisy points; farther
         # points, still within tol of slope 0, can sit measurably above the floor)
-        run = (max(flat[0][0], i_min - 2), min(flat[0][1], i_min + 3))
+        run = chosen["B"]
         r = _line_reading(tau, adev, edof, levels, T, 0.0, float(tau[i_min]), run, alpha)
+        ci = _resampled_interval("B", tau, adev, edof, levels, T, tol, alpha)
+        if ci is not None:  # the run is placed by the noisy minimum: resample that choice
+            r.update(ci95=ci, ci_method="resampled")
         entry.update(value=factor * r["value"] / BI_AD_FACTOR, upper_bound=False,
                      ci95=[factor * c / BI_AD_FACTOR for c in r["ci95"]],
                      tau_range_s=r["tau_range_s"], n_points=r["n_points"])
