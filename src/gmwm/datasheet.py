@@ -622,6 +622,7 @@ def _reading_runs(local: np.ndarray, edof: np.ndarray, i_min: int, tol: float
 
 #: perturbed curves behind a K or B interval (:func:`_resampled_interval`)
 RESAMPLED_DRAWS = 200
+_RESAMPLED: dict[tuple, list[float] | None] = {}   # recent intervals by their inputs
 _READ_AT = {"N": (-0.5, 1.0), "K": (0.5, 3.0)}
 
 
@@ -656,6 +657,12 @@ def _resampled_interval(key: str, tau: np.ndarray, adev: np.ndarray, edof: np.nd
     than half of the curves give the reading."""
     from scipy.special import polygamma
 
+    # the report and the filter exports read the same AV: the second call reuses the draws
+    memo_key = (key, tau.tobytes(), adev.tobytes(), edof.tobytes(), levels.tobytes(),
+                int(n_samples), tol, alpha)
+    if memo_key in _RESAMPLED:
+        hit = _RESAMPLED[memo_key]
+        return list(hit) if hit is not None else None
     var_i = np.asarray(polygamma(1, edof / 2.0), dtype=np.float64) / 4.0
     L = _level_cov_chol("RW" if key == "K" else "FN", tuple(int(v) for v in levels),
                         int(n_samples), np.sqrt(var_i))
@@ -671,10 +678,14 @@ def _resampled_interval(key: str, tau: np.ndarray, adev: np.ndarray, edof: np.nd
             continue
         slope, at = _READ_AT.get(key, (0.0, float(tau[int(np.argmin(ad))])))
         vals.append(_line_value(tau, ad, var_i[run[0]:run[1]], slope, at, run))
-    if len(vals) < RESAMPLED_DRAWS // 2:
-        return None
-    lo, hi = np.quantile(np.log(vals), [alpha / 2.0, 1.0 - alpha / 2.0])
-    return [float(math.exp(lo)), float(math.exp(hi))]
+    ci = None
+    if len(vals) >= RESAMPLED_DRAWS // 2:
+        lo, hi = np.quantile(np.log(vals), [alpha / 2.0, 1.0 - alpha / 2.0])
+        ci = [float(math.exp(lo)), float(math.exp(hi))]
+    if len(_RESAMPLED) >= 64:
+        _RESAMPLED.clear()
+    _RESAMPLED[memo_key] = ci
+    return list(ci) if ci is not None else None
 
 
 def _line_reading(tau: np.ndarray, adev: np.ndarray, edof: np.ndarray, levels: np.ndarray,
