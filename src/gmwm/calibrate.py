@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import signal
 import threading
 from collections.abc import Mapping
 from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
@@ -125,6 +126,31 @@ def _fit_one(data: Any, spec: str, freq: float, levels: int | None,
     return gmwm.fit(data, Model(spec, freq=freq), levels=lv, freq=freq, **dict(options))
 
 
+def _choose_and_draw(data: Any, freq: float, levels: int | None, options: Mapping[str, Any],
+                     unit: str | None, figure: tuple[str, str] | None
+                     ) -> tuple[Any, list[Any], dict[str, Any] | None]:
+    """One axis's automatic model choice (:func:`_fit_one`) and, with ``figure`` = (file,
+    axis name), what a report page needs of it computed in the same worker: the WV figure
+    (:func:`gmwm.report.draw_wv_figure`), the datasheet coefficients
+    (:func:`gmwm.datasheet.datasheet`) and the IEEE 952 readings
+    (:func:`gmwm.datasheet.fit_readings`), so that they overlap the other workers' choices and
+    the calling process needs no fitting kernels. Returns (choice, files drawn, None or
+    ``{"datasheet": ..., "readings": ...}``); a figure that fails is left to the report."""
+    choice = _fit_one(data, AUTO, freq, levels, options, unit)
+    if figure is None:
+        return choice, [], None
+    from gmwm.datasheet import datasheet, fit_readings
+    from gmwm.report import draw_wv_figure
+
+    page = {"datasheet": datasheet(choice.result, unit or None),
+            "readings": fit_readings(choice.result, unit or None)}
+    try:
+        drawn = draw_wv_figure(figure[0], figure[1], choice.result, unit or "")
+    except Exception:  # noqa: BLE001 - the report draws it again and reports a failure then
+        drawn = []
+    return choice, drawn, page
+
+
 def _warm() -> None:
     """Load the compiled kernels in a new worker before the first fit (numba's on-disk cache)."""
     import gmwm  # noqa: F401
@@ -146,13 +172,73 @@ def preload() -> None:
         choose_model(x, freq=100.0, kind="gyroscope", max_gm=1, sin=False)
 
 
+#: module the warm server imports before it forks workers (importing it runs :func:`preload`)
+_WARM_MODULE = "gmwm._warmserver"
+_warm_server = False
+_warm_server_used = False  # a pool of the warm server was created (the server is loaded)
+
+
+def start_warm_server() -> bool:
+    """Start a process that loads the fitting stack (:func:`preload`) now, beside this one, and
+    later forks the workers of ``_executor(..., warm=True)`` warm (multiprocessing's forkserver
+    with a preload). A command that will choose several axes' models calls it first, so that the
+    ~2 s of imports and kernel loading run while this process reads the input and checks its
+    stationarity, instead of before the workers can start. False (nothing started) on one core
+    or where there is no forkserver."""
+    global _warm_server
+    if _warm_server:
+        return True
+    if os.name != "posix" or available_cores() < 2 \
+            or "forkserver" not in multiprocessing.get_all_start_methods():
+        return False
+    from multiprocessing import forkserver
+
+    multiprocessing.get_context("forkserver").set_forkserver_preload([_WARM_MODULE])
+    try:
+        forkserver.ensure_running()
+    except OSError:  # no server: the workers fork from this process as before
+        return False
+    _warm_server = True
+    return True
+
+
+def warm_server_running() -> bool:
+    """Whether :func:`start_warm_server` started the warm server in this process."""
+    return _warm_server
+
+
+def stop_warm_server() -> None:
+    """Stop the warm server of :func:`start_warm_server` (if any) and reap it, so that no process
+    outlives the command and its CPU time counts in this process's children's. A server that
+    forked no worker yet is still loading: it is terminated rather than waited for."""
+    global _warm_server, _warm_server_used
+    if not _warm_server:
+        return
+    from multiprocessing import forkserver
+
+    server = getattr(forkserver, "_forkserver", None)
+    pid = getattr(server, "_forkserver_pid", None)
+    with contextlib.suppress(Exception):  # a server already gone needs nothing
+        if pid is not None and not _warm_server_used:
+            os.kill(pid, signal.SIGTERM)
+        server._stop()  # closes its "alive" pipe and waits for it (what CPython's tests use)
+    _warm_server = _warm_server_used = False
+
+
 def _executor(kind: str, workers: int, warm: bool = False) -> Executor:
-    """A pool of ``workers`` threads or processes; ``warm``: forked workers start with the
-    fitting stack loaded (:func:`preload`, run here first)."""
+    """A pool of ``workers`` threads or processes; ``warm``: worker processes start with the
+    fitting stack loaded (forked by the warm server when :func:`start_warm_server` started one,
+    else forked from this process after :func:`preload` ran here). Creating a pool of the warm
+    server waits until the server has loaded the stack."""
     if kind == "thread":
         return ThreadPoolExecutor(max_workers=workers)
     if kind != "process":
         raise InputError(f"unknown executor {kind!r}; use 'process' or 'thread'")
+    if warm and _warm_server:
+        global _warm_server_used
+        _warm_server_used = True
+        return ProcessPoolExecutor(max_workers=workers,
+                                   mp_context=multiprocessing.get_context("forkserver"))
     # fork: a worker inherits the imported modules and loaded kernels and starts at once; with
     # other threads alive (which a fork would copy mid-flight) a fresh forkserver worker instead
     if os.name != "posix":

@@ -719,6 +719,20 @@ def _line_reading(tau: np.ndarray, adev: np.ndarray, edof: np.ndarray, levels: n
             "extrapolated": not tau[a] * (1 - 1e-12) <= tau_read <= tau[b - 1] * (1 + 1e-12)}
 
 
+def fit_readings(result: Any, units: str | None = None) -> dict[str, dict] | None:
+    """:func:`allan_readings` of the Allan variance of a fit's WV (``result.wv``), or None when
+    the fit has no classical WV or its AV gives no reading."""
+    from gmwm.wv import AllanVariance, WaveletVariance
+
+    wv = getattr(result, "wv", None)
+    if not isinstance(wv, WaveletVariance):
+        return None
+    try:
+        return allan_readings(AllanVariance.from_wv(wv), units or None)
+    except InputError:
+        return None
+
+
 def allan_readings(av: Any, units: str | None = None, tol: float = 0.15) -> dict[str, dict]:
     """IEEE 952 readings of a maximal-overlap Allan variance ``av`` (``tau`` [s], ``avar``,
     ``ci_low``, ``ci_high``, ``clusters``, ``n``, and ``ci_edof`` if it has them):

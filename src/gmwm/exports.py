@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from gmwm.datasheet import allan_readings, datasheet, parse_unit, unit_system
+from gmwm.datasheet import datasheet, fit_readings, parse_unit, unit_system
 from gmwm.errors import InputError
 
 __all__ = ["AXIS_RULES", "TARGETS", "AxisNoise", "AxisTerm", "Combined", "Inflation", "NoiseExport",
@@ -293,7 +293,9 @@ def noise_export(per_axis: Mapping[str, tuple[str | None, Any]],
                  inflation: str | Inflation | None = None, rule: str = "worst",
                  flagged: str = "upper",
                  readings: Mapping[str, Mapping[str, Any] | None] | None = None,
-                 source: str | None = None) -> NoiseExport:
+                 source: str | None = None,
+                 datasheets: Mapping[str, Mapping[str, Any] | None] | None = None
+                 ) -> NoiseExport:
     """Build the noise representation from per-axis fits.
 
     ``per_axis[axis] = (unit, result)``: the signal unit (its sensor role and SI factor from
@@ -305,7 +307,8 @@ def noise_export(per_axis: Mapping[str, tuple[str | None, Any]],
     (:data:`AXIS_RULES`). ``flagged``: ``"upper"`` (default; write a flagged term's 95 % upper
     bound) or ``"estimate"``. ``readings[axis]``: the IEEE 952 readings of
     :func:`gmwm.datasheet.allan_readings` (computed from the fit's WV when not given; their bias
-    instability goes into the comments).
+    instability goes into the comments). ``datasheets[axis]``: that fit's
+    :func:`gmwm.datasheet.datasheet` in ``unit`` (computed when not given).
     """
     if rule not in AXIS_RULES:
         raise InputError(f"unknown axis rule {rule!r}; use one of {', '.join(AXIS_RULES)}")
@@ -329,7 +332,8 @@ def noise_export(per_axis: Mapping[str, tuple[str | None, Any]],
                            "known")
             continue
         got = None if readings is None else readings.get(name)
-        axes[name] = _axis(name, unit, parsed[2], res, got)
+        ds = None if datasheets is None else datasheets.get(name)
+        axes[name] = _axis(name, unit, parsed[2], res, got, ds)
     if not axes:
         raise InputError("no axis has a gyroscope or accelerometer unit (deg/s, rad/s, m/s^2, g, "
                          "...): the noise files need one to know the sensor and SI units")
@@ -393,11 +397,12 @@ def _param_interval(result: Any, i: int) -> tuple[float, float] | None:
     return (float(ci[0]), float(ci[1])) if np.all(np.isfinite(ci)) else None
 
 
-def _axis(name: str, unit: str, sensor: str, result: Any, readings: Mapping[str, Any] | None
-          ) -> AxisNoise:
+def _axis(name: str, unit: str, sensor: str, result: Any, readings: Mapping[str, Any] | None,
+          ds: Mapping[str, Any] | None = None) -> AxisNoise:
     us = unit_system(unit)
     freq = float(result.wv.freq)
-    ds = datasheet(result, unit)
+    if ds is None:
+        ds = datasheet(result, unit)
     terms = {}
     used_keys: set[str] = set()
     for term, prefix, label, to_si, from_param in (
@@ -500,7 +505,7 @@ def _other_terms(ds: Mapping[str, dict], used: set[str], us: Any, result: Any, u
             lines.append(f"{key}: " + "; ".join(one(w.replace("_", " "), v) for w, v in e.items()
                                                 if isinstance(v, Mapping)))
     if readings is None:
-        readings = _readings(result, unit)
+        readings = fit_readings(result, unit)
     b = (readings or {}).get("B")
     if b and b.get("value") is not None:
         where = f"Allan-deviation floor at tau = {b['tau_s']:.4g} s / 0.6643"
@@ -510,18 +515,6 @@ def _other_terms(ds: Mapping[str, dict], used: set[str], us: Any, result: Any, u
         extra["bias_instability"] = {k: b[k] for k in ("value", "unit", "ci95", "tau_s", "at_end")
                                      if k in b}
     return lines, extra
-
-
-def _readings(result: Any, unit: str) -> Mapping[str, Any] | None:
-    from gmwm.wv import AllanVariance, WaveletVariance
-
-    wv = getattr(result, "wv", None)
-    if not isinstance(wv, WaveletVariance):
-        return None
-    try:
-        return allan_readings(AllanVariance.from_wv(wv), unit)
-    except InputError:
-        return None
 
 
 def _combine(sensor: str, term: str, axes: list[AxisNoise], rule: str, infl: Inflation

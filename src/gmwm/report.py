@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from gmwm import __version__
-from gmwm.datasheet import allan_readings
+from gmwm.datasheet import fit_readings
 from gmwm.errors import InputError
 from gmwm.formatting import (
     datasheet_rows,
@@ -52,13 +52,12 @@ def _rows(ds: Mapping[str, dict]) -> list[tuple[str, str, str, str, str]]:
             for term, what, value, ci, unit in datasheet_rows(ds)]
 
 
-def _reading_rows(res: Any, units: str | None) -> list[tuple[str, str, str, str, str]]:
-    """IEEE 952 readings (N, K, B) of the fit's WV, for comparison with the GMWM coefficients."""
-    from gmwm.wv import AllanVariance
-
-    try:
-        r = allan_readings(AllanVariance.from_wv(res.wv), units or None)
-    except InputError:
+def _reading_rows(res: Any, units: str | None, readings: Mapping[str, Any] | None = None
+                  ) -> list[tuple[str, str, str, str, str]]:
+    """IEEE 952 readings (N, K, B) of the fit's WV (``readings``: already computed,
+    :func:`gmwm.datasheet.fit_readings`), for comparison with the GMWM coefficients."""
+    r = fit_readings(res, units or None) if readings is None else readings
+    if r is None:
         return []
     return [(label, num(value), interval(ci), unit, where)
             for label, value, ci, unit, where in reading_rows(r, brief=True)]
@@ -127,11 +126,11 @@ class _Figure:
 def _draw(fig: _Figure) -> list[Path]:
     """Draw and save one report figure (in a worker process or not)."""
     from gmwm.atomic import save_figure
-    from gmwm.plots import add_datasheet_line, plot_av, plot_stationarity, plot_wv
+    from gmwm.plots import add_datasheet_line, page_layout, plot_av, plot_stationarity, plot_wv
     from gmwm.wv import AllanVariance
 
     if fig.kind == "stationarity":
-        return save_figure(plot_stationarity(fig.data[0]), fig.path, tight=False)
+        return save_figure(page_layout(plot_stationarity(fig.data[0])), fig.path, tight=False)
     name, res, units, verdict = fig.data
     if fig.kind == "wv":
         ax = plot_wv(res.wv, result=res, units=units)
@@ -144,29 +143,58 @@ def _draw(fig: _Figure) -> list[Path]:
         add_datasheet_line(ax, verdict["curves"]["tau_s"], verdict["curves"]["adev"],
                            verdict["label"])
         ax.set_title(f"{name}: Allan deviation")
-    # no minor ticks on the log axes: their tick objects are half the drawing time of a page
-    # figure (constrained layout measures every tick); major ticks and the grid stay
-    from matplotlib.ticker import NullLocator
-
-    for axis in (ax.xaxis, ax.yaxis):
-        if axis.get_scale() == "log":
-            axis.set_minor_locator(NullLocator())
-    return save_figure(ax.figure, fig.path, tight=False)  # constrained layout fills it
+    return save_figure(page_layout(ax.figure), fig.path, tight=False)
 
 
-def warm_up(stationarity: Any = None, outdir: str | os.PathLike | None = None) -> list[Path]:
-    """Prepare this process for the rest of a report page while worker processes fit the axes
-    (the CLI calls it then, when this process would otherwise wait): load the compiled kernels
-    of the datasheet's intervals (a tiny fit and its datasheet) and draw the stationarity
-    timeline of ``stationarity`` into ``outdir`` (it needs no fit), which also loads matplotlib,
-    its fonts and mathtext parser for the figure workers forked from this process later
-    (without a timeline, a small figure is drawn in memory instead). Returns the figure files
-    written, for :func:`write_report`'s ``drawn``. A failure only loses the head start, except
-    in drawing the timeline, which is then left to :func:`write_report`."""
+def wv_figure_path(outdir: str | os.PathLike, name: str, prefix: str = "") -> Path:
+    """The file of axis ``name``'s WV figure on a report page in ``outdir``."""
+    return Path(outdir) / f"{prefix}{_slug(name)}_wv.png"
+
+
+def draw_wv_figure(path: str | os.PathLike, name: str, result: Any, units: str) -> list[Path]:
+    """Draw axis ``name``'s WV figure of a page without a datasheet verdict (as
+    :func:`write_report` would) into ``path`` (:func:`wv_figure_path`), e.g. in the worker that
+    fitted the axis; returns the files written, for :func:`write_report`'s ``drawn``."""
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    return _draw(_Figure("wv", Path(path), (name, result, units or "", None)))
+
+
+def warm_up(stationarity: Any = None, outdir: str | os.PathLike | None = None,
+            fit: bool = True) -> list[Path]:
+    """Prepare this process for the rest of a report page while other processes fit the axes
+    (the CLI calls it then, when this process would otherwise wait): draw the stationarity
+    timeline of ``stationarity`` into ``outdir`` (it needs no fit; without a timeline a small
+    figure is drawn in memory instead, which loads matplotlib, its fonts and math text for
+    figure workers forked from this process later), then, with ``fit``, load the fitting stack
+    and the compiled kernels of the datasheet's intervals (a tiny fit and its datasheet) that
+    the page needs once the fits arrive (not needed when the workers compute the datasheets).
+    The timeline comes first: it has the most to gain from running while the workers are still
+    starting. Returns the figure files written, for :func:`write_report`'s ``drawn``. A failure
+    only loses the head start, except in drawing the timeline, which is then left to
+    :func:`write_report`."""
     import io
 
     import numpy as np
 
+    drawn: list[Path] = []
+    st = stationarity
+    if st is not None and outdir is not None and st.tested and st.timeline:
+        try:
+            Path(outdir).mkdir(parents=True, exist_ok=True)
+            drawn = _draw(_Figure("stationarity", Path(outdir) / "stationarity.png", (st,)))
+        except Exception:  # noqa: BLE001 - write_report draws it then
+            drawn = []
+    else:
+        with contextlib.suppress(Exception):
+            from gmwm.plots import new_axes
+
+            ax = new_axes()
+            ax.loglog([1e-2, 1.0, 1e2], [1e-4, 1e-6, 1e-5], label="WV")
+            ax.set_xlabel(r"Scale $\tau$ [s]")
+            ax.legend()
+            ax.figure.savefig(io.BytesIO(), format="png", dpi=40)
+    if not fit:
+        return drawn
     with contextlib.suppress(Exception):  # a warm-up is an optimisation only
         import gmwm
         from gmwm.units import datasheet
@@ -174,22 +202,7 @@ def warm_up(stationarity: Any = None, outdir: str | os.PathLike | None = None) -
         rng = np.random.default_rng(0)
         x = np.cumsum(rng.standard_normal(4096)) * 1e-3 + rng.standard_normal(4096)
         datasheet(gmwm.fit(x, "WN+GM+RW", freq=100.0), "rad/s")
-    st = stationarity
-    if st is not None and outdir is not None and st.tested and st.timeline:
-        try:
-            Path(outdir).mkdir(parents=True, exist_ok=True)
-            return _draw(_Figure("stationarity", Path(outdir) / "stationarity.png", (st,)))
-        except Exception:  # noqa: BLE001 - write_report draws it then
-            return []
-    with contextlib.suppress(Exception):
-        from gmwm.plots import new_axes
-
-        ax = new_axes()
-        ax.loglog([1e-2, 1.0, 1e2], [1e-4, 1e-6, 1e-5], label="WV")
-        ax.set_xlabel(r"Scale $\tau$ [s]")
-        ax.legend()
-        ax.figure.savefig(io.BytesIO(), format="png", dpi=40)
-    return []
+    return drawn
 
 
 def _render(figures: Sequence[_Figure], drawn: Sequence[Path] = ()) -> list[Path]:
@@ -300,8 +313,11 @@ def _export(axes: Mapping[str, Mapping[str, Any]], freq: float, topic: str | Non
 
     if not any(a["units"] for a in axes.values()):
         return None
+    # the page's own datasheets and readings: computed once per axis (by the fitting workers)
     return noise_export({n: (a["units"], a["result"]) for n, a in axes.items()}, freq,
-                        topic=topic, inflation=inflation, source=source)
+                        topic=topic, inflation=inflation, source=source,
+                        datasheets={n: a.get("datasheet") for n, a in axes.items()},
+                        readings={n: a.get("readings") for n, a in axes.items()})
 
 
 def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
@@ -349,7 +365,7 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
     body += [f"<h{lv}>Summary</h{lv}>", html_table(headers, summary)]
     for name, a in axes.items():
         res = a["result"]
-        png = out / f"{prefix}{_slug(name)}_wv.png"
+        png = wv_figure_path(out, name, prefix)
         verdict = a.get("verdict")
         figures.append(_Figure("wv", png, (name, res, a["units"] or "", verdict)))
         rows = _rows(a["datasheet"])
@@ -385,7 +401,7 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
                       f'{html.escape(name)}" width="560">'), html_table(vh, vrows),
                      "<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in [*notes, rule])
                      + "</ul>"]
-        readings = _reading_rows(res, a["units"])
+        readings = _reading_rows(res, a["units"], a.get("readings"))
         if readings:
             rh = ["IEEE 952 reading", "value", "95% CI", "unit", "from"]
             md += ["Allan-deviation readings of the same data (slope method, for comparison):", "",

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, TextIO
 
@@ -33,6 +34,7 @@ class ColumnFit:
     check: Any = None
     verdict: dict[str, Any] | None = None
     choice: Any = None
+    readings: dict[str, Any] | None = None  # IEEE 952 readings, when a worker computed them
 
 
 def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
@@ -84,16 +86,24 @@ def fit_settings(args: argparse.Namespace) -> Any:
 
 
 def fit_columns(args: argparse.Namespace, err: TextIO, require_time: str | None = None,
-                while_waiting: Callable[[Inputs], None] | None = None
+                while_waiting: Callable[[Inputs], None] | None = None,
+                figures: str | None = None, drawn: list[Any] | None = None
                 ) -> tuple[Inputs, dict[str, ColumnFit]]:
     """Read the input (:func:`gmwm.cli.inputs.read_fit_data`) and fit every channel with its
     model; every model is parsed before the first fit. ``while_waiting(inputs)``: run in this
-    process while worker processes choose the channels' models (the report's warm-up)."""
+    process while worker processes choose the channels' models (the report's warm-up).
+    ``figures``: a report directory in which the workers that choose the models also draw
+    each channel's WV figure as soon as it is chosen (a report without a datasheet verdict);
+    the files drawn are appended to ``drawn``."""
     import gmwm
     from gmwm.model import Model
     from gmwm.units import datasheet
 
     settings = fit_settings(args)
+    if _several_choices(args):
+        from gmwm.calibrate import start_warm_server
+
+        start_warm_server()  # loads the fitting stack while this process reads the input
     got = read_fit_data(args, err, require_time)
     specs = models_by_column(args.model, list(got.data))
     auto = {c for c, m in specs.items() if m.strip().lower() == AUTO}
@@ -101,17 +111,34 @@ def fit_columns(args: argparse.Namespace, err: TextIO, require_time: str | None 
         raise InputError(f"the automatic model choice fits GMWM candidates; with --method "
                          f"{settings.method} give a model")
     models = {c: Model(specs[c], freq=got.freq) for c in got.data if c not in auto}
-    chosen = _choose_parallel(args, {c: got.data[c] for c in got.data if c in auto}, settings,
-                              got.freq, got.units,
-                              None if while_waiting is None else lambda: while_waiting(got))
+    # a streamed channel's result is completed below (_streamed): its figure waits for that
+    draw: dict[str, str] = {}
+    if figures is not None:
+        from gmwm.report import wv_figure_path
+
+        draw = {c: str(wv_figure_path(figures, c)) for c in auto if c not in got.streamed}
+    try:
+        chosen = _choose_parallel(args, {c: got.data[c] for c in got.data if c in auto},
+                                  settings, got.freq, got.units,
+                                  None if while_waiting is None else lambda: while_waiting(got),
+                                  draw)
+    finally:
+        from gmwm.calibrate import stop_warm_server
+
+        stop_warm_server()
     fits = {}
     for c, d in got.data.items():
         # a WV (a table, streamed, pooled segments) is already cut to --levels
         s = settings if isinstance(d, np.ndarray) else settings.replace(levels=None)
         choice = None
+        page: dict[str, Any] = {}  # what a worker computed for the report page
         if c in auto:
-            choice = chosen.get(c) or _choose(args, c, d, s, got.freq, got.units[c])
+            choice, files, page = chosen.get(c) or (
+                _choose(args, c, d, s, got.freq, got.units[c]), [], None)
+            page = page or {}
             res = choice.result
+            if drawn is not None:
+                drawn.extend(files)
         else:
             args.progress(f"fitting {models[c].spec} to {c}")
             res = gmwm.fit(d, models[c], settings=s, freq=got.freq)
@@ -124,12 +151,23 @@ def fit_columns(args: argparse.Namespace, err: TextIO, require_time: str | None 
             args.progress(f"identifiability check of {c}")
             check = identify.check(res)
         units = got.units[c]
-        fits[c] = ColumnFit(res, units, datasheet(res, units or None), check, choice=choice)
+        sheet = page.get("datasheet") or datasheet(res, units or None)
+        fits[c] = ColumnFit(res, units, sheet, check, choice=choice,
+                            readings=page.get("readings"))
     return got, fits
 
 
 #: the model argument that asks for the automatic choice (gmwm.automodel.choose_model)
 AUTO = "auto"
+
+
+def _several_choices(args: argparse.Namespace) -> bool:
+    """Whether this command will probably choose the models of several channels at once (a
+    report, or several --columns, with an automatic model somewhere): then the worker processes
+    are worth warming beside the reading (:func:`gmwm.calibrate.start_warm_server`)."""
+    if AUTO not in str(getattr(args, "model", "")).lower():
+        return False
+    return args.command == "report" or "," in str(getattr(args, "columns", None) or "")
 
 
 def _choose(args: argparse.Namespace, name: str, data: Any, settings: Any, freq: float | None,
@@ -152,13 +190,17 @@ def _choose(args: argparse.Namespace, name: str, data: Any, settings: Any, freq:
 
 def _choose_parallel(args: argparse.Namespace, data: dict[str, Any], settings: Any,
                      freq: float | None, units: dict[str, str],
-                     while_waiting: Callable[[], None] | None = None) -> dict[str, Any]:
+                     while_waiting: Callable[[], None] | None = None,
+                     figures: Mapping[str, str] | None = None
+                     ) -> dict[str, tuple[Any, list[Any], dict[str, Any] | None]]:
     """The automatic choices of several channels at once, one worker process per core
     (:func:`gmwm.calibrate.calibrate_imus`' executor: a choice is mostly Python, which threads
-    would serialise); {} with one channel or one core (then :func:`_choose` runs each, with
-    per-candidate progress). The choices are the same as one after the other (seeded).
-    ``while_waiting`` runs here once the choices are submitted."""
-    from gmwm.calibrate import _executor, _fit_one, available_cores
+    would serialise): channel -> (choice, report figure files drawn, page values or None); {}
+    with one channel or one core (then :func:`_choose` runs each, with per-candidate progress).
+    The choices are the same as one after the other (seeded). ``while_waiting`` runs here once
+    the choices are submitted. ``figures``: channel -> the report WV figure its worker draws
+    after the choice, with the channel's datasheet (:func:`gmwm.calibrate._choose_and_draw`)."""
+    from gmwm.calibrate import _choose_and_draw, _executor, available_cores, warm_server_running
 
     n = min(len(data), available_cores())
     if n < 2:
@@ -168,15 +210,47 @@ def _choose_parallel(args: argparse.Namespace, data: dict[str, Any], settings: A
     if args.n_starts is not None:
         opts["n_starts"] = settings.n_starts
     with _executor("process", n, warm=True) as pool:
-        futures = {c: pool.submit(_fit_one, d, "auto", freq, settings.levels, opts,
-                                  units.get(c) or None) for c, d in data.items()}
-        if while_waiting is not None:
+        futures: dict[str, Any] = {}
+
+        def submit() -> None:
+            for c, d in data.items():
+                fig = None if c not in (figures or {}) else (figures[c], c)
+                futures[c] = pool.submit(_choose_and_draw, d, freq, settings.levels, opts,
+                                         units.get(c) or None, fig)
+
+        if warm_server_running() and while_waiting is not None:
+            # the warm server answers the first submission once it has loaded the fitting
+            # stack: submit from a thread and do this process's own work meanwhile (no fork
+            # from this process, so its threads are safe)
+            thread, failed = _thread(submit)
             while_waiting()
+            thread.join()
+            if failed:
+                raise failed[0]
+        else:
+            submit()
+            if while_waiting is not None:
+                while_waiting()
         out = {}
         for c, f in futures.items():
             out[c] = f.result()
-            args.progress(f"{c}: {out[c].headline()}")
+            args.progress(f"{c}: {out[c][0].headline()}")
     return out
+
+
+def _thread(fn: Callable[[], None]) -> tuple[threading.Thread, list[BaseException]]:
+    """``fn`` started in a thread; the list receives its exception, if any."""
+    failed: list[BaseException] = []
+
+    def body() -> None:
+        try:
+            fn()
+        except BaseException as exc:  # noqa: BLE001 - re-raised by the caller after join
+            failed.append(exc)
+
+    thread = threading.Thread(target=body, daemon=True)
+    thread.start()
+    return thread, failed
 
 
 def choice_json(choice: Any) -> dict[str, Any] | None:

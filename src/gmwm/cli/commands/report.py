@@ -20,21 +20,31 @@ from gmwm.formatting import fit_json, fit_warnings, json_text, spans
 
 def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     from gmwm.exports import parse_inflation, parse_targets
-    from gmwm.report import warm_up, write_report
+    from gmwm.report import _outdir, warm_up, write_report
 
     targets = parse_targets(args.export)  # bad targets or factors before any fit
     inflation = parse_inflation(args.inflate)
     sheet = load_datasheet(args)
     if getattr(args, "topics", None):
+        if "auto" in str(args.model).lower():
+            from gmwm.calibrate import start_warm_server
+
+            start_warm_server()  # loads the fitting stack while this process reads the file
         return _several(args, out, err, targets, inflation, sheet)
     drawn: list[Path] = []  # the stationarity timeline, drawn while the axes are fitted
+    # without a datasheet verdict to draw on them, the WV figures (and the datasheet
+    # coefficients) come from the workers that choose the models, as each axis is chosen
+    in_workers = sheet is None
     got, fits = fit_columns(args, err, require_time="a calibration report",
-                            while_waiting=lambda g: drawn.extend(warm_up(g.stationarity,
-                                                                         args.output)))
+                            while_waiting=lambda g: drawn.extend(warm_up(
+                                g.stationarity, args.output, fit=not in_workers)),
+                            figures=str(_outdir(args.output)) if in_workers else None,
+                            drawn=drawn)
     fits = attach_verdicts(fits, sheet, err, True)
     args.progress(f"writing the report to {args.output}")
     axes = {c: {"result": f.result, "units": f.units, "warnings": fit_warnings(f.result),
-                "datasheet": f.datasheet, "verdict": f.verdict, "choice": f.choice}
+                "datasheet": f.datasheet, "verdict": f.verdict, "choice": f.choice,
+                "readings": f.readings}
             for c, f in fits.items()}
     st = got.stationarity
     if st is not None:  # each flagged axis says so in its own section and in the summary
@@ -105,10 +115,15 @@ def _several(args: argparse.Namespace, out: TextIO, err: TextIO, targets: Any, i
         else:
             args.progress(msg)
 
-    imus = calibrate_imus(recs, model, units=units, levels=args.levels, gaps=args.gaps,
-                          start_s=args.start, end_s=args.end, segment=args.segment,
-                          strict=args.strict, fit_options=options, progress=say,
-                          executor="process")  # choices are mostly Python: threads serialise
+    try:
+        imus = calibrate_imus(recs, model, units=units, levels=args.levels, gaps=args.gaps,
+                              start_s=args.start, end_s=args.end, segment=args.segment,
+                              strict=args.strict, fit_options=options, progress=say,
+                              executor="process")  # choices are mostly Python: threads serialise
+    finally:
+        from gmwm.calibrate import stop_warm_server
+
+        stop_warm_server()
     status = 0
     for topic, sec in imus.items():
         for c, axis in sec.axes.items():
