@@ -47,6 +47,7 @@ include: "workflow/rules/navigation.smk"
 include: "workflow/rules/svo.smk"
 include: "workflow/rules/allan.smk"
 include: "workflow/rules/replicates.smk"
+include: "workflow/rules/design.smk"
 include: "workflow/rules/report.smk"
 
 
@@ -56,3 +57,4 @@ rule all:
         all_targets(),
         navchip_targets(),  # not index/archive inputs: missing data fails only navchip
         uncertainty_navchip_targets(),  # likewise (bootstrap/identifiability of Navchip fits)
+        design_targets(),  # likewise (its Navchip part reads the Navchip bootstrap draws)

@@ -102,7 +102,8 @@ class Prediction:
     """Predicted precision of the default fit for one recording of ``n_samples`` samples.
 
     ``se`` / ``rse``: standard error and relative SE of each parameter (names as in
-    :func:`gmwm.fit`); ``coefficients``: datasheet coefficients (``value``, ``unit``, ``rse``,
+    :func:`gmwm.fit`); ``cov``: the sandwich covariance behind them (parameter order of
+    ``se``; for joint statements about several parameters); ``coefficients``: datasheet coefficients (``value``, ``unit``, ``rse``,
     ``ci95``); ``identifiable``: per component, the rule of the module docstring."""
 
     n_samples: int
@@ -113,6 +114,7 @@ class Prediction:
     coefficients: dict[str, dict[str, Any]]
     identifiable: dict[str, bool]
     condition_number: float
+    cov: np.ndarray | None = field(default=None, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
         return {"seconds": self.seconds, "duration": format_duration(self.seconds),
@@ -228,7 +230,7 @@ def predict(model: Any, theta: Any, n_samples: int, *, unit: str | None = None,
     coefs = _coefficients(model, theta, cov, wv, unit, bi)
     return Prediction(n, n / model.freq, wv.n_levels, dict(zip(names, map(float, se), strict=True)),
                       dict(zip(names, map(float, rse), strict=True)), coefs,
-                      _identifiable(model, theta, se), float(cond))
+                      _identifiable(model, theta, se), float(cond), cov)
 
 
 # --------------------------------------------------------------------------------------------------

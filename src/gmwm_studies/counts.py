@@ -42,6 +42,7 @@ __all__ = [
     "Mismatch",
     "check_markers",
     "draw_counts",
+    "factor2_off",
     "find_markers",
     "quoted_matches",
     "read_counts",
@@ -70,6 +71,13 @@ class Count:
     value: float | None
     definition: str
     source: str
+
+
+def factor2_off(x: Any, truth: float) -> np.ndarray:
+    """True where an estimate is off the truth by more than a factor 2 (x / truth > 2 or < 1/2;
+    an estimate at 0 is off; NaN is not). The rule of the ``factor2_miss`` counts."""
+    r = np.asarray(x, dtype=float) / truth
+    return (r > 2) | (r < 0.5)
 
 
 def _pname(name: str) -> str:
@@ -106,10 +114,10 @@ def _sin_counts(sub: pd.DataFrame, prefix: str, truth: Mapping[str, float], J: i
         fitted = np.isfinite(a) & np.isfinite(b)
         if not fitted.any():  # the fitted model has no such sinusoid (e.g. a misspecified one)
             continue
-        ra, rb = a / ta, b / tb
-        off = (ra > 2) | (ra < 0.5) | (rb > 2) | (rb < 0.5)
+        rb = b / tb
+        off = factor2_off(a, ta) | factor2_off(b, tb)
         p = f"{prefix}.SIN{k}"
-        out.append(Count(f"{p}.factor2_miss", int(np.sum(off & np.isfinite(ra))),
+        out.append(Count(f"{p}.factor2_miss", int(np.sum(off & np.isfinite(a))),
                          f"converged fits with SIN[{k}] alpha or beta off the truth by more than "
                          f"a factor 2 (ratio > 2 or < 1/2)", src))
         med = float(np.median(np.abs(rb[fitted] - 1.0)))
