@@ -114,7 +114,7 @@ HOT static double diff_sq(const double *restrict src, ssz lo, ssz hi, ssz lag)
  * V_t - V_{t-m} and v - w go to s[0] and s[1], lanes as level_step. The values are those of two
  * separate levels, with half the memory traffic. */
 HOT static void pair_step(const double *restrict src, double *restrict dst, ssz lo, ssz hi, ssz m,
-                          double *s)
+                          double *s, const double *pf, ssz pf_n)
 {
     const double *p0 = src + lo, *p1 = src + lo - m, *p2 = src + lo - 2 * m,
                  *p3 = src + lo - 3 * m;
@@ -122,7 +122,13 @@ HOT static void pair_step(const double *restrict src, double *restrict dst, ssz 
     const ssz n = hi - lo, n16 = n - n % LANES;
     double a[LANES] = {0.0}, b[LANES] = {0.0};
     ssz i = 0;
-    for (; i < n16; i += LANES)
+    for (; i < n16; i += LANES) {
+        if (i < pf_n) {
+            /* two cache lines of the next block's samples per 16 positions (pf_n: a multiple
+             * of 16 at most the pass length, 0 for none) */
+            __builtin_prefetch(pf + i, 0, 2);
+            __builtin_prefetch(pf + i + 8, 0, 2);
+        }
         for (int l = 0; l < LANES; l++) {
             const double x = p0[i + l], y = p1[i + l], u = p2[i + l], z = p3[i + l];
             const double v = 0.5 * (x + y), w = 0.5 * (u + z), d = x - y, e = v - w;
@@ -130,6 +136,7 @@ HOT static void pair_step(const double *restrict src, double *restrict dst, ssz 
             b[l] += e * e;
             out[i + l] = 0.5 * (v + w);
         }
+    }
     double s0 = reduce16(a), s1 = reduce16(b);
     for (; i < n; i++) {
         const double x = p0[i], y = p1[i], u = p2[i], z = p3[i];
@@ -159,7 +166,7 @@ HOT static void pair_avg(const double *restrict src, double *restrict dst, ssz l
  * second level's lo (which pair_step does not reach) are summed apart (diff_sq) and added first.
  * Returns 0 if the last computed level's averages are in a, 1 if in b. */
 static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_from,
-                   double *out)
+                   double *out, double *tails)
 {
     double *src = a, *dst = b, *tmp;
     int which = 0;
@@ -179,9 +186,13 @@ static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_
                     if (acc_lo > lo2)
                         pair_avg(src, dst, lo2, acc_lo < n ? acc_lo : n, m);
                     if (acc_lo < n)
-                        pair_step(src, dst, acc_lo, n, m, s);
+                        pair_step(src, dst, acc_lo, n, m, s, NULL, 0);
                     out[j - 1] = head + s[0];
                     out[j] = s[1];
+                    if (tails != NULL) {          /* for the next block (block_levels) */
+                        memcpy(tails, src + n - 3 * m, (size_t)(3 * m) * sizeof(double));
+                        tails += 3 * m;
+                    }
                     tmp = src; src = dst; dst = tmp;
                     which = 1 - which;
                 }
@@ -194,6 +205,8 @@ static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_
                     level_avg(src, dst, lo1, acc_lo < n ? acc_lo : n, m);
                 if (acc_lo < n)
                     out[j - 1] = level_step(src, dst, acc_lo, n, m);
+                if (tails != NULL)
+                    memcpy(tails, src + n - m, (size_t)m * sizeof(double));
                 tmp = src; src = dst; dst = tmp;
                 which = 1 - which;
             }
@@ -204,6 +217,41 @@ static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_
 }
 
 /* ---- phase 1 ------------------------------------------------------------------------------- */
+
+/* Levels 1..L of a block that follows, in the same thread, a block whose pyramid (pyramid or
+ * block_levels) saved its tails: a[h:n) holds V_0 of the block's positions (h = 2^L - 1), and the
+ * values of each level below the block start, which pyramid would recompute in the halo, are
+ * instead copied from the previous block's tails (the same values: V_j at t depends only on the
+ * samples t - 2^j + 1 .. t). Every pass then covers exactly [h, n), which is what pyramid sums for
+ * such a block (acc_from = h >= lo_j, no head terms): the same sums, the same bits. Saves its own
+ * tails for the next block. The first pass prefetches pf[:pf_n) (the next block's samples). */
+static int block_levels(double *a, double *b, ssz h, ssz n, ssz L, double *out, double *tails,
+                        const double *pf, ssz pf_n)
+{
+    double *src = a, *dst = b, *tmp;
+    int which = 0;
+    for (ssz j = 1; j <= L;) {
+        const ssz m = (ssz)1 << (j - 1);
+        if (j < L) {
+            double s[2] = {0.0, 0.0};
+            memcpy(src + h - 3 * m, tails, (size_t)(3 * m) * sizeof(double));
+            pair_step(src, dst, h, n, m, s, j == 1 ? pf : NULL, j == 1 ? pf_n : 0);
+            out[j - 1] = 0.0 + s[0];  /* as pyramid: head (0.0 here) + s[0] */
+            out[j] = s[1];
+            memcpy(tails, src + n - 3 * m, (size_t)(3 * m) * sizeof(double));
+            tails += 3 * m;
+            j += 2;
+        } else {
+            memcpy(src + h - m, tails, (size_t)m * sizeof(double));
+            out[j - 1] = level_step(src, dst, h, n, m);
+            memcpy(tails, src + n - m, (size_t)m * sizeof(double));
+            j += 1;
+        }
+        tmp = src; src = dst; dst = tmp;
+        which = 1 - which;
+    }
+    return which;
+}
 
 typedef struct {
     const double *x;      /* x[t - t_lo] is sample t */
@@ -255,35 +303,76 @@ static void store_vl(const p1_job *jb, const double *src, ssz s0, ssz t_a, ssz t
 }
 
 /* Blocks [b_first, b_last) of the job (block b covers [t_begin + b block, ...)). */
+/* dst[i] = src[i] - x0 */
+HOT static void shift_copy(const double *restrict src, double *restrict dst, ssz n, double x0)
+{
+    for (ssz i = 0; i < n; i++)
+        dst[i] = src[i] - x0;
+}
+
 static void phase1_blocks(p1_job *jb, ssz b_first, ssz b_last)
 {
-    const ssz L = jb->L, halo = ((ssz)1 << L) - 1, len = jb->block + halo;
-    double *buf_a = malloc((size_t)len * sizeof(double));
-    double *buf_b = malloc((size_t)len * sizeof(double));
-    if (buf_a == NULL || buf_b == NULL) {
-        free(buf_a);
-        free(buf_b);
+    const ssz L = jb->L, P = (ssz)1 << L, halo = P - 1, len = jb->block + halo;
+    /* the block start (index halo) on a 64-byte boundary: aligned vector stores in every pass */
+    const ssz pad = (8 - halo % 8) % 8;
+    double *mem_a = malloc((size_t)(len + pad + 8) * sizeof(double));
+    double *mem_b = malloc((size_t)(len + pad + 8) * sizeof(double));
+    /* the values each pass reads below the block start (3m per pair, m for a last single level;
+     * less than 2 * 2^L in all) */
+    double *tails = malloc((size_t)(2 * P) * sizeof(double));
+    if (mem_a == NULL || mem_b == NULL || tails == NULL) {
+        free(mem_a);
+        free(mem_b);
+        free(tails);
         jb->fail = 1;
         return;
     }
+    double *buf_a = mem_a + ((-(ssz)((uintptr_t)mem_a / sizeof(double))) & 7) + pad;
+    double *buf_b = mem_b + ((-(ssz)((uintptr_t)mem_b / sizeof(double))) & 7) + pad;
+    /* a block may reuse the previous block's tails when it starts at or after the halo and
+     * blocks are at least 2^L long (then every tail lies at or after its level's first
+     * position, and inside the previous block or its halo) */
+    const int carry_ok = jb->block >= P;
+    int have_tails = 0;
+    const double x0 = jb->x0;
     for (ssz b = b_first; b < b_last; b++) {
         const ssz b0 = jb->t_begin + b * jb->block;
         const ssz b1 = b0 + jb->block < jb->t_end ? b0 + jb->block : jb->t_end;
         const ssz s0 = b0 - halo > 0 ? b0 - halo : 0;
         const ssz n = b1 - s0;
-        const double *xs = jb->x + (s0 - jb->t_lo);
-        const double x0 = jb->x0;
-        for (ssz i = 0; i < n; i++)
-            buf_a[i] = xs[i] - x0;
-        const int which = pyramid(buf_a, buf_b, n, L, 1, b0 - s0, jb->blk + b * L);
+        int which;
+        if (have_tails && b0 >= halo) {
+            /* the next block's samples, prefetched during the first pass */
+            const ssz nb0 = b1, nb1 = nb0 + jb->block < jb->t_end ? nb0 + jb->block : jb->t_end;
+            ssz pf_n = b + 1 < b_last ? nb1 - nb0 : 0;
+            pf_n = pf_n < b1 - b0 ? pf_n : b1 - b0;
+            pf_n -= pf_n % LANES;
+            shift_copy(jb->x + (b0 - jb->t_lo), buf_a + halo, b1 - b0, x0);
+            which = block_levels(buf_a, buf_b, halo, n, L, jb->blk + b * L, tails,
+                                 jb->x + (nb0 - jb->t_lo), pf_n);
+        } else {
+            /* buffers shifted so that the block start (index b0 - s0) is at index halo */
+            const ssz off = halo - (b0 - s0);
+            shift_copy(jb->x + (s0 - jb->t_lo), buf_a + off, n, x0);
+            which = pyramid(buf_a + off, buf_b + off, n, L, 1, b0 - s0, jb->blk + b * L,
+                            carry_ok && b1 - b0 == jb->block ? tails : NULL);
+            have_tails = carry_ok && b1 - b0 == jb->block;
+            if (jb->store != NULL) {
+                const ssz t_a = b0 > halo ? b0 : halo;
+                if (t_a < b1)
+                    store_vl(jb, (which == 0 ? buf_a : buf_b) + off, s0, t_a, b1);
+            }
+            continue;
+        }
         if (jb->store != NULL) {
             const ssz t_a = b0 > halo ? b0 : halo;
             if (t_a < b1)
                 store_vl(jb, which == 0 ? buf_a : buf_b, s0, t_a, b1);
         }
     }
-    free(buf_a);
-    free(buf_b);
+    free(mem_a);
+    free(mem_b);
+    free(tails);
 #ifdef __SSE2__
     if (jb->stream)
         _mm_sfence();  /* the non-temporal stores are visible before the thread ends */
@@ -316,7 +405,7 @@ static void phase2_panels(p2_job *jb, ssz q_first, ssz q_last)
         last = last < cp ? last : cp;
         double *pan = jb->store + jb->rows * q * c;
         pyramid(pan, pan_b, (jb->rows - 1) * cp + last, jb->n_levels2, cp, 0,
-                jb->psum + q * jb->n_levels2);
+                jb->psum + q * jb->n_levels2, NULL);
     }
     free(pan_b);
 }
