@@ -124,8 +124,8 @@ HOT static void pair_step(const double *restrict src, double *restrict dst, ssz 
     ssz i = 0;
     for (; i < n16; i += LANES) {
         if (i < pf_n) {
-            /* two cache lines of the next block's samples per 16 positions (pf_n: a multiple
-             * of 16 at most the pass length, 0 for none) */
+            /* two cache lines of what the caller works on next (the next block's samples or
+             * panel) per 16 positions: pf[:pf_n) as far as this pass reaches */
             __builtin_prefetch(pf + i, 0, 2);
             __builtin_prefetch(pf + i + 8, 0, 2);
         }
@@ -166,7 +166,7 @@ HOT static void pair_avg(const double *restrict src, double *restrict dst, ssz l
  * second level's lo (which pair_step does not reach) are summed apart (diff_sq) and added first.
  * Returns 0 if the last computed level's averages are in a, 1 if in b. */
 static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_from,
-                   double *out, double *tails)
+                   double *out, double *tails, const double *pf, ssz pf_n)
 {
     double *src = a, *dst = b, *tmp;
     int which = 0;
@@ -186,7 +186,7 @@ static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_
                     if (acc_lo > lo2)
                         pair_avg(src, dst, lo2, acc_lo < n ? acc_lo : n, m);
                     if (acc_lo < n)
-                        pair_step(src, dst, acc_lo, n, m, s, NULL, 0);
+                        pair_step(src, dst, acc_lo, n, m, s, j == 1 ? pf : NULL, j == 1 ? pf_n : 0);
                     out[j - 1] = head + s[0];
                     out[j] = s[1];
                     if (tails != NULL) {          /* for the next block (block_levels) */
@@ -355,7 +355,7 @@ static void phase1_blocks(p1_job *jb, ssz b_first, ssz b_last)
             const ssz off = halo - (b0 - s0);
             shift_copy(jb->x + (s0 - jb->t_lo), buf_a + off, n, x0);
             which = pyramid(buf_a + off, buf_b + off, n, L, 1, b0 - s0, jb->blk + b * L,
-                            carry_ok && b1 - b0 == jb->block ? tails : NULL);
+                            carry_ok && b1 - b0 == jb->block ? tails : NULL, NULL, 0);
             have_tails = carry_ok && b1 - b0 == jb->block;
             if (jb->store != NULL) {
                 const ssz t_a = b0 > halo ? b0 : halo;
@@ -404,8 +404,11 @@ static void phase2_panels(p2_job *jb, ssz q_first, ssz q_last)
         last = last > 0 ? last : 0;
         last = last < cp ? last : cp;
         double *pan = jb->store + jb->rows * q * c;
+        /* the next panel of this thread (rows * c values after this one, or fewer when it is
+         * the last), prefetched during the first pass */
+        const ssz pf_n = q + 1 < q_last ? jb->rows * (r0 + 2 * c <= P ? c : P - r0 - c) : 0;
         pyramid(pan, pan_b, (jb->rows - 1) * cp + last, jb->n_levels2, cp, 0,
-                jb->psum + q * jb->n_levels2, NULL);
+                jb->psum + q * jb->n_levels2, NULL, pan + jb->rows * cp, pf_n);
     }
     free(pan_b);
 }
