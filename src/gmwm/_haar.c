@@ -32,8 +32,10 @@
 #endif
 
 /* GCC on x86-64 Linux: an AVX2 clone of the hot loops, chosen at load time when the CPU has it
- * (the same operations in the same order as the baseline clone: the same bits). */
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+ * (the same operations in the same order as the baseline clone: the same bits; tests build the
+ * baseline alone with -DGMWM_HAAR_NO_CLONES to check it). */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__) \
+    && !defined(GMWM_HAAR_NO_CLONES)
 #define HOT __attribute__((target_clones("avx2", "default")))
 #else
 #define HOT
