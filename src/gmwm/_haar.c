@@ -44,6 +44,7 @@
 typedef Py_ssize_t ssz;
 
 #define LANES 16
+#define RING 4096 /* values of pair_step's ring (32 KiB) */
 
 /* Averages only: dst[t] = (src[t] + src[t - lag]) / 2 for t in [lo, hi). */
 HOT static void level_avg(const double *restrict src, double *restrict dst, ssz lo, ssz hi,
@@ -116,7 +117,7 @@ HOT static double diff_sq(const double *restrict src, ssz lo, ssz hi, ssz lag)
  * V_t - V_{t-m} and v - w go to s[0] and s[1], lanes as level_step. The values are those of two
  * separate levels, with half the memory traffic. */
 HOT static void pair_step(const double *restrict src, double *restrict dst, ssz lo, ssz hi, ssz m,
-                          double *s, const double *pf, ssz pf_n)
+                          double *s, const double *pf, ssz pf_n, double *restrict ring)
 {
     const double *p0 = src + lo, *p1 = src + lo - m, *p2 = src + lo - 2 * m,
                  *p3 = src + lo - 3 * m;
@@ -124,6 +125,32 @@ HOT static void pair_step(const double *restrict src, double *restrict dst, ssz 
     const ssz n = hi - lo, n16 = n - n % LANES;
     double a[LANES] = {0.0}, b[LANES] = {0.0};
     ssz i = 0;
+    if (ring != NULL && (2 * m) % LANES == 0 && 2 * m <= RING) {
+        /* w at t is v at t - 2m: kept in a ring of 2m values rather than recomputed (one
+         * addition and one multiplication fewer per position; the same value). The ring starts
+         * with w of the first 2m positions, computed as in the loop below. */
+        const ssz R = 2 * m, r_n = R < n16 ? R : n16;
+        for (ssz k = 0; k < r_n; k++)
+            ring[k] = 0.5 * (p2[k] + p3[k]);
+        ssz r = 0;
+        for (; i < n16; i += LANES) {
+            if (i < pf_n) {
+                __builtin_prefetch(pf + i, 0, 2);
+                __builtin_prefetch(pf + i + 8, 0, 2);
+            }
+            double *rg = ring + r;
+            for (int l = 0; l < LANES; l++) {
+                const double x = p0[i + l], y = p1[i + l];
+                const double v = 0.5 * (x + y), w = rg[l], d = x - y, e = v - w;
+                rg[l] = v;
+                a[l] += d * d;
+                b[l] += e * e;
+                out[i + l] = 0.5 * (v + w);
+            }
+            r += LANES;
+            r = r == R ? 0 : r;
+        }
+    }
     for (; i < n16; i += LANES) {
         if (i < pf_n) {
             /* two cache lines of what the caller works on next (the next block's samples or
@@ -168,7 +195,7 @@ HOT static void pair_avg(const double *restrict src, double *restrict dst, ssz l
  * second level's lo (which pair_step does not reach) are summed apart (diff_sq) and added first.
  * Returns 0 if the last computed level's averages are in a, 1 if in b. */
 static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_from,
-                   double *out, double *tails, const double *pf, ssz pf_n)
+                   double *out, double *tails, const double *pf, ssz pf_n, double *ring)
 {
     double *src = a, *dst = b, *tmp;
     int which = 0;
@@ -188,7 +215,8 @@ static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_
                     if (acc_lo > lo2)
                         pair_avg(src, dst, lo2, acc_lo < n ? acc_lo : n, m);
                     if (acc_lo < n)
-                        pair_step(src, dst, acc_lo, n, m, s, j == 1 ? pf : NULL, j == 1 ? pf_n : 0);
+                        pair_step(src, dst, acc_lo, n, m, s, j == 1 ? pf : NULL, j == 1 ? pf_n : 0,
+                                  ring);
                     out[j - 1] = head + s[0];
                     out[j] = s[1];
                     if (tails != NULL) {          /* for the next block (block_levels) */
@@ -228,7 +256,7 @@ static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_
  * such a block (acc_from = h >= lo_j, no head terms): the same sums, the same bits. Saves its own
  * tails for the next block. The first pass prefetches pf[:pf_n) (the next block's samples). */
 static int block_levels(double *a, double *b, ssz h, ssz n, ssz L, double *out, double *tails,
-                        const double *pf, ssz pf_n)
+                        const double *pf, ssz pf_n, double *ring)
 {
     double *src = a, *dst = b, *tmp;
     int which = 0;
@@ -237,7 +265,7 @@ static int block_levels(double *a, double *b, ssz h, ssz n, ssz L, double *out, 
         if (j < L) {
             double s[2] = {0.0, 0.0};
             memcpy(src + h - 3 * m, tails, (size_t)(3 * m) * sizeof(double));
-            pair_step(src, dst, h, n, m, s, j == 1 ? pf : NULL, j == 1 ? pf_n : 0);
+            pair_step(src, dst, h, n, m, s, j == 1 ? pf : NULL, j == 1 ? pf_n : 0, ring);
             out[j - 1] = 0.0 + s[0];  /* as pyramid: head (0.0 here) + s[0] */
             out[j] = s[1];
             memcpy(tails, src + n - 3 * m, (size_t)(3 * m) * sizeof(double));
@@ -321,7 +349,7 @@ static void phase1_blocks(p1_job *jb, ssz b_first, ssz b_last)
     double *mem_b = malloc((size_t)(len + pad + 8) * sizeof(double));
     /* the values each pass reads below the block start (3m per pair, m for a last single level;
      * less than 2 * 2^L in all) */
-    double *tails = malloc((size_t)(2 * P) * sizeof(double));
+    double *tails = malloc((size_t)(2 * P + RING) * sizeof(double));   /* + pair_step's ring */
     if (mem_a == NULL || mem_b == NULL || tails == NULL) {
         free(mem_a);
         free(mem_b);
@@ -351,13 +379,14 @@ static void phase1_blocks(p1_job *jb, ssz b_first, ssz b_last)
             pf_n -= pf_n % LANES;
             shift_copy(jb->x + (b0 - jb->t_lo), buf_a + halo, b1 - b0, x0);
             which = block_levels(buf_a, buf_b, halo, n, L, jb->blk + b * L, tails,
-                                 jb->x + (nb0 - jb->t_lo), pf_n);
+                                 jb->x + (nb0 - jb->t_lo), pf_n, tails + 2 * P);
         } else {
             /* buffers shifted so that the block start (index b0 - s0) is at index halo */
             const ssz off = halo - (b0 - s0);
             shift_copy(jb->x + (s0 - jb->t_lo), buf_a + off, n, x0);
             which = pyramid(buf_a + off, buf_b + off, n, L, 1, b0 - s0, jb->blk + b * L,
-                            carry_ok && b1 - b0 == jb->block ? tails : NULL, NULL, 0);
+                            carry_ok && b1 - b0 == jb->block ? tails : NULL, NULL, 0,
+                            tails + 2 * P);
             have_tails = carry_ok && b1 - b0 == jb->block;
             if (jb->store != NULL) {
                 const ssz t_a = b0 > halo ? b0 : halo;
@@ -394,7 +423,7 @@ static void phase2_panels(p2_job *jb, ssz q_first, ssz q_last)
 {
     const ssz P = (ssz)1 << jb->L, c = jb->panel;
     const ssz cw = c < P ? c : P;
-    double *pan_b = malloc((size_t)(jb->rows * cw) * sizeof(double));
+    double *pan_b = malloc((size_t)(jb->rows * cw + RING) * sizeof(double));  /* + the ring */
     if (pan_b == NULL) {
         jb->fail = 1;
         return;
@@ -410,7 +439,8 @@ static void phase2_panels(p2_job *jb, ssz q_first, ssz q_last)
          * the last), prefetched during the first pass */
         const ssz pf_n = q + 1 < q_last ? jb->rows * (r0 + 2 * c <= P ? c : P - r0 - c) : 0;
         pyramid(pan, pan_b, (jb->rows - 1) * cp + last, jb->n_levels2, cp, 0,
-                jb->psum + q * jb->n_levels2, NULL, pan + jb->rows * cp, pf_n);
+                jb->psum + q * jb->n_levels2, NULL, pan + jb->rows * cp, pf_n,
+                pan_b + jb->rows * cw);
     }
     free(pan_b);
 }
