@@ -41,6 +41,14 @@
 #define HOT
 #endif
 
+#if defined(__GNUC__) || defined(__clang__)
+#define PREFETCH(p) __builtin_prefetch((p), 0, 2)
+#define ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define PREFETCH(p) ((void)(p))
+#define ALWAYS_INLINE inline
+#endif
+
 typedef Py_ssize_t ssz;
 
 #define LANES 16
@@ -116,12 +124,13 @@ HOT static double diff_sq(const double *restrict src, ssz lo, ssz hi, ssz lag)
  * t - 2m, recomputed rather than stored), dst[t] = (v + w)/2; the two sums of squares of
  * V_t - V_{t-m} and v - w go to s[0] and s[1], lanes as level_step. The values are those of two
  * separate levels, with half the memory traffic. */
-HOT static void pair_step(const double *restrict src, double *restrict dst, ssz lo, ssz hi, ssz m,
-                          double *s, const double *pf, ssz pf_n, double *restrict ring)
+static ALWAYS_INLINE void
+pair_body(const double *restrict src, double *restrict dst, ssz lo, ssz hi, ssz m, double *s,
+          const double *pf, ssz pf_n, double *restrict ring, const int keep)
 {
     const double *p0 = src + lo, *p1 = src + lo - m, *p2 = src + lo - 2 * m,
                  *p3 = src + lo - 3 * m;
-    double *out = dst + lo;
+    double *out = keep ? dst + lo : NULL;
     const ssz n = hi - lo, n16 = n - n % LANES;
     double a[LANES] = {0.0}, b[LANES] = {0.0};
     ssz i = 0;
@@ -135,8 +144,8 @@ HOT static void pair_step(const double *restrict src, double *restrict dst, ssz 
         ssz r = 0;
         for (; i < n16; i += LANES) {
             if (i < pf_n) {
-                __builtin_prefetch(pf + i, 0, 2);
-                __builtin_prefetch(pf + i + 8, 0, 2);
+                PREFETCH(pf + i);
+                PREFETCH(pf + i + 8);
             }
             double *rg = ring + r;
             for (int l = 0; l < LANES; l++) {
@@ -145,7 +154,8 @@ HOT static void pair_step(const double *restrict src, double *restrict dst, ssz 
                 rg[l] = v;
                 a[l] += d * d;
                 b[l] += e * e;
-                out[i + l] = 0.5 * (v + w);
+                if (keep)
+                    out[i + l] = 0.5 * (v + w);
             }
             r += LANES;
             r = r == R ? 0 : r;
@@ -155,15 +165,16 @@ HOT static void pair_step(const double *restrict src, double *restrict dst, ssz 
         if (i < pf_n) {
             /* two cache lines of what the caller works on next (the next block's samples or
              * panel) per 16 positions: pf[:pf_n) as far as this pass reaches */
-            __builtin_prefetch(pf + i, 0, 2);
-            __builtin_prefetch(pf + i + 8, 0, 2);
+            PREFETCH(pf + i);
+            PREFETCH(pf + i + 8);
         }
         for (int l = 0; l < LANES; l++) {
             const double x = p0[i + l], y = p1[i + l], u = p2[i + l], z = p3[i + l];
             const double v = 0.5 * (x + y), w = 0.5 * (u + z), d = x - y, e = v - w;
             a[l] += d * d;
             b[l] += e * e;
-            out[i + l] = 0.5 * (v + w);
+            if (keep)
+                out[i + l] = 0.5 * (v + w);
         }
     }
     double s0 = reduce16(a), s1 = reduce16(b);
@@ -172,10 +183,24 @@ HOT static void pair_step(const double *restrict src, double *restrict dst, ssz 
         const double v = 0.5 * (x + y), w = 0.5 * (u + z), d = x - y, e = v - w;
         s0 += d * d;
         s1 += e * e;
-        out[i] = 0.5 * (v + w);
+        if (keep)
+            out[i] = 0.5 * (v + w);
     }
     s[0] = s0;
     s[1] = s1;
+}
+
+HOT static void pair_step(const double *restrict src, double *restrict dst, ssz lo, ssz hi, ssz m,
+                          double *s, const double *pf, ssz pf_n, double *restrict ring)
+{
+    pair_body(src, dst, lo, hi, m, s, pf, pf_n, ring, 1);
+}
+
+/* The sums of pair_step alone (the averages of a last pass are not needed). */
+HOT static void pair_sums(const double *restrict src, ssz lo, ssz hi, ssz m, double *s,
+                          const double *pf, ssz pf_n, double *restrict ring)
+{
+    pair_body(src, NULL, lo, hi, m, s, pf, pf_n, ring, 0);
 }
 
 /* Averages only of pair_step. */
@@ -193,9 +218,11 @@ HOT static void pair_avg(const double *restrict src, double *restrict dst, ssz l
  * lo_j = 2 lag_j - unit; the sum of squared differences at positions >= acc_from of level j goes
  * to out[j - 1] (0 when there are none): for the first level of a pair, the positions below the
  * second level's lo (which pair_step does not reach) are summed apart (diff_sq) and added first.
- * Returns 0 if the last computed level's averages are in a, 1 if in b. */
+ * Returns 0 if the last computed level's averages are in a, 1 if in b; without need_last, the
+ * last level's averages are not computed (only its sums). */
 static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_from,
-                   double *out, double *tails, const double *pf, ssz pf_n, double *ring)
+                   double *out, double *tails, const double *pf, ssz pf_n, double *ring,
+                   int need_last)
 {
     double *src = a, *dst = b, *tmp;
     int which = 0;
@@ -212,10 +239,14 @@ static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_
                 if (lo2 < n) {
                     const ssz acc_lo = lo2 > acc_from ? lo2 : acc_from;
                     double s[2] = {0.0, 0.0};
-                    if (acc_lo > lo2)
+                    const int keep = need_last || j + 1 < n_levels;
+                    if (acc_lo > lo2 && keep)
                         pair_avg(src, dst, lo2, acc_lo < n ? acc_lo : n, m);
-                    if (acc_lo < n)
+                    if (acc_lo < n && keep)
                         pair_step(src, dst, acc_lo, n, m, s, j == 1 ? pf : NULL, j == 1 ? pf_n : 0,
+                                  ring);
+                    else if (acc_lo < n)
+                        pair_sums(src, acc_lo, n, m, s, j == 1 ? pf : NULL, j == 1 ? pf_n : 0,
                                   ring);
                     out[j - 1] = head + s[0];
                     out[j] = s[1];
@@ -231,10 +262,11 @@ static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_
         } else {
             if (lo1 < n) {
                 const ssz acc_lo = lo1 > acc_from ? lo1 : acc_from;
-                if (acc_lo > lo1)
+                if (acc_lo > lo1 && need_last)
                     level_avg(src, dst, lo1, acc_lo < n ? acc_lo : n, m);
-                if (acc_lo < n)
-                    out[j - 1] = level_step(src, dst, acc_lo, n, m);
+                if (acc_lo < n)   /* the same sum with or without the averages */
+                    out[j - 1] = need_last ? level_step(src, dst, acc_lo, n, m)
+                                           : diff_sq(src, acc_lo, n, m);
                 if (tails != NULL)
                     memcpy(tails, src + n - m, (size_t)m * sizeof(double));
                 tmp = src; src = dst; dst = tmp;
@@ -256,7 +288,7 @@ static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_
  * such a block (acc_from = h >= lo_j, no head terms): the same sums, the same bits. Saves its own
  * tails for the next block. The first pass prefetches pf[:pf_n) (the next block's samples). */
 static int block_levels(double *a, double *b, ssz h, ssz n, ssz L, double *out, double *tails,
-                        const double *pf, ssz pf_n, double *ring)
+                        const double *pf, ssz pf_n, double *ring, int need_last)
 {
     double *src = a, *dst = b, *tmp;
     int which = 0;
@@ -265,7 +297,10 @@ static int block_levels(double *a, double *b, ssz h, ssz n, ssz L, double *out, 
         if (j < L) {
             double s[2] = {0.0, 0.0};
             memcpy(src + h - 3 * m, tails, (size_t)(3 * m) * sizeof(double));
-            pair_step(src, dst, h, n, m, s, j == 1 ? pf : NULL, j == 1 ? pf_n : 0, ring);
+            if (need_last || j + 1 < L)
+                pair_step(src, dst, h, n, m, s, j == 1 ? pf : NULL, j == 1 ? pf_n : 0, ring);
+            else
+                pair_sums(src, h, n, m, s, j == 1 ? pf : NULL, j == 1 ? pf_n : 0, ring);
             out[j - 1] = 0.0 + s[0];  /* as pyramid: head (0.0 here) + s[0] */
             out[j] = s[1];
             memcpy(tails, src + n - 3 * m, (size_t)(3 * m) * sizeof(double));
@@ -273,7 +308,7 @@ static int block_levels(double *a, double *b, ssz h, ssz n, ssz L, double *out, 
             j += 2;
         } else {
             memcpy(src + h - m, tails, (size_t)m * sizeof(double));
-            out[j - 1] = level_step(src, dst, h, n, m);
+            out[j - 1] = need_last ? level_step(src, dst, h, n, m) : diff_sq(src, h, n, m);
             memcpy(tails, src + n - m, (size_t)m * sizeof(double));
             j += 1;
         }
@@ -379,14 +414,15 @@ static void phase1_blocks(p1_job *jb, ssz b_first, ssz b_last)
             pf_n -= pf_n % LANES;
             shift_copy(jb->x + (b0 - jb->t_lo), buf_a + halo, b1 - b0, x0);
             which = block_levels(buf_a, buf_b, halo, n, L, jb->blk + b * L, tails,
-                                 jb->x + (nb0 - jb->t_lo), pf_n, tails + 2 * P);
+                                 jb->x + (nb0 - jb->t_lo), pf_n, tails + 2 * P,
+                                 jb->store != NULL);
         } else {
             /* buffers shifted so that the block start (index b0 - s0) is at index halo */
             const ssz off = halo - (b0 - s0);
             shift_copy(jb->x + (s0 - jb->t_lo), buf_a + off, n, x0);
             which = pyramid(buf_a + off, buf_b + off, n, L, 1, b0 - s0, jb->blk + b * L,
                             carry_ok && b1 - b0 == jb->block ? tails : NULL, NULL, 0,
-                            tails + 2 * P);
+                            tails + 2 * P, jb->store != NULL);
             have_tails = carry_ok && b1 - b0 == jb->block;
             if (jb->store != NULL) {
                 const ssz t_a = b0 > halo ? b0 : halo;
@@ -440,7 +476,7 @@ static void phase2_panels(p2_job *jb, ssz q_first, ssz q_last)
         const ssz pf_n = q + 1 < q_last ? jb->rows * (r0 + 2 * c <= P ? c : P - r0 - c) : 0;
         pyramid(pan, pan_b, (jb->rows - 1) * cp + last, jb->n_levels2, cp, 0,
                 jb->psum + q * jb->n_levels2, NULL, pan + jb->rows * cp, pf_n,
-                pan_b + jb->rows * cw);
+                pan_b + jb->rows * cw, 0);
     }
     free(pan_b);
 }
