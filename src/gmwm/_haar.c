@@ -126,7 +126,7 @@ HOT static double diff_sq(const double *restrict src, ssz lo, ssz hi, ssz lag)
  * separate levels, with half the memory traffic. */
 static ALWAYS_INLINE void
 pair_body(const double *restrict src, double *restrict dst, ssz lo, ssz hi, ssz m, double *s,
-          const double *pf, ssz pf_n, double *restrict ring, const int keep)
+          const double *pf, ssz pf_lines, double *restrict ring, const int keep)
 {
     const double *p0 = src + lo, *p1 = src + lo - m, *p2 = src + lo - 2 * m,
                  *p3 = src + lo - 3 * m;
@@ -143,10 +143,8 @@ pair_body(const double *restrict src, double *restrict dst, ssz lo, ssz hi, ssz 
             ring[k] = 0.5 * (p2[k] + p3[k]);
         ssz r = 0;
         for (; i < n16; i += LANES) {
-            if (i < pf_n) {
-                PREFETCH(pf + i);
-                PREFETCH(pf + i + 8);
-            }
+            if (i / LANES < pf_lines)
+                PREFETCH(pf + i / 2);
             double *rg = ring + r;
             for (int l = 0; l < LANES; l++) {
                 const double x = p0[i + l], y = p1[i + l];
@@ -162,12 +160,8 @@ pair_body(const double *restrict src, double *restrict dst, ssz lo, ssz hi, ssz 
         }
     }
     for (; i < n16; i += LANES) {
-        if (i < pf_n) {
-            /* two cache lines of what the caller works on next (the next block's samples or
-             * panel) per 16 positions: pf[:pf_n) as far as this pass reaches */
-            PREFETCH(pf + i);
-            PREFETCH(pf + i + 8);
-        }
+        if (i / LANES < pf_lines)   /* one line of pf per 16 positions (see pf_share) */
+            PREFETCH(pf + i / 2);
         for (int l = 0; l < LANES; l++) {
             const double x = p0[i + l], y = p1[i + l], u = p2[i + l], z = p3[i + l];
             const double v = 0.5 * (x + y), w = 0.5 * (u + z), d = x - y, e = v - w;
@@ -191,16 +185,16 @@ pair_body(const double *restrict src, double *restrict dst, ssz lo, ssz hi, ssz 
 }
 
 HOT static void pair_step(const double *restrict src, double *restrict dst, ssz lo, ssz hi, ssz m,
-                          double *s, const double *pf, ssz pf_n, double *restrict ring)
+                          double *s, const double *pf, ssz pf_lines, double *restrict ring)
 {
-    pair_body(src, dst, lo, hi, m, s, pf, pf_n, ring, 1);
+    pair_body(src, dst, lo, hi, m, s, pf, pf_lines, ring, 1);
 }
 
 /* The sums of pair_step alone (the averages of a last pass are not needed). */
 HOT static void pair_sums(const double *restrict src, ssz lo, ssz hi, ssz m, double *s,
-                          const double *pf, ssz pf_n, double *restrict ring)
+                          const double *pf, ssz pf_lines, double *restrict ring)
 {
-    pair_body(src, NULL, lo, hi, m, s, pf, pf_n, ring, 0);
+    pair_body(src, NULL, lo, hi, m, s, pf, pf_lines, ring, 0);
 }
 
 /* Averages only of pair_step. */
@@ -211,6 +205,18 @@ HOT static void pair_avg(const double *restrict src, double *restrict dst, ssz l
     double *out = dst + lo;
     for (ssz i = 0; i < hi - lo; i++)
         out[i] = 0.5 * (0.5 * (p0[i] + p1[i]) + 0.5 * (p2[i] + p3[i]));
+}
+
+/* What the caller works on next (the next block's samples, the next panel: pf[:pf_n)) is
+ * prefetched while this one computes, one cache line per 16 positions of its pair passes, the
+ * lines shared evenly among the n_pairs pair passes (so that the memory reads spread over the
+ * whole computation): pair pass k prefetches *lines lines from the returned address. */
+static const double *pf_share(const double *pf, ssz pf_n, ssz n_pairs, ssz k, ssz *lines)
+{
+    const ssz total = (pf_n + 7) / 8, share = n_pairs > 0 ? (total + n_pairs - 1) / n_pairs : 0;
+    const ssz first = share * k;
+    *lines = pf == NULL || first >= total ? 0 : (total - first < share ? total - first : share);
+    return *lines > 0 ? pf + 8 * first : NULL;
 }
 
 /* Levels 1..n_levels on a[:n], lags in multiples of `unit`, ping-ponging between a and b, two
@@ -242,12 +248,12 @@ static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_
                     const int keep = need_last || j + 1 < n_levels;
                     if (acc_lo > lo2 && keep)
                         pair_avg(src, dst, lo2, acc_lo < n ? acc_lo : n, m);
+                    ssz pf_l;
+                    const double *pf_k = pf_share(pf, pf_n, n_levels / 2, j / 2, &pf_l);
                     if (acc_lo < n && keep)
-                        pair_step(src, dst, acc_lo, n, m, s, j == 1 ? pf : NULL, j == 1 ? pf_n : 0,
-                                  ring);
+                        pair_step(src, dst, acc_lo, n, m, s, pf_k, pf_l, ring);
                     else if (acc_lo < n)
-                        pair_sums(src, acc_lo, n, m, s, j == 1 ? pf : NULL, j == 1 ? pf_n : 0,
-                                  ring);
+                        pair_sums(src, acc_lo, n, m, s, pf_k, pf_l, ring);
                     out[j - 1] = head + s[0];
                     out[j] = s[1];
                     if (tails != NULL) {          /* for the next block (block_levels) */
@@ -286,7 +292,7 @@ static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_
  * instead copied from the previous block's tails (the same values: V_j at t depends only on the
  * samples t - 2^j + 1 .. t). Every pass then covers exactly [h, n), which is what pyramid sums for
  * such a block (acc_from = h >= lo_j, no head terms): the same sums, the same bits. Saves its own
- * tails for the next block. The first pass prefetches pf[:pf_n) (the next block's samples). */
+ * tails for the next block. The pair passes prefetch pf[:pf_n) (the next block's samples). */
 static int block_levels(double *a, double *b, ssz h, ssz n, ssz L, double *out, double *tails,
                         const double *pf, ssz pf_n, double *ring, int need_last)
 {
@@ -297,10 +303,12 @@ static int block_levels(double *a, double *b, ssz h, ssz n, ssz L, double *out, 
         if (j < L) {
             double s[2] = {0.0, 0.0};
             memcpy(src + h - 3 * m, tails, (size_t)(3 * m) * sizeof(double));
+            ssz pf_l;
+            const double *pf_k = pf_share(pf, pf_n, L / 2, j / 2, &pf_l);
             if (need_last || j + 1 < L)
-                pair_step(src, dst, h, n, m, s, j == 1 ? pf : NULL, j == 1 ? pf_n : 0, ring);
+                pair_step(src, dst, h, n, m, s, pf_k, pf_l, ring);
             else
-                pair_sums(src, h, n, m, s, j == 1 ? pf : NULL, j == 1 ? pf_n : 0, ring);
+                pair_sums(src, h, n, m, s, pf_k, pf_l, ring);
             out[j - 1] = 0.0 + s[0];  /* as pyramid: head (0.0 here) + s[0] */
             out[j] = s[1];
             memcpy(tails, src + n - 3 * m, (size_t)(3 * m) * sizeof(double));
@@ -407,11 +415,9 @@ static void phase1_blocks(p1_job *jb, ssz b_first, ssz b_last)
         const ssz n = b1 - s0;
         int which;
         if (have_tails && b0 >= halo) {
-            /* the next block's samples, prefetched during the first pass */
+            /* the next block's samples, prefetched during this one's passes */
             const ssz nb0 = b1, nb1 = nb0 + jb->block < jb->t_end ? nb0 + jb->block : jb->t_end;
             ssz pf_n = b + 1 < b_last ? nb1 - nb0 : 0;
-            pf_n = pf_n < b1 - b0 ? pf_n : b1 - b0;
-            pf_n -= pf_n % LANES;
             shift_copy(jb->x + (b0 - jb->t_lo), buf_a + halo, b1 - b0, x0);
             which = block_levels(buf_a, buf_b, halo, n, L, jb->blk + b * L, tails,
                                  jb->x + (nb0 - jb->t_lo), pf_n, tails + 2 * P,
@@ -472,7 +478,7 @@ static void phase2_panels(p2_job *jb, ssz q_first, ssz q_last)
         last = last < cp ? last : cp;
         double *pan = jb->store + jb->rows * q * c;
         /* the next panel of this thread (rows * c values after this one, or fewer when it is
-         * the last), prefetched during the first pass */
+         * the last), prefetched during this one's passes */
         const ssz pf_n = q + 1 < q_last ? jb->rows * (r0 + 2 * c <= P ? c : P - r0 - c) : 0;
         pyramid(pan, pan_b, (jb->rows - 1) * cp + last, jb->n_levels2, cp, 0,
                 jb->psum + q * jb->n_levels2, NULL, pan + jb->rows * cp, pf_n,
