@@ -11,6 +11,17 @@
  * Levels are done two per pass (pair_step), which halves the traffic to the cache a pass streams
  * from; the values are those of one level at a time.
  *
+ * Schedule (speed only: every value and every sum is computed by the same operations in the same
+ * order as in the plain two-phase pyramid the Numba twin runs):
+ * - A thread's first block recomputes its halo; its later blocks copy each level's values below
+ *   the block start from the previous block's last values (block_levels), so a pass covers only
+ *   the block. The block start sits on a 64-byte boundary of the work buffers.
+ * - pair_step keeps the first level's averages of the last 2m positions in a small ring instead
+ *   of recomputing them from V_{t-2m} and V_{t-3m} (the same value, two operations fewer).
+ * - While a block (panel) computes, the samples of the next block (the next panel) are
+ *   prefetched, spread over its pair passes; the DRAM reads overlap the arithmetic.
+ * - A last level whose averages nothing reads (phase 2's top level) only gets its sums.
+ *
  * Bit-identity with the Numba twin on any IEEE-754 machine: the element-wise values are
  * subtractions, additions and exact halvings; every sum of squares is accumulated in 16 explicit
  * lanes reduced by a fixed tree (reduce16), then the tail in order. No operation's order is left
@@ -121,9 +132,10 @@ HOT static double diff_sq(const double *restrict src, ssz lo, ssz hi, ssz lag)
 
 /* Two levels in one pass (lags m and 2m) on [lo, hi): from V at t, t-m, t-2m, t-3m,
  * v = (V_t + V_{t-m})/2 and w = (V_{t-2m} + V_{t-3m})/2 (the first level's averages at t and
- * t - 2m, recomputed rather than stored), dst[t] = (v + w)/2; the two sums of squares of
- * V_t - V_{t-m} and v - w go to s[0] and s[1], lanes as level_step. The values are those of two
- * separate levels, with half the memory traffic. */
+ * t - 2m; w is v of 2m positions earlier, kept in `ring` when given and 2m is a multiple of 16,
+ * else recomputed), dst[t] = (v + w)/2 (unless !keep); the two sums of squares of V_t - V_{t-m}
+ * and v - w go to s[0] and s[1], lanes as level_step. The values are those of two separate
+ * levels, with half the memory traffic. */
 static ALWAYS_INLINE void
 pair_body(const double *restrict src, double *restrict dst, ssz lo, ssz hi, ssz m, double *s,
           const double *pf, ssz pf_lines, double *restrict ring, const int keep)
@@ -375,7 +387,6 @@ static void store_vl(const p1_job *jb, const double *src, ssz s0, ssz t_a, ssz t
     }
 }
 
-/* Blocks [b_first, b_last) of the job (block b covers [t_begin + b block, ...)). */
 /* dst[i] = src[i] - x0 */
 HOT static void shift_copy(const double *restrict src, double *restrict dst, ssz n, double x0)
 {
@@ -383,6 +394,7 @@ HOT static void shift_copy(const double *restrict src, double *restrict dst, ssz
         dst[i] = src[i] - x0;
 }
 
+/* Blocks [b_first, b_last) of the job (block b covers [t_begin + b block, ...)). */
 static void phase1_blocks(p1_job *jb, ssz b_first, ssz b_last)
 {
     const ssz L = jb->L, P = (ssz)1 << L, halo = P - 1, len = jb->block + halo;
