@@ -54,8 +54,8 @@ def signal(T: int, kind: str, seed: int) -> np.ndarray:
 
 #: (T, J, layout (L, block, panel) or None for the default, kind) -> the J sums
 #: sum_t (2 W_{j,t})**2 as float.hex; signal i of the list has seed i. Tiny and odd lengths, J from
-#: 1 to the maximum, phase 1 only, one phase-2 level, odd and even L, blocks shorter than 2**L,
-#: equal to it and not a multiple of it, panels of 1 to 16 sub-series.
+#: 1 to the maximum, phase 1 only, one phase-2 level, odd and even L up to 13, blocks shorter
+#: than 2**L, equal to it and not a multiple of it, panels of 1 to 16 sub-series.
 FROZEN = {
     (4, 1, None, "wn"):
         "0x1.429be8afbe836p+0",
@@ -155,6 +155,20 @@ FROZEN = {
         "0x1.8aed766036c91p+22 0x1.786e068cbeb68p+23 0x1.8916fb76c61b1p+24 "
         "0x1.a9f87543ec9c1p+25 0x1.b913ae78e26c6p+26 0x1.b1b92a534d559p+27 "
         "0x1.12731a333688bp+29 0x1.67f02d28df3d9p+29",
+    (300007, 17, (13, 65536, 8), "rw"):
+        "0x1.8636610915651p+14 0x1.2454eedc998aap+15 0x1.0b07323e1aba0p+16 "
+        "0x1.041d554530acfp+17 0x1.006aad38f0bfap+18 0x1.f9a405b6499dap+18 "
+        "0x1.f7e147aaecdfap+19 0x1.f9a9ad4e82ecdp+20 0x1.04b5af78e5653p+22 "
+        "0x1.0c615eba33cfep+23 0x1.0e1cfab9e9a94p+24 0x1.fea67b441c7a4p+24 "
+        "0x1.c0a8755d813b6p+25 0x1.70254f58f90c3p+26 0x1.50748cea12b19p+27 "
+        "0x1.67fb6ade7613fp+28 0x1.15949641a0da8p+29",
+    (345679, 17, (13, 24581, 8), "drift"):
+        "0x1.c1e8332785bc6p+15 0x1.c2f8c7949f7d9p+14 0x1.c2a035123c09fp+13 "
+        "0x1.c56cae5993ffep+12 0x1.c7d133b0088e6p+11 0x1.cc84d3e4d137fp+10 "
+        "0x1.0093ace0ce24fp+10 0x1.7704d358da03bp+9 0x1.cc52daa5235fcp+9 "
+        "0x1.d4674734f60dfp+10 0x1.43010daa3696ep+12 0x1.01a181bdf2193p+14 "
+        "0x1.b88d09717629dp+15 0x1.88d5992781a25p+17 0x1.62df779e1a103p+19 "
+        "0x1.405a41db8c0f8p+21 0x1.f80d25f80e3aap+22",
 }
 
 
