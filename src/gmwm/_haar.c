@@ -499,18 +499,37 @@ static void phase2_panels(p2_job *jb, ssz q_first, ssz q_last)
     free(pan_b);
 }
 
-/* ---- threads: items [0, n) in contiguous shares -------------------------------------------- */
+/* ---- threads: items [0, n) taken in chunks ------------------------------------------------- */
 
+/* The threads take runs of `chunk` consecutive items until none is left, so that a thread slowed
+ * by other work on the machine takes fewer of them (the result does not depend on who does which:
+ * the sums are kept per item and added in item order afterwards). Runs of several items keep the
+ * blocks of a run consecutive (each run's first block recomputes its halo). */
 typedef struct {
     void (*fn)(void *, ssz, ssz);
     void *job;
-    ssz lo, hi;
-} share;
+    ssz n, chunk, next;   /* next: the first item not taken yet */
+#ifdef HAVE_PTHREADS
+    pthread_mutex_t lock;
+#endif
+} work;
 
-static void *run_share(void *arg)
+static void *run_work(void *arg)
 {
-    share *s = (share *)arg;
-    s->fn(s->job, s->lo, s->hi);
+    work *w = (work *)arg;
+    for (;;) {
+#ifdef HAVE_PTHREADS
+        pthread_mutex_lock(&w->lock);
+#endif
+        const ssz lo = w->next;
+        w->next = lo < w->n ? lo + w->chunk : lo;
+#ifdef HAVE_PTHREADS
+        pthread_mutex_unlock(&w->lock);
+#endif
+        if (lo >= w->n)
+            break;
+        w->fn(w->job, lo, lo + w->chunk < w->n ? lo + w->chunk : w->n);
+    }
     return NULL;
 }
 
@@ -520,27 +539,27 @@ static void parallel_for(void (*fn)(void *, ssz, ssz), void *job, ssz n, int n_t
         n_threads = (int)n;
 #ifdef HAVE_PTHREADS
     if (n_threads > 1) {
-        share shares[64];
         pthread_t tid[64];
         int started[64] = {0};
         if (n_threads > 64)
             n_threads = 64;
-        for (int i = 0; i < n_threads; i++) {
-            shares[i].fn = fn;
-            shares[i].job = job;
-            shares[i].lo = n * i / n_threads;
-            shares[i].hi = n * (i + 1) / n_threads;
+        ssz chunk = n / (8 * (ssz)n_threads);   /* about 8 runs per thread */
+        work w;
+        w.fn = fn;
+        w.job = job;
+        w.n = n;
+        w.chunk = chunk > 1 ? chunk : 1;
+        w.next = 0;
+        if (pthread_mutex_init(&w.lock, NULL) == 0) {
+            for (int i = 1; i < n_threads; i++)
+                started[i] = pthread_create(&tid[i], NULL, run_work, &w) == 0;
+            run_work(&w);                     /* (a thread that did not start: the others) */
+            for (int i = 1; i < n_threads; i++)
+                if (started[i])
+                    pthread_join(tid[i], NULL);
+            pthread_mutex_destroy(&w.lock);
+            return;
         }
-        for (int i = 1; i < n_threads; i++)
-            started[i] = pthread_create(&tid[i], NULL, run_share, &shares[i]) == 0;
-        run_share(&shares[0]);
-        for (int i = 1; i < n_threads; i++) {
-            if (started[i])
-                pthread_join(tid[i], NULL);
-            else
-                run_share(&shares[i]);  /* no thread: do its share here */
-        }
-        return;
     }
 #endif
     (void)n_threads;
