@@ -13,9 +13,10 @@
  *
  * Schedule (speed only: every value and every sum is computed by the same operations in the same
  * order as in the plain two-phase pyramid the Numba twin runs):
- * - A thread's first block recomputes its halo; its later blocks copy each level's values below
- *   the block start from the previous block's last values (block_levels), so a pass covers only
- *   the block. The block start sits on a 64-byte boundary of the work buffers.
+ * - Threads take runs of consecutive blocks (parallel_for). A run's first block recomputes its
+ *   halo; its later blocks copy each level's values below the block start from the previous
+ *   block's last values (block_levels), so a pass covers only the block. The block start sits on
+ *   a 64-byte boundary of the work buffers.
  * - pair_step keeps the first level's averages of the last 2m positions in a small ring instead
  *   of recomputing them from V_{t-2m} and V_{t-3m} (the same value, two operations fewer).
  * - While a block (panel) computes, the samples of the next block (the next panel) are
@@ -298,7 +299,7 @@ static int pyramid(double *a, double *b, ssz n, ssz n_levels, ssz unit, ssz acc_
 
 /* ---- phase 1 ------------------------------------------------------------------------------- */
 
-/* Levels 1..L of a block that follows, in the same thread, a block whose pyramid (pyramid or
+/* Levels 1..L of a block that follows, in the same run, a block whose pyramid (pyramid or
  * block_levels) saved its tails: a[h:n) holds V_0 of the block's positions (h = 2^L - 1), and the
  * values of each level below the block start, which pyramid would recompute in the halo, are
  * instead copied from the previous block's tails (the same values: V_j at t depends only on the
@@ -489,7 +490,7 @@ static void phase2_panels(p2_job *jb, ssz q_first, ssz q_last)
         last = last > 0 ? last : 0;
         last = last < cp ? last : cp;
         double *pan = jb->store + jb->rows * q * c;
-        /* the next panel of this thread (rows * c values after this one, or fewer when it is
+        /* the next panel of this run (rows * c values after this one, or fewer when it is
          * the last), prefetched during this one's passes */
         const ssz pf_n = q + 1 < q_last ? jb->rows * (r0 + 2 * c <= P ? c : P - r0 - c) : 0;
         pyramid(pan, pan_b, (jb->rows - 1) * cp + last, jb->n_levels2, cp, 0,
