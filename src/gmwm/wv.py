@@ -11,7 +11,9 @@ at the size of a local average (a global cumulative sum loses ~6 digits on rando
 It is evaluated cache-friendly in two phases:
 
 1. levels ``1..L`` on time blocks of ``B`` samples plus a halo of ``2**L - 1`` samples (the halo is
-   recomputed, so the values equal those of one global pass), storing ``V_L``;
+   recomputed, so the values equal those of one global pass; the C kernel recomputes it only for
+   the first block of each run of consecutive blocks a thread takes, and copies the same values
+   from the previous block otherwise), storing ``V_L``;
 2. for ``j > L`` the lags are multiples of ``P = 2**L``, so ``V_L`` splits into ``P`` interleaved
    sub-series on which levels ``j > L`` are the ordinary pyramid (levels ``j - L``). Phase 1 stores
    ``V_L`` "panel-major": the sub-series a panel of a few at a time, each panel contiguous, so
