@@ -151,3 +151,15 @@ def test_stationarity_page_layout_keeps_labels_inside(tmp_path):
     st = check_stationarity(x, freq=fs, units={"gx": "rad/s", "az": "m/s^2"})
     fig = page_layout(plot_stationarity(st))
     assert _outside(fig) == []
+
+
+def test_bad_input_stops_the_warm_server(two_cores, tmp_path, capsys):
+    # the server starts before the file is read: an unreadable file must not leave it running
+    from multiprocessing import forkserver
+
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time,gx\n0,1\n")
+    assert main(["report", str(bad), "-o", str(tmp_path / "out")]) != 0
+    capsys.readouterr()
+    assert not calibrate.warm_server_running()
+    assert getattr(forkserver._forkserver, "_forkserver_pid", None) is None

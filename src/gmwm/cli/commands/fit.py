@@ -100,31 +100,29 @@ def fit_columns(args: argparse.Namespace, err: TextIO, require_time: str | None 
     from gmwm.units import datasheet
 
     settings = fit_settings(args)
+    from gmwm.calibrate import start_warm_server, stop_warm_server
+
     if _several_choices(args):
-        from gmwm.calibrate import start_warm_server
-
         start_warm_server()  # loads the fitting stack while this process reads the input
-    got = read_fit_data(args, err, require_time)
-    specs = models_by_column(args.model, list(got.data))
-    auto = {c for c, m in specs.items() if m.strip().lower() == AUTO}
-    if auto and settings.method != "gmwm":
-        raise InputError(f"the automatic model choice fits GMWM candidates; with --method "
-                         f"{settings.method} give a model")
-    models = {c: Model(specs[c], freq=got.freq) for c in got.data if c not in auto}
-    # a streamed channel's result is completed below (_streamed): its figure waits for that
-    draw: dict[str, str] = {}
-    if figures is not None:
-        from gmwm.report import wv_figure_path
+    try:  # the server is stopped whatever happens: no process outlives the command
+        got = read_fit_data(args, err, require_time)
+        specs = models_by_column(args.model, list(got.data))
+        auto = {c for c, m in specs.items() if m.strip().lower() == AUTO}
+        if auto and settings.method != "gmwm":
+            raise InputError(f"the automatic model choice fits GMWM candidates; with --method "
+                             f"{settings.method} give a model")
+        models = {c: Model(specs[c], freq=got.freq) for c in got.data if c not in auto}
+        # a streamed channel's result is completed below (_streamed): its figure waits for that
+        draw: dict[str, str] = {}
+        if figures is not None:
+            from gmwm.report import wv_figure_path
 
-        draw = {c: str(wv_figure_path(figures, c)) for c in auto if c not in got.streamed}
-    try:
+            draw = {c: str(wv_figure_path(figures, c)) for c in auto if c not in got.streamed}
         chosen = _choose_parallel(args, {c: got.data[c] for c in got.data if c in auto},
                                   settings, got.freq, got.units,
                                   None if while_waiting is None else lambda: while_waiting(got),
                                   draw)
     finally:
-        from gmwm.calibrate import stop_warm_server
-
         stop_warm_server()
     fits = {}
     for c, d in got.data.items():

@@ -26,10 +26,6 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     inflation = parse_inflation(args.inflate)
     sheet = load_datasheet(args)
     if getattr(args, "topics", None):
-        if "auto" in str(args.model).lower():
-            from gmwm.calibrate import start_warm_server
-
-            start_warm_server()  # loads the fitting stack while this process reads the file
         return _several(args, out, err, targets, inflation, sheet)
     drawn: list[Path] = []  # the stationarity timeline, drawn while the axes are fitted
     # without a datasheet verdict to draw on them, the WV figures (and the datasheet
@@ -90,13 +86,26 @@ def _several(args: argparse.Namespace, out: TextIO, err: TextIO, targets: Any, i
     """``--topic all`` / several ``--topic``: every IMU of one file on one page
     (:func:`gmwm.calibrate.calibrate_imus`, :func:`gmwm.report.write_multi_report`), one
     configuration folder per topic."""
-    from gmwm.calibrate import calibrate_imus
+    from gmwm.calibrate import start_warm_server, stop_warm_server
+
+    topics = "all" if args.topics == ["all"] else list(args.topics)
+    if "auto" in str(args.model).lower():
+        start_warm_server()  # loads the fitting stack while this process reads the file
+    try:  # the server is stopped whatever happens: no process outlives the command
+        return _several_imus(args, out, err, targets, inflation, sheet, topics)
+    finally:
+        stop_warm_server()
+
+
+def _several_imus(args: argparse.Namespace, out: TextIO, err: TextIO, targets: Any,
+                  inflation: Any, sheet: Any, topics: Any) -> int:
+    """:func:`_several` once the warm server is started: read, calibrate, write."""
+    from gmwm.calibrate import calibrate_imus, stop_warm_server
     from gmwm.cli.inputs import models_by_column, units_by_column, wanted_columns
     from gmwm.readers import read_recordings
     from gmwm.report import write_multi_report
     from gmwm.sensor_datasheet import judge
 
-    topics = "all" if args.topics == ["all"] else list(args.topics)
     args.progress(f"reading {args.input} ({'every IMU topic' if topics == 'all' else topics})")
     recs = read_recordings(args.input, topics, columns=wanted_columns(args), freq=args.freq)
     units = {t: {c: (u or None) for c, u in units_by_column(args, list(r.channels), r.units)
@@ -115,15 +124,11 @@ def _several(args: argparse.Namespace, out: TextIO, err: TextIO, targets: Any, i
         else:
             args.progress(msg)
 
-    try:
-        imus = calibrate_imus(recs, model, units=units, levels=args.levels, gaps=args.gaps,
-                              start_s=args.start, end_s=args.end, segment=args.segment,
-                              strict=args.strict, fit_options=options, progress=say,
-                              executor="process")  # choices are mostly Python: threads serialise
-    finally:
-        from gmwm.calibrate import stop_warm_server
-
-        stop_warm_server()
+    imus = calibrate_imus(recs, model, units=units, levels=args.levels, gaps=args.gaps,
+                          start_s=args.start, end_s=args.end, segment=args.segment,
+                          strict=args.strict, fit_options=options, progress=say,
+                          executor="process")  # choices are mostly Python: threads serialise
+    stop_warm_server()  # not needed any more: free its memory before the page is drawn
     status = 0
     for topic, sec in imus.items():
         for c, axis in sec.axes.items():
