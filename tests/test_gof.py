@@ -163,3 +163,20 @@ def test_which_covariance_the_fit_s_test_uses():
         assert res.gof.statistic == gof_test(res, V).statistic
     rob = gmwm.fit(x, m, robust=True, n_starts=1)   # the classical covariance / efficiency, once
     assert rob.gof.statistic == gof_test(rob, rob.wv_cov / rob.wv.efficiency).statistic
+
+
+def test_far_tail_skips_imhof_with_the_same_answer():
+    # far in the tail the saddlepoint is returned without the Imhof integral; Imhof's own p is
+    # below the switch there, so the longer path would have returned the same number
+    from gmwm.gof import SADDLE_BELOW, _imhof_sf, _saddle_sf, weighted_chi2_sf
+
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        lam = rng.gamma(1.0, 1.0, int(rng.integers(3, 15)))
+        lam /= lam.max()
+        x = float(lam.sum() * rng.uniform(8.0, 40.0))
+        p, how = weighted_chi2_sf(x, lam)
+        q = _saddle_sf(x, lam)
+        if q < SADDLE_BELOW * 1e-3:
+            assert how == "saddlepoint" and p == q
+            assert _imhof_sf(x, lam) < SADDLE_BELOW
