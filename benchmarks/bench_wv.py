@@ -90,19 +90,6 @@ def first_call_times() -> tuple[float, float, float, float]:
     return runs[1][0], runs[1][1], runs[0][2], runs[1][2]
 
 
-def _sums(kern: object, ws: _Workspace, x: np.ndarray, J: int, threads: int | None
-          ) -> np.ndarray:
-    out = np.zeros(J)
-    st = ws.store()
-    extra = () if threads is None else (threads,)
-    kern.phase1(x, 0, 0, ws.T, float(x[0]), ws.n_block, ws.block, out, st, 0, ws.rows,
-                ws.panel, *extra)
-    if ws.phase2:
-        kern.phase2(st, ws.rows, ws.n_out, ws.n_block, ws.panel, 0, ws.n_panels, J - ws.n_block,
-                    out, *extra)
-    return out
-
-
 def bench_row(T: int, rng: np.random.Generator, repeat: int) -> dict[str, float]:
     """Timings for a RW(1) + WN(1e-4) + offset signal of T samples (the numerically hard case)."""
     from gmwm import _wvkernels
@@ -121,13 +108,13 @@ def bench_row(T: int, rng: np.random.Generator, repeat: int) -> dict[str, float]
     buf = np.empty_like(x)
     row["cumsum"] = best_time(partial(np.cumsum, x, out=buf), repeat)
     if _haar is not None:
-        row["c1"] = best_time(partial(_sums, _haar, ws, x, J, 1), repeat)
-        row["cN"] = best_time(partial(_sums, _haar, ws, x, J, nt), repeat)
-        same = np.array_equal(_sums(_haar, ws, x, J, nt), _sums(_wvkernels, ws, x, J, None))
+        row["c1"] = best_time(partial(ws.sums, x, J, 1, kern=_haar), repeat)
+        row["cN"] = best_time(partial(ws.sums, x, J, nt, kern=_haar), repeat)
+        same = np.array_equal(ws.sums(x, J, nt, kern=_haar), ws.sums(x, J, kern=_wvkernels))
     else:
         row["c1"] = row["cN"] = (float("nan"), float("nan"))
         same = True
-    row["numba"] = best_time(partial(_sums, _wvkernels, ws, x, J, None), max(1, repeat // 2))
+    row["numba"] = best_time(partial(ws.sums, x, J, kern=_wvkernels), max(1, repeat // 2))
     row["identical"] = same
     base = partial(numpy_cumsum_wv, x, J)
     row["numpy"] = best_time(base, max(1, repeat // 2))

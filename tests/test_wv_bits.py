@@ -174,16 +174,7 @@ FROZEN = {
 
 def _sums(kern: types.ModuleType, x: np.ndarray, J: int, layout: tuple[int, int, int] | None,
           threads: int | None) -> np.ndarray:
-    ws = _Workspace(x.size, J, *(layout or ()))
-    out = np.zeros(J)
-    store = ws.store()
-    extra = () if threads is None else (threads,)
-    kern.phase1(x, 0, 0, ws.T, float(x[0]), ws.n_block, ws.block, out, store, 0, ws.rows,
-                ws.panel, *extra)
-    if ws.phase2:
-        kern.phase2(store, ws.rows, ws.n_out, ws.n_block, ws.panel, 0, ws.n_panels,
-                    J - ws.n_block, out, *extra)
-    return out
+    return _Workspace(x.size, J, *(layout or ())).sums(x, J, threads, kern=kern)
 
 
 def _check(kern: types.ModuleType, threads: int | None) -> None:

@@ -138,25 +138,21 @@ class _Workspace:
             self._store = _aligned(self.rows << self.n_block)
         return self._store
 
-    def sums(self, x: np.ndarray, n_levels: int, threads: int | None = None) -> np.ndarray:
-        """``sum_t (2 W_{j,t})**2`` over the boundary-free coefficients of ``x``, ``j = 1..J``."""
-        kern = _kernels()
+    def sums(self, x: np.ndarray, n_levels: int, threads: int | None = None,
+             kern: Any = None) -> np.ndarray:
+        """``sum_t (2 W_{j,t})**2`` over the boundary-free coefficients of ``x``, ``j = 1..J``;
+        ``kern``: the kernel module (default the dispatched one; the C kernel, any build of
+        ``_haar``, takes ``threads``, default :func:`n_threads`; the Numba twin runs on one)."""
+        kern = _kernels() if kern is None else kern
         out = np.zeros(n_levels)
-        nt = n_threads(self.T) if threads is None else threads
+        extra = ((n_threads(self.T) if threads is None else threads),) \
+            if kern.__name__.rsplit(".", 1)[-1] == "_haar" else ()
         store = self.store()
-        args = (x, 0, 0, self.T, float(x[0]), self.n_block, self.block, out, store, 0, self.rows,
-                self.panel)
-        if kern.__name__ == "gmwm._haar":
-            kern.phase1(*args, nt)
-        else:
-            kern.phase1(*args)
+        kern.phase1(x, 0, 0, self.T, float(x[0]), self.n_block, self.block, out, store, 0,
+                    self.rows, self.panel, *extra)
         if self.phase2:
-            args2 = (store, self.rows, self.n_out, self.n_block, self.panel, 0, self.n_panels,
-                     n_levels - self.n_block, out)
-            if kern.__name__ == "gmwm._haar":
-                kern.phase2(*args2, nt)
-            else:
-                kern.phase2(*args2)
+            kern.phase2(store, self.rows, self.n_out, self.n_block, self.panel, 0, self.n_panels,
+                        n_levels - self.n_block, out, *extra)
         return out
 
 
