@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from gmwm.cli.commands.fit import (
+    _several_choices,
     attach_verdicts,
     choice_json,
     fit_columns,
@@ -89,7 +90,7 @@ def _several(args: argparse.Namespace, out: TextIO, err: TextIO, targets: Any, i
     from gmwm.calibrate import start_warm_server, stop_warm_server
 
     topics = "all" if args.topics == ["all"] else list(args.topics)
-    if "auto" in str(args.model).lower():
+    if _several_choices(args):
         start_warm_server()  # loads the fitting stack while this process reads the file
     try:  # the server is stopped whatever happens: no process outlives the command
         return _several_imus(args, out, err, targets, inflation, sheet, topics)
