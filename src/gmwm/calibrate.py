@@ -175,7 +175,6 @@ def preload() -> None:
 #: module the warm server imports before it forks workers (importing it runs :func:`preload`)
 _WARM_MODULE = "gmwm._warmserver"
 _warm_server = False
-_warm_server_used = False  # a pool of the warm server was created (the server is loaded)
 
 
 def start_warm_server() -> bool:
@@ -209,9 +208,11 @@ def warm_server_running() -> bool:
 
 def stop_warm_server() -> None:
     """Stop the warm server of :func:`start_warm_server` (if any) and reap it, so that no process
-    outlives the command and its CPU time counts in this process's children's. A server that
-    forked no worker yet is still loading: it is terminated rather than waited for."""
-    global _warm_server, _warm_server_used
+    outlives the command and its CPU time counts in this process's children's. Its pools are
+    shut down by then (their workers have exited) and it holds nothing to save, so it is
+    terminated: told to exit, it would tear down its interpreter (SciPy, Numba, matplotlib:
+    ~0.7 s) while the command waits; a server still loading would first finish loading."""
+    global _warm_server
     if not _warm_server:
         return
     from multiprocessing import forkserver
@@ -219,10 +220,10 @@ def stop_warm_server() -> None:
     server = getattr(forkserver, "_forkserver", None)
     pid = getattr(server, "_forkserver_pid", None)
     with contextlib.suppress(Exception):  # a server already gone needs nothing
-        if pid is not None and not _warm_server_used:
+        if pid is not None:
             os.kill(pid, signal.SIGTERM)
-        server._stop()  # closes its "alive" pipe and waits for it (what CPython's tests use)
-    _warm_server = _warm_server_used = False
+        server._stop()  # closes its "alive" pipe and reaps it (what CPython's tests use)
+    _warm_server = False
 
 
 def _executor(kind: str, workers: int, warm: bool = False) -> Executor:
@@ -235,8 +236,6 @@ def _executor(kind: str, workers: int, warm: bool = False) -> Executor:
     if kind != "process":
         raise InputError(f"unknown executor {kind!r}; use 'process' or 'thread'")
     if warm and _warm_server:
-        global _warm_server_used
-        _warm_server_used = True
         return ProcessPoolExecutor(max_workers=workers,
                                    mp_context=multiprocessing.get_context("forkserver"))
     # fork: a worker inherits the imported modules and loaded kernels and starts at once; with
