@@ -1,5 +1,5 @@
 """``python -m gmwm`` runs the command line tool."""
 
-from gmwm.cli import main
+from gmwm.cli import console_main
 
-raise SystemExit(main())
+console_main()
