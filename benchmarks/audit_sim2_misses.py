@@ -232,6 +232,48 @@ def best_of_cases(n_random: int, n_profile: int) -> None:
     hc.BEST_FILE.write_text(json.dumps(stored, indent=1, sort_keys=True) + "\n")
 
 
+def refit_sample(n_other: int, out: Path) -> None:
+    """Refit every miss and ``n_other`` random other replicates with both of the study's
+    estimators and the current code; per fit: objective against the committed one, SIN[2]
+    within 2x before and after, CPU s (fit with standard errors and GOF, as the study runs it).
+    WVs are taken from the audit file when there."""
+    miss = misses()
+    committed = pd.read_csv(CSV)
+    true = truth()
+    audit = json.loads(OUT.read_text()) if OUT.exists() else {}
+    wvs = dict(audit.get("wv", {}))
+    missed = sorted(set(miss["gmwm"]) | set(miss["gmwm_eff"]))
+    others = [r for r in range(500) if r not in missed]
+    sample = sorted(int(r) for r in np.random.default_rng(0).choice(others, n_other,
+                                                                     replace=False))
+    gmwm.fit(replicate_wv(sample[0]) if str(sample[0]) not in wvs else
+             WaveletVariance.from_table(2.0 ** np.arange(1, 23), wvs[str(sample[0])],
+                                        n_samples=T, freq=1.0), MODEL)  # warm-up
+    rows = []
+    for rep in missed + sample:
+        if str(rep) not in wvs:
+            wvs[str(rep)] = [float(v) for v in replicate_wv(rep).variance]
+        wv = WaveletVariance.from_table(2.0 ** np.arange(1, 23), wvs[str(rep)], n_samples=T,
+                                        freq=1.0)
+        for est in ESTIMATORS:
+            c0 = time.process_time()
+            res = default_fit(wv, rep, est)
+            cpu = time.process_time() - c0
+            old = committed[(committed.replicate == rep) & (committed.estimator == est)]
+            old_row = old.to_dict("records")[0]
+            rows.append({"replicate": rep, "estimator": est, "sample": rep in sample,
+                         "miss_before": rep in miss[est], "objective": float(res.objective),
+                         "committed": float(old_row["objective"]),
+                         "rel": float(res.objective / old_row["objective"] - 1),
+                         "sin2_within_2x_before": sin2_within(old_row, true),
+                         "sin2_within_2x_after": sin2_within(res.as_dict(), true),
+                         "cpu": cpu})
+            print(f"rep {rep:3d} {est:<8} {res.objective:.10g} committed "
+                  f"{old_row['objective']:.10g} rel {rows[-1]['rel']:+.1e} cpu {cpu:.2f}",
+                  flush=True)
+    out.write_text(json.dumps({"n_other": n_other, "rows": rows}, indent=1) + "\n")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--find-cases", type=int, nargs=3, metavar=("BASE_SEED", "FIRST", "N"),
@@ -247,7 +289,13 @@ def main() -> int:
                     help="keep the finished rows of --out (an interrupted run)")
     ap.add_argument("--store-cases", nargs="+", metavar="BASE_SEED:REPLICATE",
                     help="write these replicates' WVs to hard_cases_sim2.json")
+    ap.add_argument("--refit-sample", type=int, metavar="N",
+                    help="refit every miss and N random other replicates with the current "
+                    "code (both estimators), compared with the committed CSV; writes --out")
     args = ap.parse_args()
+    if args.refit_sample is not None:
+        refit_sample(args.refit_sample, args.out)
+        return 0
     if args.store_cases:
         records = []
         for item in args.store_cases:
