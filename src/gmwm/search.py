@@ -408,8 +408,8 @@ class _VP:
         c, th = self.pair_descents(_shapes_of(self.model, theta_best, self.tau), sins)
         add(c, th)
 
-    def pair_descents(self, base: list[float], sins: list[int], away: float | None = None
-                      ) -> tuple[float, np.ndarray]:
+    def pair_descents(self, base: list[float], sins: list[int], away: float | None = None,
+                      partners: list[int] | None = None) -> tuple[float, np.ndarray]:
         """(VP cost, theta) of the best joint (SIN k, other shape j) placement from ``base``
         over the SINs ``sins`` and every other shaped j, each followed by a coordinate descent.
         ``away``: SIN k is placed at least this far (in ln beta) from ``base[k]``."""
@@ -419,7 +419,7 @@ class _VP:
         moved = []
         for k in sins:
             allowed = None if away is None else np.abs(sin_grid - base[k]) > away
-            for j in self.shaped:
+            for j in (self.shaped if partners is None else partners):
                 if j == k:
                     continue
                 shapes = list(base)
@@ -450,7 +450,12 @@ class _VP:
                 if np.max(comp[self.model.components[k].name] / noise) < RESEAT_NOISE]
         if not weak:
             return None
-        return self.pair_descents(_shapes_of(self.model, theta, self.tau), weak, RESEAT_AWAY)
+        # the shape that absorbed the SIN's power is a smooth one (AR1 / GM), not another SIN
+        partners = [j for j in self.shaped if not self.procs[j].oscillating]
+        if not partners:
+            return None
+        return self.pair_descents(_shapes_of(self.model, theta, self.tau), weak, RESEAT_AWAY,
+                                  partners)
 
     def hop_sins(self, theta: np.ndarray) -> tuple[float, np.ndarray] | None:
         """A SIN's WV oscillates in beta, so a solve ends in whichever of its narrow basins it
