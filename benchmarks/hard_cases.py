@@ -2,9 +2,11 @@
 
 Cases: the six Navchip axes (real WV tables, ../shared/data) with four models, simulated
 WVs built to be hard (a SIN bump next to an AR1 of similar time scale, two AR1 of close phi, a
-negative phi, vanishing components, two slow components), and five stored parametric-bootstrap
+negative phi, vanishing components, two slow components), five stored parametric-bootstrap
 WVs of the Navchip 8-parameter fits on which a cheaper nested search failed
-(hard_cases_boot.json). "Best known" is the minimum over
+(hard_cases_boot.json), and stored Simulation 2 WVs (2*AR1+2*SIN, T = 1e7) on which the search
+kept a spurious sinusoid below the noise while the phi ~ 1 AR1 absorbed the slow one
+(hard_cases_sim2.json, written by audit_sim2_misses.py). "Best known" is the minimum over
 an exhaustive search independent of the default's start machinery: 256 starts with every shape
 drawn uniformly over its whole domain (AR1 phi in (-1, 1)) and the linear parameters projected
 by NNLS, plus the default with 32 starts, each refined by the same bounded trust-region solve.
@@ -12,6 +14,7 @@ by NNLS, plus the default with 32 starts, each refined by the same bounded trust
     python benchmarks/hard_cases.py            # print default vs best known, time per case
     python benchmarks/hard_cases.py --update   # recompute and store best known (JSON beside)
     python benchmarks/hard_cases.py --submodels  # also: no submodel fitted alone ends below it
+    python benchmarks/hard_cases.py --repeat 3 --json a.json  # CPU per fit: min of 3 (A/B)
 
 The test suite (tests/test_hard_cases.py) checks the fast part against the stored values.
 """
@@ -37,6 +40,8 @@ HERE = Path(__file__).resolve().parent
 BEST_FILE = HERE / "hard_cases_best.json"
 #: stored bootstrap WVs of the Navchip 8-parameter fits (see "_about" inside)
 BOOT_FILE = HERE / "hard_cases_boot.json"
+#: stored Simulation 2 WVs of the spurious-SIN class (see "_about" inside)
+SIM2_FILE = HERE / "hard_cases_sim2.json"
 NAVCHIP = HERE.parent.parent / "shared" / "data" / "wv" / "navchip_wv.csv"
 NAVCHIP_MODELS = ("QN+WN+2*GM+RW+DR", "WN+2*AR1+RW", "QN+WN+AR1+RW", "WN+AR1+RW")
 
@@ -94,6 +99,25 @@ def boot_wv(name: str) -> tuple[gmwm.WaveletVariance, str]:
     return wv, data["model"]
 
 
+@cache
+def _sim2_data() -> dict:
+    return json.loads(SIM2_FILE.read_text()) if SIM2_FILE.exists() else {}
+
+
+def sim2_names() -> list[str]:
+    """Names of the stored Simulation 2 WVs (``sim2_<base seed>_<replicate>``)."""
+    return [k for k in _sim2_data() if k.startswith("sim2_")]
+
+
+def sim2_wv(name: str) -> tuple[gmwm.WaveletVariance, str]:
+    """A stored Simulation 2 WV and its model."""
+    data = _sim2_data()
+    rec = data[name]
+    wv = gmwm.WaveletVariance.from_table(2.0 ** np.asarray(rec["levels"]), rec["variance"],
+                                         n_samples=rec["n_samples"], freq=rec["freq"])
+    return wv, data["model"]
+
+
 def cases(navchip: bool = True) -> list[tuple[str, gmwm.WaveletVariance, str]]:
     """(case id, WV, model) for every hard case (Navchip only when the data file exists)."""
     out = []
@@ -102,6 +126,9 @@ def cases(navchip: bool = True) -> list[tuple[str, gmwm.WaveletVariance, str]]:
         out += [(f"{name}|{m}", wv, m) for m in models]
     for name in boot_names():
         wv, m = boot_wv(name)
+        out.append((f"{name}|{m}", wv, m))
+    for name in sim2_names():
+        wv, m = sim2_wv(name)
         out.append((f"{name}|{m}", wv, m))
     if navchip and NAVCHIP.exists():
         for sensor in ("gyroscope", "accelerometer"):
@@ -195,6 +222,9 @@ def main() -> int:
     ap.add_argument("--n-random", type=int, default=256)
     ap.add_argument("--submodels", action="store_true",
                     help="also fit every submodel alone and count those ending below the model")
+    ap.add_argument("--repeat", type=int, default=1,
+                    help="fit each case this many times; CPU time per fit = the minimum")
+    ap.add_argument("--json", type=Path, help="write per-case objective, best, CPU s here")
     args = ap.parse_args()
     stored = json.loads(BEST_FILE.read_text()) if BEST_FILE.exists() else {}
     rows = []
@@ -208,15 +238,18 @@ def main() -> int:
     print(f"first fit in this process (imports, Numba cache load): "
           f"{(time.perf_counter() - t0) * 1e3:.0f} ms", flush=True)
     for cid, wv, spec in all_cases:
-        t0 = time.perf_counter()
-        res = gmwm.fit(wv, spec)  # the default fit, standard errors included
-        dt = time.perf_counter() - t0
+        cpu = []
+        for _ in range(max(args.repeat, 1)):
+            t0, c0 = time.perf_counter(), time.process_time()
+            res = gmwm.fit(wv, spec)  # the default fit, standard errors included
+            dt = time.perf_counter() - t0
+            cpu.append(time.process_time() - c0)
         if args.update or cid not in stored:
             stored[cid] = min(best_known(wv, spec, args.n_random), res.objective)
             added = True
         best = stored[cid]
         rel = (res.objective - best) / best
-        rows.append((cid, res.objective, best, rel, dt, len(res.warnings)))
+        rows.append((cid, res.objective, best, rel, dt, len(res.warnings), min(cpu)))
         extra = ""
         if args.submodels:
             n_sub, below = submodel_check(wv, spec, res.objective)
@@ -224,7 +257,8 @@ def main() -> int:
             n_below += len(below)
             extra = f"  submodels {n_sub}, below it {len(below)} {below or ''}"
         print(f"{cid:<48} default {res.objective:<14.10g} best {best:<14.10g} "
-              f"rel {rel:+.1e}  {dt * 1e3:6.0f} ms  J={wv.n_levels}{extra}", flush=True)
+              f"rel {rel:+.1e}  {dt * 1e3:6.0f} ms  CPU {min(cpu) * 1e3:6.0f} ms  "
+              f"J={wv.n_levels}{extra}", flush=True)
     if args.update or added:
         BEST_FILE.write_text(json.dumps(stored, indent=1, sort_keys=True) + "\n")
     bad = [r for r in rows if r[3] > 1e-6]
@@ -232,6 +266,12 @@ def main() -> int:
     print(f"\n{len(rows)} cases; default at the best known (within 1e-6 relative) in "
           f"{len(rows) - len(bad)}; time median {np.median(times) * 1e3:.0f} ms, "
           f"max {times.max() * 1e3:.0f} ms")
+    cpus = np.array([r[6] for r in rows])
+    print(f"CPU per fit (min of {max(args.repeat, 1)}): total {cpus.sum():.3f} s, median "
+          f"{np.median(cpus) * 1e3:.0f} ms, max {cpus.max() * 1e3:.0f} ms")
+    if args.json:
+        args.json.write_text(json.dumps({r[0]: {"objective": r[1], "best": r[2], "cpu": r[6]}
+                                         for r in rows}, indent=1) + "\n")
     if args.submodels:
         print(f"submodels fitted alone: {n_pairs}; ending below their model: {n_below}")
     return 1 if bad or n_below else 0

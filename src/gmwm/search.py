@@ -29,7 +29,10 @@ nested submodels, and the refinement of the best starts (no user starting values
    (``benchmarks/hard_cases_boot.json``).
 4. Refinement: Levenberg-Marquardt (bounded trust region where it leaves the box) in free
    coordinates (logs, scaled logit for phi, pi*logistic for SIN beta) with the analytic Jacobian
-   from the best distinct starts; the best objective wins.
+   from the best distinct starts; the best objective wins. The winner's SIN frequencies are
+   then rescanned (``hop_sins``), and a SIN it leaves below the WV's noise at every scale is
+   re-seated jointly with another shape (``reseat_sins``: a slow SIN absorbed by a phi ~ 1 AR1
+   while the SIN keeps a spurious bump elsewhere).
 
 :class:`Search` runs it for one model and problem and keeps the fitted submodels, from which
 :func:`gmwm.fit` judges whether each component is supported by the data. Inside
@@ -62,6 +65,11 @@ __all__ = ["EXPLORE_NFEV", "Node", "Search", "shared_memo"]
 
 #: Evaluation budget of each exploratory solve (the winner continues to max_nfev).
 EXPLORE_NFEV = 60
+#: A SIN whose WV stays below this many standard deviations of the WV estimate at every scale is
+#: re-seated jointly with another shape (``_VP.reseat_sins``).
+RESEAT_NOISE = 3.0
+#: ... and moved at least this far in ln beta from where it was.
+RESEAT_AWAY = 1.0
 
 
 # -- NNLS ---------------------------------------------------------------------------------------
@@ -397,25 +405,57 @@ class _VP:
         sins = [k for k in self.shaped if self.procs[k].oscillating]
         if not sins or len(self.shaped) < 2 or theta_best is None:
             return
-        base = _shapes_of(self.model, theta_best, self.tau)
+        c, th = self.pair_descents(_shapes_of(self.model, theta_best, self.tau), sins)
+        add(c, th)
+
+    def pair_descents(self, base: list[float], sins: list[int], away: float | None = None,
+                      partners: list[int] | None = None) -> tuple[float, np.ndarray]:
+        """(VP cost, theta) of the best joint (SIN k, other shape j) placement from ``base``
+        over the SINs ``sins`` and every other shaped j, each followed by a coordinate descent.
+        ``away``: SIN k is placed at least this far (in ln beta) from ``base[k]``."""
         sg = self.grids[sins[0]]
         sin_grid = np.linspace(sg[0], sg[-1], 4 * sg.size)
         sin_cols = self.white @ self.procs[sins[0]].unit_wv_columns(sin_grid, self.tau)
         moved = []
         for k in sins:
-            for j in self.shaped:
+            allowed = None if away is None else np.abs(sin_grid - base[k]) > away
+            for j in (self.shaped if partners is None else partners):
                 if j == k:
                     continue
                 shapes = list(base)
                 self.set_shapes(shapes)
                 fixed = [i for i in range(self.ncomp) if i not in (j, k)]
-                best_pair = self.pair_scan(fixed, j, sin_cols)
+                best_pair = self.pair_scan(fixed, j, sin_cols, allowed)
                 shapes[j] = float(self.grids[j][best_pair[0]])
                 shapes[k] = float(sin_grid[best_pair[1]])
                 shapes, c, coef = self.descend(shapes, refine=True, first=(k, j))
                 moved.append((c, self.theta(shapes, coef)))
-        c, th = min(moved, key=lambda x: x[0])
-        add(c, th)
+        return min(moved, key=lambda x: x[0])
+
+    def reseat_sins(self, theta: np.ndarray, noise: np.ndarray
+                    ) -> tuple[float, np.ndarray] | None:
+        """Re-seat the sinusoids that ``theta`` leaves below the noise. A SIN whose WV is below
+        ``noise`` (the WV's standard deviation, per scale) at every scale explains nothing the
+        data can tell; typically a slow SIN was absorbed by an AR1 with phi ~ 1 and the SIN
+        kept a tiny spurious bump elsewhere, a local optimum that no one-shape move leaves (the
+        SIN alone has nowhere better to go while the AR1 covers its scales, and the AR1 alone
+        loses by giving them up). Joint (SIN, other shape) scans from ``theta``'s shapes move
+        both at once. Returns (VP cost, theta) of the best placement, None if no SIN is below
+        the noise."""
+        sins = [k for k in self.shaped if self.procs[k].oscillating]
+        if not sins or len(self.shaped) < 2:
+            return None
+        comp = self.model.component_wv(theta, self.tau)
+        weak = [k for k in sins
+                if np.max(comp[self.model.components[k].name] / noise) < RESEAT_NOISE]
+        if not weak:
+            return None
+        # the shape that absorbed the SIN's power is a smooth one (AR1 / GM), not another SIN
+        partners = [j for j in self.shaped if not self.procs[j].oscillating]
+        if not partners:
+            return None
+        return self.pair_descents(_shapes_of(self.model, theta, self.tau), weak, RESEAT_AWAY,
+                                  partners)
 
     def hop_sins(self, theta: np.ndarray) -> tuple[float, np.ndarray] | None:
         """A SIN's WV oscillates in beta, so a solve ends in whichever of its narrow basins it
@@ -434,11 +474,13 @@ class _VP:
         c, coef = self.cost()
         return c, self.theta(shapes, coef)
 
-    def pair_scan(self, fixed: list[int], j: int, S: np.ndarray) -> tuple[int, int]:
+    def pair_scan(self, fixed: list[int], j: int, S: np.ndarray,
+                  allowed: np.ndarray | None = None) -> tuple[int, int]:
         """(grid index of component j, column of S) with the least LS cost of the whitened WV
         on the ``fixed`` columns, j's grid column and one column of S, a positive coefficient
-        on the S column. All pairs at once: the fixed span is projected out once, and each
-        j column enters as a rank-one update (Frisch-Waugh)."""
+        on the S column (``allowed``: mask of the S columns considered). All pairs at once: the
+        fixed span is projected out once, and each j column enters as a rank-one update
+        (Frisch-Waugh)."""
         Q, y = self.residual(fixed)
         proc = self.procs[j]
         G = self.white @ proc.unit_wv_columns(self.grids[j], self.tau) if proc.oscillating \
@@ -456,6 +498,8 @@ class _VP:
             gain = np.where((num > 0) & (den > 0), num**2 / den, 0.0)
             cost = (y @ y - a**2)[:, None] - gain
         cost[~np.isfinite(cost) | (nrm == 0)[:, None]] = np.inf
+        if allowed is not None:
+            cost[:, ~allowed] = np.inf
         gj, gk = np.unravel_index(int(np.argmin(cost)), cost.shape)
         return int(gj), int(gk)
 
@@ -617,6 +661,14 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
         hop = vp.hop_sins(sols[i].theta)
         if hop is not None and hop[0] < sols[i].objective * (1 - 1e-9):
             again = prob.solve(hop[1], max_nfev=max_nfev)
+            if again.objective < sols[i].objective:
+                sols.append(again)
+        i = int(np.argmin([s_.objective for s_ in sols]))
+        noise = prob.nu_hat * np.sqrt(2.0 / prob.wv.edof)
+        seat = vp.reseat_sins(sols[i].theta, noise)
+        # the descent ends near, not at, the new basin's minimum: solve unless clearly worse
+        if seat is not None and seat[0] < sols[i].objective * 1.1:
+            again = prob.solve(seat[1], max_nfev=max_nfev)
             if again.objective < sols[i].objective:
                 sols.append(again)
     for sol in sols:
