@@ -15,6 +15,7 @@ from gmwm.model import Model
 from gmwm.plan import predict
 from gmwm_studies.counts import study_counts
 from gmwm_studies.design import (
+    audit_counts,
     _power,
     design_counts,
     limit_weights,
@@ -152,3 +153,25 @@ def test_quick_run_writes_the_design(quick_run):
         assert (design[f"sim2.{est}.SIN2.observed_factor2"]["value"]
                 == counts[f"sim2.{est}.SIN2.factor2_miss"]["value"])
     assert df.rse.dropna().gt(0).all() and df.p_le0.dropna().between(0, 1).all()
+
+
+def test_audit_counts_match_fits_by_objective():
+    """A miss is audited only when the audit searched the same fit (same objective); at its best
+    within 1e-6, else local; a non-miss audit row is ignored."""
+    truth = {"SIN[2].alpha": 1.0, "SIN[2].beta": 0.01}
+    df = pd.DataFrame({
+        "replicate": [0, 1, 2, 3, 4, 5], "estimator": ["gmwm"] * 6,
+        "SIN[2].alpha": [1.1, 3.0, 0.2, 1.0, 1.0, 1.0],
+        "SIN[2].beta": [0.01, 0.01, 0.01, 0.001, 0.05, 0.01],
+        "objective": [1.0, 2.0, 3.0, 4.0, 5.0, 6.0], "converged": [1, 1, 1, 1, 1, 0]})
+    audit = pd.DataFrame({
+        "replicate": [0, 1, 2, 3], "estimator": ["gmwm"] * 4,
+        "objective": [1.0, 2.0, 3.0, 4.1],  # replicate 3: another fit than the committed one
+        "best_objective": [1.0, 2.0 / (1 + 5e-7), 2.5, 4.1], "best_sin2_within_2x": [0, 0, 1, 0]})
+    got = {c.name.split(".audit.")[1]: c.value
+           for c in audit_counts("sim2", df, truth, audit, "a.csv")}
+    # misses: 1 (alpha 3x), 2 (alpha / 5), 3 (beta / 10), 4 (beta 5x); 5 did not converge
+    assert got["misses"] == 4 and got["audited"] == 2 and got["not_audited"] == 2
+    assert got["at_best"] == 1 and got["local"] == 1 and got["local_within_2x"] == 1
+    assert got["share_at_best"] == 0.5
+    assert math.isclose(got["local_excess_min"], 0.2) and math.isclose(got["local_excess_max"], 0.2)

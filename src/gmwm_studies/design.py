@@ -47,7 +47,7 @@ from gmwm.atomic import write_text_atomic
 from gmwm.errors import InputError
 from gmwm_studies.counts import Count, draw_counts, factor2_off, study_counts, write_counts
 
-__all__ = ["COLUMNS", "HIGHLIGHT", "N_DRAWS", "design_counts", "limit_weights",
+__all__ = ["COLUMNS", "HIGHLIGHT", "N_DRAWS", "audit_counts", "design_counts", "limit_weights",
            "navchip_design", "render_markdown", "study_design", "write_design"]
 
 N_DRAWS = 1_000_000
@@ -383,9 +383,70 @@ def render_markdown(df: pd.DataFrame) -> str:
     return "\n".join(text)
 
 
+AUDIT_REL = 1e-9
+"""An audit row describes a committed fit when their objectives agree to this (relative)."""
+AUDIT_AT_BEST = 1e-6
+"""A fit is at the best objective its audit found when it is above it by at most this
+(relative); ``benchmarks/audit_sim2_misses.py`` uses the same threshold."""
+
+
+def audit_counts(study: str, df: pd.DataFrame, truth: Mapping[str, float], audit: pd.DataFrame,
+                 source: str, comp: str = "SIN[2]") -> list[Count]:
+    """Counts of a multistart audit of one sinusoid's factor-2 misses (the table written by
+    ``benchmarks/audit_sim2_misses.py``: per audited fit its objective, the best objective a
+    hard search of the same objective found, and whether that best point has the sinusoid
+    within 2x of the truth).
+
+    Per estimator, names ``<study>.<estimator>.<SINk>.audit.<quantity>``: ``misses`` (converged
+    fits off by a factor 2 in alpha or beta, the counts' rule), ``audited`` (misses with an audit
+    row of the same objective, :data:`AUDIT_REL`), ``not_audited``, ``at_best`` (audited misses
+    within :data:`AUDIT_AT_BEST` of the best found: the objective's own minimum as far as the
+    search can tell), ``local`` (the others: the search stopped short), ``local_within_2x``
+    (local misses whose better optimum has the sinusoid within 2x), ``share_at_best``
+    (at_best / audited) and ``local_excess_min`` / ``_max`` (objective / best - 1)."""
+    key = comp.replace("[", "").replace("]", "")
+    out = []
+    for est, e in df[df["converged"].astype(bool)].groupby("estimator", sort=True):
+        off = (factor2_off(e[f"{comp}.alpha"], truth[f"{comp}.alpha"])
+               | factor2_off(e[f"{comp}.beta"], truth[f"{comp}.beta"]))
+        miss = e[off]
+        a = audit[audit["estimator"] == est].set_index("replicate")
+        rows = a.reindex(miss["replicate"].to_numpy())
+        same = (rows["objective"].to_numpy() / miss["objective"].to_numpy() - 1)
+        audited = np.abs(same) < AUDIT_REL
+        excess = miss["objective"].to_numpy() / rows["best_objective"].to_numpy() - 1
+        at_best = audited & (excess <= AUDIT_AT_BEST)
+        local = audited & ~at_best
+        within = local & (rows["best_sin2_within_2x"].fillna(0).to_numpy().astype(bool))
+        n_aud = int(audited.sum())
+        name = f"{study}.{est}.{key}.audit"
+        what = f"{comp} ({study}, {est})"
+        vals = [("misses", int(off.sum()), "converged fits off the truth by more than a factor 2 "
+                 "in alpha or beta"),
+                ("audited", n_aud, "misses whose fit the audit searched (same objective)"),
+                ("not_audited", int(len(miss) - n_aud), "misses with no audit of their fit"),
+                ("at_best", int(at_best.sum()), "audited misses at the best objective the "
+                 "audit's search found (within 1e-6 relative)"),
+                ("local", int(local.sum()), "audited misses above a better optimum the search "
+                 "found"),
+                ("local_within_2x", int(within.sum()), "local misses whose better optimum has "
+                 "the sinusoid within 2x of the truth"),
+                ("share_at_best", at_best.sum() / n_aud if n_aud else None,
+                 "at_best / audited")]
+        if local.any():
+            vals += [("local_excess_min", float(excess[local].min()),
+                      "smallest objective / best - 1 of the local misses"),
+                     ("local_excess_max", float(excess[local].max()),
+                      "largest objective / best - 1 of the local misses")]
+        out += [Count(f"{name}.{q}", v, f"{d}: {what}", source) for q, v, d in vals]
+    return out
+
+
 def write_design(rows: Iterable[Mapping[str, Any]], csv_path: str, md_path: str,
-                 counts_json: str, counts_md: str) -> pd.DataFrame:
-    """Write asymptotic.csv / .md and the counts of the rows (counts.json / .md beside them)."""
+                 counts_json: str, counts_md: str,
+                 extra: Sequence[Count] = ()) -> pd.DataFrame:
+    """Write asymptotic.csv / .md and the counts of the rows (counts.json / .md beside them),
+    with ``extra`` counts (the audits') after them."""
     import os
 
     rows = list(rows)
@@ -395,6 +456,6 @@ def write_design(rows: Iterable[Mapping[str, Any]], csv_path: str, md_path: str,
     write_text_atomic(csv_path, df.to_csv(index=False, float_format="%.6g"))
     write_text_atomic(md_path, render_markdown(df))
     src = os.path.relpath(os.path.abspath(csv_path), os.path.dirname(os.path.abspath(counts_md)))
-    write_counts(design_counts(rows, src), counts_json, counts_md,
+    write_counts([*design_counts(rows, src), *extra], counts_json, counts_md,
                  title="Design numbers quoted in the reports")
     return df

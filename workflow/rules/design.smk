@@ -4,7 +4,9 @@
 #            the observed counts: Simulations 2 and 3 and STIM-300 (kinds wv_montecarlo, stim300:
 #            their committed per-replicate tables) and the Navchip axes (their bootstrap draws)
 #            -> reports/design/asymptotic.{csv,md} and reports/design/counts.{json,md} (the
-#            numbers REPRODUCTION.md quotes through count markers).
+#            numbers REPRODUCTION.md quotes through count markers), with the counts of the
+#            committed audit of Simulation 2's slow-sinusoid misses (reports/design/sim2_audit.csv,
+#            written by benchmarks/audit_sim2_misses.py) when it is there.
 # Requested by `rule all` only, not by the index or the archive: its Navchip input needs the
 # data file, whose absence must fail only the Navchip jobs (as navchip_draws / counts_navchip).
 
@@ -20,6 +22,13 @@ def design_tables():
              "label_T": len(replicates_T(name)) > 1}
             for name, s in STUDIES.items() if s["kind"] in DESIGN_KINDS
             for T in replicates_T(name)]
+
+
+def design_audits():
+    """The committed multistart audits of a study's misses (benchmarks/audit_sim2_misses.py
+    writes reports/design/<study>_audit.csv); counted when the file is there."""
+    return [t for t in design_tables() if t["study"] == "sim2" and not t["label_T"]
+            and os.path.exists(f"reports/design/{t['study']}_audit.csv")]
 
 
 def design_estimators():
@@ -54,6 +63,7 @@ rule design:
                 for t in design_tables()],
         navchip_draws=NAVCHIP_DRAWS[0] if design_navchip() else [],
         navchip_estimates=NAVCHIP_DRAWS[1] if design_navchip() else [],
+        audits=[f"reports/design/{t['study']}_audit.csv" for t in design_audits()],
     output:
         csv=DESIGN_FILES[0],
         md=DESIGN_FILES[1],
@@ -63,6 +73,7 @@ rule design:
         tables=design_tables(),
         estimators=design_estimators(),
         navchip=design_navchip(),
+        audits=design_audits(),
         seed=config["seed"],
     log:
         "logs/design.log",
