@@ -15,8 +15,8 @@ from gmwm.model import Model
 from gmwm.plan import predict
 from gmwm_studies.counts import study_counts
 from gmwm_studies.design import (
-    audit_counts,
     _power,
+    audit_counts,
     design_counts,
     limit_weights,
     navchip_design,

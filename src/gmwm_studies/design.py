@@ -421,16 +421,16 @@ def audit_counts(study: str, df: pd.DataFrame, truth: Mapping[str, float], audit
         n_aud = int(audited.sum())
         name = f"{study}.{est}.{key}.audit"
         what = f"{comp} ({study}, {est})"
-        vals = [("misses", int(off.sum()), "converged fits off the truth by more than a factor 2 "
-                 "in alpha or beta"),
+        vals = [("misses", int(off.sum()), ("converged fits off the truth by more than a factor 2 "
+                 "in alpha or beta")),
                 ("audited", n_aud, "misses whose fit the audit searched (same objective)"),
                 ("not_audited", int(len(miss) - n_aud), "misses with no audit of their fit"),
-                ("at_best", int(at_best.sum()), "audited misses at the best objective the "
-                 "audit's search found (within 1e-6 relative)"),
-                ("local", int(local.sum()), "audited misses above a better optimum the search "
-                 "found"),
-                ("local_within_2x", int(within.sum()), "local misses whose better optimum has "
-                 "the sinusoid within 2x of the truth"),
+                ("at_best", int(at_best.sum()), ("audited misses at the best objective the "
+                 "audit's search found (within 1e-6 relative)")),
+                ("local", int(local.sum()), ("audited misses above a better optimum the search "
+                 "found")),
+                ("local_within_2x", int(within.sum()), ("local misses whose better optimum has "
+                 "the sinusoid within 2x of the truth")),
                 ("share_at_best", at_best.sum() / n_aud if n_aud else None,
                  "at_best / audited")]
         if local.any():
