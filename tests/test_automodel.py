@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -278,4 +279,9 @@ def test_linear_terms_at_zero_are_not_tried_with_more_gm(six_axes) -> None:
             assert any(f"{term} not tried with {k} or more GM" in n for n in c.notes)
         d = c.to_json_dict()
         assert d["dropped_terms"] == [{"term": t, "from_n_gm": k} for t, k in c.dropped_terms]
+        assert c.slow == "GM"
+        if c.dropped_terms:  # the notes name the slow term the choice was given, not a guess
+            ar = dataclasses.replace(c, slow="AR1")
+            assert any(" or more AR1 terms" in n for n in ar.notes)
+            assert not any(" or more GM terms" in n for n in ar.notes)
     assert seen > 0  # the six-axis case drops QN or DR somewhere (stage 2 is fitted there)

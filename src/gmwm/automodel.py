@@ -166,7 +166,8 @@ class Choice:
     GM stages left out; ``excluded``: candidates left out for having as many parameters as
     scales; ``cpu_seconds``/``seconds``: process CPU and wall time of the whole choice;
     ``dropped_terms``: (term, stage) of the optional linear terms no longer tried from that stage
-    on (rule 3: at zero in every candidate of the stage before)."""
+    on (rule 3: at zero in every candidate of the stage before); ``slow``: the slow term the
+    stages add (``"GM"``, or ``"AR1"`` with ``slow="AR1"``)."""
 
     result: Any
     ranking: Ranking
@@ -180,6 +181,7 @@ class Choice:
     cpu_seconds: float = 0.0
     seconds: float = 0.0
     dropped_terms: list[tuple[str, int]] = field(default_factory=list)
+    slow: str = "GM"
 
     # -- the result protocol, delegated to the chosen fit ---------------------------------------
     @property
@@ -228,15 +230,12 @@ class Choice:
             ks = ", ".join(str(k) for k, _ in self.not_fitted)
             out.append(f"candidates with {ks} slow terms not fitted: {self.not_fitted[0][1]}")
         for term, k in self.dropped_terms:
-            out.append(f"{term} not tried with {k} or more {self._slow()} terms: it was at zero in "
+            out.append(f"{term} not tried with {k} or more {self.slow} terms: it was at zero in "
                        f"every candidate with {k - 1}")
         if self.excluded:
             out.append(f"{len(self.excluded)} candidate(s) left out: as many parameters as "
                        f"scales ({', '.join(self.excluded)})")
         return out
-
-    def _slow(self) -> str:
-        return "AR1" if any("AR1" in e.model for e in self.ranking.ranked) else "GM"
 
     @property
     def warnings(self) -> list[str]:
@@ -503,4 +502,4 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
     return Choice(result, ranking, p_values, passed, alpha, kind, bump if use_sin else None,
                   not_fitted, excluded, time.process_time() - cpu0, time.perf_counter() - wall0,
                   [(t, k) for t, k in dropped  # the drops that shaped a fitted stage
-                   if k in {parse_model(e.model).get(slow, 0) for e in ranking.ranked}])
+                   if k in {parse_model(e.model).get(slow, 0) for e in ranking.ranked}], slow)
