@@ -81,41 +81,37 @@ def simulated_wv(name: str) -> gmwm.WaveletVariance:
 
 
 @cache
-def _boot_data() -> dict:
-    return json.loads(BOOT_FILE.read_text())
+def _stored(path: Path) -> dict:
+    """A stored-WV file ({"model": spec, name: {levels, variance, n_samples, freq}}); {} if absent."""
+    return json.loads(path.read_text()) if path.exists() else {}
+
+
+def _stored_wv(path: Path, name: str) -> tuple[gmwm.WaveletVariance, str]:
+    data = _stored(path)
+    rec = data[name]
+    wv = gmwm.WaveletVariance.from_table(2.0 ** np.asarray(rec["levels"]), rec["variance"],
+                                         n_samples=rec["n_samples"], freq=rec["freq"])
+    return wv, data["model"]
 
 
 def boot_names() -> list[str]:
     """Names of the stored bootstrap WVs (``boot_navchip_<sensor>_<axis>_<draw>``)."""
-    return [k for k in _boot_data() if k.startswith("boot_")]
+    return [k for k in _stored(BOOT_FILE) if k.startswith("boot_")]
 
 
 def boot_wv(name: str) -> tuple[gmwm.WaveletVariance, str]:
     """A stored bootstrap WV and its model."""
-    data = _boot_data()
-    rec = data[name]
-    wv = gmwm.WaveletVariance.from_table(2.0 ** np.asarray(rec["levels"]), rec["variance"],
-                                         n_samples=rec["n_samples"], freq=rec["freq"])
-    return wv, data["model"]
-
-
-@cache
-def _sim2_data() -> dict:
-    return json.loads(SIM2_FILE.read_text()) if SIM2_FILE.exists() else {}
+    return _stored_wv(BOOT_FILE, name)
 
 
 def sim2_names() -> list[str]:
     """Names of the stored Simulation 2 WVs (``sim2_<base seed>_<replicate>``)."""
-    return [k for k in _sim2_data() if k.startswith("sim2_")]
+    return [k for k in _stored(SIM2_FILE) if k.startswith("sim2_")]
 
 
 def sim2_wv(name: str) -> tuple[gmwm.WaveletVariance, str]:
     """A stored Simulation 2 WV and its model."""
-    data = _sim2_data()
-    rec = data[name]
-    wv = gmwm.WaveletVariance.from_table(2.0 ** np.asarray(rec["levels"]), rec["variance"],
-                                         n_samples=rec["n_samples"], freq=rec["freq"])
-    return wv, data["model"]
+    return _stored_wv(SIM2_FILE, name)
 
 
 def cases(navchip: bool = True) -> list[tuple[str, gmwm.WaveletVariance, str]]:
