@@ -281,3 +281,253 @@ def test_the_study_code_check_sees_a_study_only_name(tmp_path):
     study.write_text("import core.sub.impl as m\nfrom core.sub import f\n\nf(); m.g(); m.h()\n")
     found = _Scan(tmp_path / "src", "core").study_only([study], {("core.sub.impl", "h")})
     assert found == {"core.sub.impl.f": ["study.py"]}
+
+
+# -- the import graph: no cycles, no private names across modules, the compile list ---------------
+# Every ``import`` counts, at module level and inside functions (an import inside a function still
+# ties the two modules together; it only defers the cost). A module whose own NAME starts with an
+# underscore (``_wvkernels``, ``_haar``, ``_precompile``, ...) is private to the package, as in
+# scikit-learn: other gmwm modules may import its public names, code outside gmwm may not.
+# A leading-underscore NAME is private to the module that defines it, everywhere.
+def _gmwm_modules(src: Path, pkg: str = "gmwm") -> dict[str, Path]:
+    """Module name -> source file, for every Python module of ``pkg`` under ``src``."""
+    return {_module_name(f, src): f for f in sorted((src / pkg).rglob("*.py"))}
+
+
+def _all_modules(src: Path, pkg: str = "gmwm") -> set[str]:
+    """Every module of ``pkg``: its Python modules and its compiled extensions (``_haar``)."""
+    ext = {_module_name(f.with_name(f.name.split(".")[0] + ".py"), src)
+           for f in (src / pkg).rglob("*") if f.suffix in (".so", ".pyd")}
+    return set(_gmwm_modules(src, pkg)) | ext
+
+
+def _import_targets(path: Path, src: Path, modules: dict[str, Path] | set[str]
+                    ) -> list[tuple[str, list[str], int, bool]]:
+    """``(module, names, line, in_function)`` for every import in ``path``: ``module`` is the
+    imported module (``from gmwm import wv`` imports module ``gmwm.wv``, with no names;
+    ``from gmwm.wv import _x`` imports ``gmwm.wv`` with names ``['_x']``)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    out = []
+
+    def visit(node: ast.AST, in_function: bool) -> None:
+        for child in ast.iter_child_nodes(node):
+            inner = in_function or isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef
+                                                  | ast.Lambda)
+            if isinstance(child, ast.Import):
+                out.extend((a.name, [], child.lineno, in_function) for a in child.names)
+            elif isinstance(child, ast.ImportFrom):
+                x = _from_module(path, src, child)
+                names = []
+                for a in child.names:
+                    if f"{x}.{a.name}" in modules:
+                        out.append((f"{x}.{a.name}", [], child.lineno, in_function))
+                    else:
+                        names.append(a.name)
+                if names:
+                    out.append((x, names, child.lineno, in_function))
+            elif (isinstance(child, ast.Call)
+                  and getattr(child.func, "attr", getattr(child.func, "id", ""))
+                  in ("import_module", "__import__") and child.args
+                  and isinstance(child.args[0], ast.Constant)):
+                out.append((str(child.args[0].value), [], child.lineno, in_function))
+            visit(child, inner)
+
+    visit(tree, False)
+    return out
+
+
+def import_graph(src: Path = REPO / "src", pkg: str = "gmwm"
+                 ) -> tuple[dict[str, set[str]], list[tuple[str, str, int]]]:
+    """The package's import arrows (module -> modules of the package it imports) and every import
+    inside a function as ``(module, imported module, line)``."""
+    files, modules = _gmwm_modules(src, pkg), _all_modules(src, pkg)
+    arrows: dict[str, set[str]] = {m: set() for m in files}
+    deferred = []
+    for m, f in files.items():
+        for target, _names, line, in_function in _import_targets(f, src, modules):
+            if target.split(".")[0] != pkg:
+                continue
+            # ``import gmwm.readers.tables`` names a module; ``import gmwm.x.y`` of a non-module
+            # attribute does not happen in the package
+            while target not in modules and "." in target:
+                target = target.rsplit(".", 1)[0]
+            if target != m and target in files:
+                arrows[m].add(target)
+            if in_function:
+                deferred.append((m, target, line))
+    return arrows, deferred
+
+
+def import_cycles(arrows: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan), each as one cycle
+    through the component, so a failure names the imports to break."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    comps: list[list[str]] = []
+    counter = [0]
+
+    def strong(v: str) -> None:
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in sorted(arrows.get(v, ())):
+            if w not in index:
+                strong(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                comps.append(sorted(comp))
+
+    sys.setrecursionlimit(max(sys.getrecursionlimit(), 10_000))
+    for v in sorted(arrows):
+        if v not in index:
+            strong(v)
+    cycles = []
+    for comp in comps:
+        # shortest path back to the start (breadth first inside the component)
+        start, members = comp[0], set(comp)
+        prev: dict[str, str] = {}
+        frontier, found = [start], None
+        while frontier and found is None:
+            nxt = []
+            for v in frontier:
+                for w in sorted(arrows[v] & members):
+                    if w == start:
+                        found = v
+                        break
+                    if w not in prev:
+                        prev[w] = v
+                        nxt.append(w)
+                if found is not None:
+                    break
+            frontier = nxt
+        path = [found]
+        while path[-1] != start:
+            path.append(prev[path[-1]])
+        cycles.append([*path[::-1], start] + ([f"(component: {', '.join(comp)})"]
+                                              if len(comp) > len(path) else []))
+    return cycles
+
+
+def private_imports(files: dict[str, Path], src: Path, pkg: str = "gmwm",
+                    outside: bool = False) -> list[str]:
+    """``file:line imports module._name`` for every import, from ``files``, of a leading-underscore
+    name of another module of ``pkg``, or attribute access ``alias._name`` on an imported module
+    of ``pkg``; with ``outside`` (code outside ``pkg``) also of any private module of ``pkg``."""
+    modules = _all_modules(src, pkg)
+    found = []
+    for m, f in files.items():
+        aliases: dict[str, str] = {}
+        for target, names, line, _ in _import_targets(f, src, modules):
+            if target.split(".")[0] != pkg:
+                continue
+            private_module = any(p.startswith("_") and not p.startswith("__")
+                                 for p in target.split("."))
+            if outside and private_module:
+                found.append(f"{f.name}:{line} imports private module {target}")
+            for n in names:
+                if n.startswith("_") and not n.startswith("__") and target != m:
+                    found.append(f"{f.name}:{line} imports {target}.{n}")
+        tree = ast.parse(f.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                for a in node.names:
+                    if a.name.split(".")[0] == pkg:
+                        aliases[a.asname or a.name.split(".")[0]] = a.asname and a.name or pkg
+            elif isinstance(node, ast.ImportFrom):
+                x = _from_module(f, src, node)
+                for a in node.names:
+                    if f"{x}.{a.name}" in modules:
+                        aliases[a.asname or a.name] = f"{x}.{a.name}"
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Attribute) and node.attr.startswith("_") \
+                    and not node.attr.startswith("__"):
+                chain, v = [node.attr], node.value
+                while isinstance(v, ast.Attribute):
+                    chain.append(v.attr)
+                    v = v.value
+                if not (isinstance(v, ast.Name) and v.id in aliases):
+                    continue
+                module, rest = aliases[v.id], chain[::-1]
+                while len(rest) > 1 and f"{module}.{rest[0]}" in modules:
+                    module, rest = f"{module}.{rest[0]}", rest[1:]
+                if len(rest) == 1 and module != m and f"{module}.{rest[0]}" not in modules:
+                    found.append(f"{f.name}:{node.lineno} uses {module}.{rest[0]}")
+    return sorted(set(found))
+
+
+def test_no_import_cycles():
+    arrows, _ = import_graph()
+    assert len(arrows) > 40
+    cycles = import_cycles(arrows)
+    assert not cycles, "import cycles (imports inside functions count):\n" + "\n".join(
+        " -> ".join(c) for c in cycles)
+
+
+def test_the_cycle_check_sees_a_cycle_through_a_function_import(tmp_path):
+    pkg = tmp_path / "gmwm"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("from gmwm.b import f\n")
+    (pkg / "b.py").write_text("def f():\n    from gmwm import c\n    return c\n")
+    (pkg / "c.py").write_text("def g():\n    from . import a\n    return a\n")
+    (pkg / "d.py").write_text("import gmwm.a\n")
+    arrows, deferred = import_graph(tmp_path)
+    assert arrows["gmwm.d"] == {"gmwm.a"} and ("gmwm.b", "gmwm.c", 2) in deferred
+    assert import_cycles(arrows) == [["gmwm.a", "gmwm.b", "gmwm.c", "gmwm.a"]]
+
+
+def test_no_module_imports_another_modules_private_names():
+    src = REPO / "src"
+    found = private_imports(_gmwm_modules(src), src)
+    assert not found, ("private names used across modules (make the name public, or move it "
+                       "into a private _module):\n" + "\n".join(found))
+
+
+def test_the_studies_use_no_private_name_of_the_library():
+    src = REPO / "src"
+    found = private_imports(_gmwm_modules(src, STUDIES), src, outside=True)
+    assert not found, "gmwm_studies uses private parts of gmwm:\n" + "\n".join(found)
+
+
+def test_the_private_name_check_sees_one(tmp_path):
+    pkg = tmp_path / "gmwm"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "_kern.py").write_text("def k():\n    pass\n\n\ndef _k():\n    pass\n")
+    (pkg / "a.py").write_text("_x = 1\n\n\ndef _own():\n    return _x\n")
+    (pkg / "b.py").write_text("from gmwm._kern import k\nfrom gmwm import a\n\n\n"
+                              "def f():\n    from gmwm._kern import _k\n    return a._x, k, _k\n")
+    found = private_imports(_gmwm_modules(tmp_path), tmp_path)
+    assert found == ["b.py:6 imports gmwm._kern._k", "b.py:7 uses gmwm.a._x"]
+    study = tmp_path / "study.py"
+    study.write_text("from gmwm._kern import k\n")
+    assert private_imports({"study": study}, tmp_path, outside=True) == [
+        "study.py:1 imports private module gmwm._kern"]
+
+
+def test_the_install_time_compile_names_only_modules_that_exist():
+    """Every gmwm module ``_precompile`` imports exists and imports (an install swallows a failure
+    of the compile step: a stale name would go unnoticed)."""
+    src = REPO / "src"
+    modules = _gmwm_modules(src)
+    named = {t for t, _, _, _ in _import_targets(CORE / "_precompile.py", src, modules)
+             if t.split(".")[0] in ("gmwm", STUDIES)}
+    assert "gmwm.wv" in named
+    missing = sorted(t for t in named if t not in modules)
+    assert not missing, f"_precompile imports modules that do not exist: {missing}"
+    loaded = _loaded_after("import importlib\n" + "".join(
+        f"importlib.import_module({t!r})\n" for t in sorted(named)))
+    assert "numpy" in loaded or named <= {"gmwm", "gmwm.wv"}
