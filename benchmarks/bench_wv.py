@@ -31,7 +31,7 @@ from functools import partial
 
 import numpy as np
 
-from gmwm.wv import _layout, _Workspace, kernel_name, n_threads, wvar
+from gmwm.wv import Workspace, default_layout, kernel_name, n_threads, wvar
 
 
 def numpy_cumsum_wv(x: np.ndarray, levels: int) -> np.ndarray:
@@ -62,13 +62,13 @@ def best_time(fn: Callable[[], object], repeat: int) -> tuple[float, float]:
 _COMPILE_SNIPPET = """
 import time, numpy as np
 t0 = time.perf_counter()
-from gmwm.wv import _Workspace, wvar
+from gmwm.wv import Workspace, wvar
 t1 = time.perf_counter()
 x = np.random.default_rng(0).standard_normal(5000)
 wvar(x)
 t2 = time.perf_counter()
 from gmwm import _wvkernels
-ws = _Workspace(5000, 11)
+ws = Workspace(5000, 11)
 s = np.zeros(11)
 st = ws.store()
 _wvkernels.phase1(x, 0, 0, 5000, x[0], ws.n_block, ws.block, s, st, 0, ws.rows, ws.panel)
@@ -100,7 +100,7 @@ def bench_row(T: int, rng: np.random.Generator, repeat: int) -> dict[str, float]
         _haar = None
     x = 1e3 + np.cumsum(rng.standard_normal(T)) + 1e-2 * rng.standard_normal(T)
     J = int(np.floor(np.log2(T))) - 1
-    ws = _Workspace(T, J)
+    ws = Workspace(T, J)
     nt = n_threads(T)
     row = {"T": T, "J": J, "threads": nt}
     row["wvar"] = best_time(partial(wvar, x), repeat)
@@ -127,12 +127,12 @@ def tune(T: int, repeat: int) -> None:
     around the default."""
     x = np.cumsum(np.random.default_rng(1).standard_normal(T))
     J = int(np.floor(np.log2(T))) - 1
-    L0, _, p0 = _layout(T, J)
+    L0, _, p0 = default_layout(T, J)
     print(f"T={T:.0e}, J={J}, default L={L0}, block=8*2**L, panel={p0}")
     for L in sorted({max(1, L0 - 2), L0 - 1, L0, min(J, L0 + 1), min(J, L0 + 2)}):
         for factor in (4, 8, 16):
             for panel in (4, 8, 16):
-                ws = _Workspace(T, J, L, factor << L, panel)
+                ws = Workspace(T, J, L, factor << L, panel)
                 cpu = best_time(partial(ws.sums, x, J, 1), repeat)[1]
                 print(f"  L={L:>2} block={factor:>2}*2**L panel={panel:>2}: {cpu:.4f} s cpu")
 

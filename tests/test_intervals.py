@@ -11,12 +11,12 @@ import pytest
 
 import gmwm
 from gmwm.datasheet import datasheet
+from gmwm.diagnostics import is_weak
 from gmwm.intervals import (
     bootstrap_basic,
     fit_intervals,
     function_interval,
     image_interval,
-    is_weak,
     param_domains,
     param_intervals,
     scale_interval,

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import gmwm
-from gmwm._wvkernels import _m_scale
+from gmwm._wvkernels import m_scale
 from gmwm.cli import main
 from gmwm.errors import InputError
 from gmwm.model import Model
@@ -54,7 +54,7 @@ def test_biweight_efficiency_matches_monte_carlo(eff: float) -> None:
     for _ in range(800):
         w = rng.standard_normal(500)
         v = np.concatenate([[0.0], 2.0 * np.cumsum(w)])  # W_i = (v[i+1] - v[i]) / 2 = w_i
-        rob.append(_m_scale(v, w.size, 1, c, b, _start_scale(v, w.size, 1)))
+        rob.append(m_scale(v, w.size, 1, c, b, _start_scale(v, w.size, 1)))
         cla.append(np.mean(w * w))
     assert abs(np.mean(rob) - 1.0) < 0.01          # Fisher consistent (SE ~ 0.003)
     assert np.var(cla) / np.var(rob) == pytest.approx(eff, rel=0.2)

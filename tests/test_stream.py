@@ -23,7 +23,8 @@ from gmwm.stream import (
     wvar_chunks,
     wvar_stream,
 )
-from gmwm.wv import _Workspace, avar, wvar
+from gmwm.wv import Workspace as _Workspace
+from gmwm.wv import avar, wvar
 
 
 def longdouble_wv(x: np.ndarray, J: int) -> np.ndarray:

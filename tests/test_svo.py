@@ -21,7 +21,7 @@ from gmwm.virtual import (
     svo_jacobian,
     svo_weights,
 )
-from gmwm.wccv import _unpack, wccv
+from gmwm.wccv import unpack, wccv
 from gmwm_studies.svo_study import case, true_coefs
 
 
@@ -226,7 +226,7 @@ def test_mbb_identity_draw_reproduces_estimate():
     n = T - (1 << np.arange(1, J + 1)) + 1
     _mbb_kernel(X, J, True, np.zeros(p), 1.0 / n, starts, block, MJ - (B - 1) * block,
                 np.zeros((1, J), np.int64), out)
-    got = _unpack(out.reshape(1, J, -1), p)[0]
+    got = unpack(out.reshape(1, J, -1), p)[0]
     ref = wccv(X, J).cov
     assert np.max(np.abs(got - ref)) < 1e-13 * np.abs(ref).max()
 
@@ -253,7 +253,7 @@ def test_time_scheme_identity_draw_and_projection():
     _mbb_time_kernel(X, J, True, np.zeros(p), starts, block, T - (B - 1) * block, sums, counts)
     ref = wccv(X, J)
     np.testing.assert_array_equal(counts[0], ref.n)
-    got = _unpack(sums[0] / counts[0][:, None], p)
+    got = unpack(sums[0] / counts[0][:, None], p)
     assert np.max(np.abs(got - ref.cov)) < 1e-13 * np.abs(ref.cov).max()
     om = svo_weights("long", J)
     full = mbb_wccv(X, J, n_boot=30, block=25, rng=3, scheme="time")

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from conftest import needs_c_kernel
-from gmwm.wv import _Workspace, wvar
+from gmwm.wv import Workspace, wvar
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "gmwm" / "_haar.c"
 
@@ -174,7 +174,7 @@ FROZEN = {
 
 def _sums(kern: types.ModuleType, x: np.ndarray, J: int, layout: tuple[int, int, int] | None,
           threads: int | None) -> np.ndarray:
-    return _Workspace(x.size, J, *(layout or ())).sums(x, J, threads, kern=kern)
+    return Workspace(x.size, J, *(layout or ())).sums(x, J, threads, kern=kern)
 
 
 def _check(kern: types.ModuleType, threads: int | None) -> None:

@@ -3,7 +3,7 @@ when a command has to compile anyway.
 
 Why a cache built at install time (and not C ports or Numba's AOT compiler): the classical WV
 kernel is C (``_haar.c``), but some thirty further kernels (AR1 and covariance formulas of the
-fit, the simulators, the robust WV, SVO, the Kalman filter of the MLE) would need a second,
+fit, the simulators, the robust WV, SVO) would need a second,
 separately maintained implementation each; ``numba.pycc`` is deprecated and compiles for a generic
 CPU. Numba's own cache (``cache=True`` on every kernel) keys an entry on the source file's
 content hash, the Numba version and the CPU, so the entries compiled by ``setup.py`` (its
@@ -14,17 +14,20 @@ a read-only installation, ``GMWM_NO_PRECOMPILE=1`` at install), a command that c
 line on stderr (:func:`announce_compiles`).
 
 The warm-up runs the command-line tool itself on small files (simulate, fit with every
-component kind and option that reaches a kernel, select, the robust WV, SVO) and the MLE, so the
-kernels are compiled for exactly the argument types those paths pass.
+component kind and option that reaches a kernel, select, the robust WV, SVO), so the kernels are
+compiled for exactly the argument types those paths pass. It runs each command as ``python -m
+gmwm`` in a child process: the command-line package imports this module (for the note), so this
+module must not import it back (no import cycle; tests/test_layout.py). The paper studies'
+kernels (``gmwm_studies``, e.g. the MLE's Kalman filter) are not part of the library and compile
+on their first use.
 """
 
 from __future__ import annotations
 
-import contextlib
 import importlib.abc
 import importlib.util
-import io
 import os
+import subprocess
 import sys
 import tempfile
 import time
@@ -52,10 +55,9 @@ _COMMANDS: tuple[tuple[str, ...], ...] = (
 
 
 def _run(argv: list[str]) -> int:
-    from gmwm.cli import main
-
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-        return main(argv)
+    """Run ``gmwm argv`` in a child process (same interpreter and environment); its exit status."""
+    return subprocess.run([sys.executable, "-m", "gmwm", *argv], capture_output=True,
+                          check=False).returncode
 
 
 def warm(log: TextIO = sys.stderr) -> float:
@@ -78,9 +80,6 @@ def warm(log: TextIO = sys.stderr) -> float:
             argv = [a.format(x=x, X=X) for a in cmd]
             code = _run(argv)
             log.write(f"  gmwm {' '.join(cmd[:1] + cmd[2:])}: exit status {code}\n")
-        from gmwm.mle import fit_mle
-
-        fit_mle(np.load(x), 0.3, n_starts=1, maxiter=5)
     return time.perf_counter() - t0
 
 

@@ -326,7 +326,7 @@ def phase2(store: np.ndarray, rows: int, n_out: int, L: int, panel: int, p_begin
 
 
 @njit(cache=True)
-def _haar_step(v: np.ndarray, w: np.ndarray, n: int, m: int) -> int:
+def haar_step(v: np.ndarray, w: np.ndarray, n: int, m: int) -> int:
     """One MODWT Haar level in place: from the ``n`` local averages ``v[:n]`` of the previous level
     (lag ``m``), write the ``n - m`` wavelet coefficients to ``w`` and the new averages to ``v``.
     In place is safe: ``v[i]`` is overwritten only after ``v[i]`` and ``v[i + m]`` were read."""
@@ -359,7 +359,7 @@ def _rho_terms(v: np.ndarray, n: int, m: int, inv: float) -> tuple[float, float]
 
 
 @njit(cache=True)
-def _m_scale(v: np.ndarray, n: int, m: int, c: float, b: float, nu0: float) -> float:
+def m_scale(v: np.ndarray, n: int, m: int, c: float, b: float, nu0: float) -> float:
     """Solve ``mean rho_c(w / sqrt(nu)) = b`` for nu: Newton in log nu from ``nu0`` (the left side
     decreases in nu), steps capped at a factor 4, bisection once a bracket is known and a step
     leaves it. Converges in ~4-6 passes from the MAD start."""
@@ -392,7 +392,7 @@ def _m_scale(v: np.ndarray, n: int, m: int, c: float, b: float, nu0: float) -> f
 
 
 @njit(cache=True)
-def _haar_average(v: np.ndarray, n: int, m: int) -> int:
+def haar_average(v: np.ndarray, n: int, m: int) -> int:
     """Next level's local averages in place, ``v[i] = (v[i] + v[i + m]) / 2`` for ``i < n - m``
     (``v[i + m]`` is still the previous level's value when read)."""
     k = n - m

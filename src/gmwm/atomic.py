@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from gmwm.errors import InputError
-from gmwm.readers.tables import _HDF5_SUFFIXES, SIGNAL_SUFFIXES
+from gmwm.readers.tables import HDF5_SUFFIXES, SIGNAL_SUFFIXES
 
 __all__ = ["atomic_path", "save_figure", "to_jsonable", "write_json_atomic", "write_signal",
            "write_text_atomic"]
@@ -95,7 +95,7 @@ def write_signal(path: str | os.PathLike, x: np.ndarray, name: str = "signal") -
     with atomic_path(p) as tmp:
         if suffix == ".npy":
             np.save(tmp, x)
-        elif suffix in _HDF5_SUFFIXES:
+        elif suffix in HDF5_SUFFIXES:
             import h5py
 
             with h5py.File(tmp, "w") as fh:

@@ -59,7 +59,7 @@ from typing import Any
 
 import numpy as np
 
-from .criteria import DEFAULT, TIE_CHI2, _chi2_unit
+from .criteria import DEFAULT, TIE_CHI2, chi2_unit
 from .errors import GMWMError, InputError
 from .model import Model, parse_model, spec_of
 from .search import shared_memo
@@ -221,7 +221,7 @@ class Choice:
         chosen = self.result.model.spec
         above = [e.model for e in self.ranking.ranked[:self.rank - 1]]
         if above and self.passed:
-            rej = ", ".join(f"{m} (p {_fmt_p(self.p_values.get(m, np.nan))})" for m in above)
+            rej = ", ".join(f"{m} (p {fmt_p(self.p_values.get(m, np.nan))})" for m in above)
             out.append(f"ranked above {chosen} but rejected by the goodness-of-fit test: {rej}")
         out += self.ranking.notes
         if self.bump is not None:
@@ -244,7 +244,7 @@ class Choice:
         out = []
         if not self.passed:
             tested = [p for p in self.p_values.values() if np.isfinite(p)]
-            best = f"largest p {_fmt_p(max(tested))}" if tested else "no candidate testable"
+            best = f"largest p {fmt_p(max(tested))}" if tested else "no candidate testable"
             out.append(
                 f"every candidate model is rejected by the goodness-of-fit test at "
                 f"{self.alpha:g} ({len(self.ranking.ranked)} candidates, {best}): the reported "
@@ -256,10 +256,10 @@ class Choice:
     def rows(self) -> list[dict[str, Any]]:
         """The ranking as rows: rank, model, n_params, delta_chi2 (criterion above the best in
         chi-square units of the best fit; see :mod:`gmwm.criteria`), p_value, rejected, chosen."""
-        from .criteria import _chi2_unit
+        from .criteria import chi2_unit
 
         ranked = self.ranking.ranked
-        unit = _chi2_unit(ranked[0]) if ranked else float("nan")
+        unit = chi2_unit(ranked[0]) if ranked else float("nan")
         chosen = self.result.model.spec
         out = []
         for i, e in enumerate(ranked, 1):
@@ -280,7 +280,7 @@ class Choice:
             p = r["p_value"]
             rows.append((str(r["rank"]), r["model"], str(r["n_params"]),
                          "–" if d is None else f"{d:.3g}",
-                         "–" if p is None else _fmt_p(p).lstrip("= "),
+                         "–" if p is None else fmt_p(p).lstrip("= "),
                          "chosen" if r["chosen"] else ("rejected" if r["rejected"] else "")))
         return headers, rows
 
@@ -289,8 +289,8 @@ class Choice:
         goodness of fit p = 0.57``."""
         p = self.p_values.get(self.result.model.spec, np.nan)
         who = f" for the {self.kind}" if self.kind else ""
-        verdict = (f"goodness of fit p {_fmt_p(p)}" if self.passed
-                   else f"REJECTED like every candidate (p {_fmt_p(p)})")
+        verdict = (f"goodness of fit p {fmt_p(p)}" if self.passed
+                   else f"REJECTED like every candidate (p {fmt_p(p)})")
         return (f"model {self.result.model.spec} chosen{who}: rank {self.rank} of "
                 f"{len(self.ranking.ranked)} by {self.ranking.criterion.upper()}, {verdict}")
 
@@ -328,8 +328,8 @@ class Choice:
             "seconds": self.seconds, "result": self.result.to_json_dict()})
 
 
-def _fmt_p(p: float) -> str:
-    from .gof import _fmt_p as fmt
+def fmt_p(p: float) -> str:
+    from .gof import fmt_p as fmt
 
     return "not testable" if not np.isfinite(p) else fmt(p)
 
@@ -430,7 +430,7 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
             if rankings:
                 passing = any(p >= alpha for p in p_values.values() if np.isfinite(p))
                 best = merge(rankings).ranked[0]
-                tie = TIE_CHI2 * _chi2_unit(best)
+                tie = TIE_CHI2 * chi2_unit(best)
                 why = None
                 probe = _with(best.model, slow)
                 if passing and stage_best >= best_before:

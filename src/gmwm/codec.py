@@ -18,7 +18,7 @@ import numpy as np
 
 from gmwm.atomic import write_text_atomic
 from gmwm.errors import InputError
-from gmwm.readers.tables import _existing_file
+from gmwm.readers.tables import existing_file
 
 __all__ = ["RESULT_FORMAT", "read_result", "result_from_dict", "result_to_dict", "write_result"]
 
@@ -127,7 +127,7 @@ def write_result(path: str | os.PathLike, result: Any) -> Path:
 
 def read_result(path: str | os.PathLike) -> Any:
     """Read a GMWMResult written by :func:`write_result`."""
-    p = _existing_file(path)
+    p = existing_file(path)
     try:
         d = json.loads(p.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:

@@ -59,7 +59,7 @@ def factor(criterion: str, n_samples: int) -> float:
     raise InputError(f"unknown criterion {criterion!r}; use one of {', '.join(CRITERIA)}")
 
 
-def _chi2_unit(entry: Any) -> float:
+def chi2_unit(entry: Any) -> float:
     """Objective units per chi-square unit of a ranked fit: ``tr(Omega V) / J`` with V its
     WV covariance (1 for efficient weights)."""
     res = entry.result
@@ -78,7 +78,7 @@ def near_ties(ranking: Any, tol: float = TIE_CHI2) -> list[Any]:
     ranked = ranking.ranked
     if len(ranked) < 2:
         return []
-    unit = _chi2_unit(ranked[0])
+    unit = chi2_unit(ranked[0])
     if not np.isfinite(unit) or unit <= 0:
         return []
     best = ranked[0].criterion
@@ -130,7 +130,7 @@ def ranking_notes(ranking: Any, tol: float = TIE_CHI2) -> list[str]:
     ranked = ranking.ranked
     if len(ranked) < 2:
         return []
-    unit = _chi2_unit(ranked[0])
+    unit = chi2_unit(ranked[0])
     lines = []
     for e in near_ties(ranking, tol):
         parts = []

@@ -23,7 +23,7 @@ Components.
   scale is "at the boundary 0" (held fixed, no standard error).
 * ``WEAK_Z = 1.96`` (the normal 0.975 quantile): a scale parameter below ``WEAK_Z`` standard
   errors is "not distinguishable from zero" (a two-sided 5 % Wald test,
-  :func:`gmwm.intervals.is_weak`, the test that makes its 95 % interval reach 0).
+  :func:`is_weak`, the test that makes its 95 % interval reach 0).
 * ``UNSUPPORTED_PER_PARAM = 2``: a component whose removal raises the objective, on the
   chi-square scale, by less than 2 per parameter is "not supported by the data" (an AIC-type rule:
   the drop in fit does not pay for the parameters).
@@ -66,6 +66,8 @@ from typing import Any
 
 import numpy as np
 
+from .errors import InputError
+
 __all__ = ["COND_MAX", "LOADING_MIN", "RANK_RTOL", "SD_FREE_MAX", "VANISH_SHARE",
            "condition_number", "degeneracies", "fit_warnings", "free_jacobian",
            "unsupported_warning"]
@@ -102,6 +104,24 @@ def free_jacobian(problem: Any, theta: np.ndarray, active: np.ndarray) -> np.nda
         return (problem.white @ problem.jac_theta(theta))[:, active] * d[active]
 
 
+
+def normal_quantile(alpha: float) -> float:
+    """``z_{1-alpha/2}``, the two-sided normal quantile of level ``1 - alpha`` (1.96 at 0.05)."""
+    if not 0 < alpha < 1:
+        raise InputError(f"alpha must lie in (0, 1), got {alpha}")
+    from scipy.special import ndtri  # SciPy only when a level is asked for
+
+    return float(ndtri(1 - alpha / 2))
+
+
+def is_weak(theta: np.ndarray, se: np.ndarray, alpha: float = 0.05) -> np.ndarray:
+    """True where an estimate is within ``z_{1-alpha/2}`` standard errors of 0 (finite SE): its
+    Wald interval of level ``1 - alpha`` reaches 0."""
+    theta = np.asarray(theta, float)
+    se = np.asarray(se, float)
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(se) & (np.abs(theta) < normal_quantile(alpha) * se)
+
 def condition_number(A: np.ndarray) -> float:
     """2-norm condition number of A with unit-norm columns (inf if singular or non-finite)."""
     norms = np.linalg.norm(A, axis=0)
@@ -137,8 +157,6 @@ def fit_warnings(model: Any, theta: np.ndarray, se: np.ndarray, cond: float,
     if bad_se:
         out.append("standard errors could not be computed for " + ", ".join(bad_se)
                    + " (singular sandwich)")
-    from .intervals import is_weak
-
     flags = is_weak(theta, se)  # the rule under which the 95 % interval reaches 0
     weak = [c.name for c in model.components
             if c.name not in vanished and flags[c.start + c.process.scale_index]]

@@ -19,7 +19,7 @@ Per sensor (gyroscope, accelerometer) and axis the representation holds the cont
 white-noise density N [SI/sqrt(Hz)] and random-walk density K [SI/s/sqrt(Hz)] with their 95 %
 intervals, taken from :func:`gmwm.datasheet.datasheet` so that every file agrees with the
 parameter table and the report; a flag when the term is at the boundary 0 or not distinguishable
-from 0 (the fit's own diagnostics, :func:`gmwm.intervals.is_weak`); the terms no target has a
+from 0 (the fit's own diagnostics, :func:`gmwm.diagnostics.is_weak`); the terms no target has a
 field for (Gauss-Markov, bias instability from the Allan readings, QN, rate ramp, sinusoids) as
 comment text. One value per sensor is chosen by a stated axis rule (default: the worst axis) and
 inflated after that (``parse_inflation("noise=2,walk=10")``), and every text file says in
@@ -373,7 +373,7 @@ def _scale_index(result: Any, prefix: str) -> list[tuple[str, int]]:
 def _flag(result: Any, comp: str, i: int) -> str | None:
     """The fit's own verdict on a scale parameter: at the boundary (vanished, held at 0) or not
     distinguishable from 0 (the rule behind its "not distinguishable from zero" warning)."""
-    from gmwm.intervals import is_weak
+    from gmwm.diagnostics import is_weak
 
     theta = float(np.asarray(result.params, float)[i])
     diag = getattr(result, "diagnostics", None) or {}

@@ -222,7 +222,7 @@ class GOFResult:
             return None
         worst = ", ".join(f"{s:.3g} s ({'>' if abs(z) >= _U_MAX else ''}{z:+.1f} SD)"
                           for s, z in self.worst_scales())
-        return (f"goodness of fit: the model is rejected (p {_fmt_p(self.p_value)}, statistic "
+        return (f"goodness of fit: the model is rejected (p {fmt_p(self.p_value)}, statistic "
                 f"{self.statistic:.4g} on {self.df} df): the WV departs from the fitted model, "
                 f"most at scales {worst}; the estimates describe a wrong model")
 
@@ -231,7 +231,7 @@ class GOFResult:
         if self.df == 0:
             return "goodness of fit: not testable (as many parameters as scales)"
         return (f"goodness of fit: statistic {self.statistic:.4g} on {self.df} df, "
-                f"p {_fmt_p(self.p_value)}" + ("  (REJECTED)" if self.rejected() else ""))
+                f"p {fmt_p(self.p_value)}" + ("  (REJECTED)" if self.rejected() else ""))
 
     def to_json_dict(self) -> dict[str, Any]:
         def num(v: float) -> float | None:
@@ -244,7 +244,7 @@ class GOFResult:
                 "residuals": [num(z) for z in self.residuals], "notes": list(self.notes)}
 
 
-def _fmt_p(p: float) -> str:
+def fmt_p(p: float) -> str:
     """``= 0.031`` or ``< 1e-300`` (a p-value below double precision)."""
     return f"= {p:.3g}" if p > 0 or not np.isfinite(p) else "< 1e-300"
 

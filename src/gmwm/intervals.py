@@ -24,7 +24,7 @@ The rule, per parameter (``z = z_{1-alpha/2}``; which parameter is a component's
 
 So an interval reaches 0 exactly when the estimate is within ``z`` standard errors of 0, which
 is what the fit's "not distinguishable from zero" warning says (at alpha = 0.05, the same test:
-:func:`is_weak`), and every interval contains the Wald interval cut to the domain, so it never
+:func:`gmwm.diagnostics.is_weak`), and every interval contains the Wald interval cut to the domain, so it never
 covers less. Why (``benchmarks/bench_intervals.py``, coverage on 300 fits per model; the
 log-scale-only figures from an earlier run of it with that rule): a variance estimated from a
 few long scales is right-skewed with an SE that grows with the estimate, and Wald's upper end
@@ -51,19 +51,13 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-from scipy.special import ndtri
+
+from .diagnostics import normal_quantile
 
 __all__ = ["bootstrap_basic", "boundary_upper", "fit_intervals", "function_interval",
-           "image_interval", "is_weak", "param_domains", "param_intervals", "param_kinds",
+           "image_interval", "param_domains", "param_intervals", "param_kinds",
            "scale_interval"]
 
-
-def _z(alpha: float) -> float:
-    if not 0 < alpha < 1:
-        from .errors import InputError
-
-        raise InputError(f"alpha must lie in (0, 1), got {alpha}")
-    return float(ndtri(1 - alpha / 2))
 
 
 def param_kinds(model: Any) -> list[str]:
@@ -102,14 +96,6 @@ def _scale_mask(model: Any) -> np.ndarray:
     return out
 
 
-def is_weak(theta: np.ndarray, se: np.ndarray, alpha: float = 0.05) -> np.ndarray:
-    """True where an estimate is within ``z_{1-alpha/2}`` standard errors of 0 (finite SE)."""
-    theta = np.asarray(theta, float)
-    se = np.asarray(se, float)
-    with np.errstate(invalid="ignore"):
-        return np.isfinite(se) & (np.abs(theta) < _z(alpha) * se)
-
-
 def param_intervals(model: Any, theta: np.ndarray, cov: np.ndarray | None, alpha: float = 0.05,
                     *, fixed: np.ndarray | None = None,
                     boundary_upper: np.ndarray | None = None,
@@ -124,7 +110,7 @@ def param_intervals(model: Any, theta: np.ndarray, cov: np.ndarray | None, alpha
     not held at the boundary gets NaN ends (no interval)."""
     theta = np.asarray(theta, dtype=float)
     p = theta.size
-    z = _z(alpha)
+    z = normal_quantile(alpha)
     if se is None:
         se = np.full(p, np.nan) if cov is None else np.sqrt(np.clip(np.diag(np.asarray(
             cov, float)), 0, None))
@@ -167,7 +153,7 @@ def boundary_upper(result: Any, alpha: float = 0.05) -> np.ndarray:
         return out
     from .inference import Problem, f_jacobian
 
-    z = _z(alpha)
+    z = normal_quantile(alpha)
     prob = Problem.of(result)
     Vf = np.asarray(V, float) * np.outer(*(2 * [f_jacobian(prob.nu_hat, prob.method)]))
     held = np.zeros(model.n_params, bool)
@@ -244,7 +230,7 @@ def function_interval(fn: Callable[[np.ndarray], float], theta: np.ndarray, cov:
     var = float(grad @ cov @ grad)
     if not (np.isfinite(var) and var >= 0):
         return (float("nan"), float("nan"))
-    z, s = _z(alpha), math.sqrt(var)
+    z, s = normal_quantile(alpha), math.sqrt(var)
     lo, hi = scale_interval(value, s, z)
     return (0.0, hi) if weak else (lo, hi)
 

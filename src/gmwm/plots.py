@@ -116,18 +116,21 @@ def variance_label(quantity: str, units: str = "") -> str:
     return f"{quantity} [{squared}]"
 
 
-def _scale_label(freq: float, what: str = "Scale") -> str:
+def scale_label(freq: float, what: str = "Scale") -> str:
+    """Axis label of the scale: in samples when ``freq`` is 1, else in seconds."""
     return f"{what} τ [samples]" if freq == 1.0 else f"{what} τ [s]"
 
 
-def _positive(y: np.ndarray) -> np.ndarray:
+def positive(y: np.ndarray) -> np.ndarray:
     """``y`` as float with non-positive values masked (NaN), so log axes skip exact zeros."""
     y = np.asarray(y, dtype=float).copy()
     y[~(y > 0)] = np.nan
     return y
 
 
-def _model_theta(model: Any, theta: Any, result: Any) -> tuple[Any, np.ndarray | None]:
+def model_theta(model: Any, theta: Any, result: Any) -> tuple[Any, np.ndarray | None]:
+    """The model and parameters to draw: the result's, else ``model`` (a Model or spec string)
+    at ``theta``; (None, None) when no model is given."""
     if result is not None:
         return result.model, np.asarray(result.params, dtype=float)
     if model is None:
@@ -143,7 +146,7 @@ def _model_theta(model: Any, theta: Any, result: Any) -> tuple[Any, np.ndarray |
     return model, np.asarray(theta, dtype=float)
 
 
-def _draw_model(
+def draw_model(
     ax: Axes,
     x: np.ndarray,
     scales: np.ndarray,
@@ -152,7 +155,8 @@ def _draw_model(
     components: bool,
     label: str = "Model",
 ) -> None:
-    ax.plot(x, _positive(model.wv(theta, scales)), color=MODEL_COLOR, lw=1.5, label=label, zorder=4)
+    """Draw the model's WV at ``scales`` (and each component dashed with ``components``)."""
+    ax.plot(x, positive(model.wv(theta, scales)), color=MODEL_COLOR, lw=1.5, label=label, zorder=4)
     if not components:
         return
     comps = model.component_wv(theta, scales)
@@ -163,7 +167,7 @@ def _draw_model(
             continue
         ax.plot(
             x,
-            _positive(y),
+            positive(y),
             ls="--",
             lw=1.0,
             color=COMPONENT_COLORS[i % len(COMPONENT_COLORS)],
@@ -211,7 +215,7 @@ def plot_wv(
     misses (standardised residual ``|u_j| > 2``) are ringed and labelled with ``u_j``, and the
     legend's title gives the test's p-value.
     """
-    model, theta = _model_theta(model, theta, result)
+    model, theta = model_theta(model, theta, result)
     ax = new_axes(ax)
     scales = np.asarray(wv.scales, dtype=float)
     freq = float(getattr(wv, "freq", 1.0))
@@ -223,12 +227,12 @@ def plot_wv(
             np.asarray(wv.ci_high, float), label or "Empirical WV", f"{level:g}% CI",
         )
         if model is not None:
-            _draw_model(ax, x, scales, model, theta, components)
-        _finish_loglog(ax, _scale_label(freq), variance_label("Wavelet variance", units))
+            draw_model(ax, x, scales, model, theta, components)
+        finish_loglog(ax, scale_label(freq), variance_label("Wavelet variance", units))
         if model is not None and components:
             # components that vanish at some scales (SIN) would squash the data into a strip
             data = np.concatenate([np.asarray(wv.ci_low, float), np.asarray(wv.variance, float)])
-            floor = np.nanmin(_positive(data)) / 100.0
+            floor = np.nanmin(positive(data)) / 100.0
             if np.isfinite(floor) and ax.get_ylim()[0] < floor:
                 ax.set_ylim(bottom=floor)
         gof = getattr(result, "gof", None) if residuals else None
@@ -285,7 +289,7 @@ def plot_av(av: Any, *, ax: Axes | None = None, units: str = "", label: str | No
         if deviation and readings:
             _draw_readings(ax, m / freq, values, readings)
         ylabel = (f"{what} [{units}]" if units else what) if deviation else variance_label(what, units)
-        _finish_loglog(ax, _scale_label(freq, "Cluster time"), ylabel)
+        finish_loglog(ax, scale_label(freq, "Cluster time"), ylabel)
     return ax
 
 
@@ -347,12 +351,12 @@ def plot_model_wv(
     units: str = "",
 ) -> Axes:
     """Theoretical WV of ``model`` at ``theta`` on ``scales`` (samples), total and per component."""
-    model, theta = _model_theta(model, theta, None)
+    model, theta = model_theta(model, theta, None)
     ax = new_axes(ax)
     scales = np.asarray(scales, dtype=float)
     with style():
-        _draw_model(ax, scales / freq, scales, model, theta, components, label="Model WV (total)")
-        _finish_loglog(ax, _scale_label(freq), variance_label("Wavelet variance", units))
+        draw_model(ax, scales / freq, scales, model, theta, components, label="Model WV (total)")
+        finish_loglog(ax, scale_label(freq), variance_label("Wavelet variance", units))
     return ax
 
 
@@ -377,7 +381,8 @@ def plot_virtual_wv(result: Any, ax: Axes | None = None, units: str = "") -> Axe
     return ax
 
 
-def _finish_loglog(ax: Axes, xlabel: str, ylabel: str) -> None:
+def finish_loglog(ax: Axes, xlabel: str, ylabel: str) -> None:
+    """Log-log axes with the given labels."""
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel(xlabel)
@@ -521,7 +526,7 @@ def add_datasheet_line(ax: Axes, x: Sequence[float], y: Sequence[float],
     :func:`gmwm.sensor_datasheet.datasheet_curves`) on an existing log-log plot: a grey dash-dot
     line (gid ``datasheet``), added to the legend."""
     with style():
-        ax.plot(np.asarray(x, float), _positive(np.asarray(y, float)), ls="-.", lw=1.3,
+        ax.plot(np.asarray(x, float), positive(np.asarray(y, float)), ls="-.", lw=1.3,
                 color=DATASHEET_COLOR, label=label, gid="datasheet", zorder=4)
         ax.legend()
     return ax
@@ -541,7 +546,7 @@ def plot_plan(seconds: Sequence[float], rse: Mapping[str, Sequence[float]], plan
     with style():
         for i, (name, y) in enumerate((k, v) for k, v in rse.items() if k != skip):
             color = PALETTE[1:][i % (len(PALETTE) - 1)]
-            ax.plot(hours, 100 * _positive(np.asarray(y, float)), color=color, label=name,
+            ax.plot(hours, 100 * positive(np.asarray(y, float)), color=color, label=name,
                     gid=f"plan_{name}")
             pts = [(p.seconds / 3600.0, p.coefficients.get(name, {}).get("rse"))
                    for p in plan.predictions]
@@ -555,7 +560,7 @@ def plot_plan(seconds: Sequence[float], rse: Mapping[str, Sequence[float]], plan
                        gid="target")
             if t["seconds"] is not None:
                 ax.axvline(t["seconds"] / 3600.0, ls=":", lw=0.9, color=PALETTE[5])
-        _finish_loglog(ax, "Recording length [h]", "Relative standard error [%]")
+        finish_loglog(ax, "Recording length [h]", "Relative standard error [%]")
         lo, hi = ax.get_ylim()
         if hi > 2e3:  # far beyond identifiable: keep the useful range readable
             ax.set_ylim(lo, 2e3)

@@ -138,9 +138,9 @@ class Ranking:
         ranked = self.ranked
         if len(ranked) < 2:
             return []
-        from .criteria import _chi2_unit
+        from .criteria import chi2_unit
 
-        unit = _chi2_unit(ranked[0])
+        unit = chi2_unit(ranked[0])
         out = []
         for e in near_ties(self):
             diffs = [{"process": d.process, "in_model": d.in_model,

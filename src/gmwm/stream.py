@@ -39,17 +39,27 @@ from typing import Any, Self
 import numpy as np
 
 from gmwm.errors import InputError
-from gmwm.readers.tables import _existing_file
+from gmwm.readers.tables import existing_file as _existing_file
 from gmwm.wv import (
     AllanVariance,
     WaveletVariance,
-    _aligned,
-    _check_alpha_freq,
-    _kernels,
-    _n_levels,
-    _Workspace,
     n_threads,
     wv_from_sums,
+)
+from gmwm.wv import (
+    Workspace as _Workspace,
+)
+from gmwm.wv import (
+    aligned_empty as _aligned,
+)
+from gmwm.wv import (
+    check_alpha_freq as _check_alpha_freq,
+)
+from gmwm.wv import (
+    classical_kernels as _kernels,
+)
+from gmwm.wv import (
+    n_levels_for as _n_levels,
 )
 
 __all__ = ["DEFAULT_MEMORY", "ChannelWV", "HDF5Source", "NpySource", "RawSource", "Source",
@@ -272,7 +282,8 @@ class HDF5Source(Source):
     def _open(self, p: Path, columns: Any, dataset: str | None) -> None:
         import h5py
 
-        from gmwm.readers.tables import _hdf5_freq_attr, time_column_unit
+        from gmwm.readers.tables import hdf5_freq_attr as _hdf5_freq_attr
+        from gmwm.readers.tables import time_column_unit
 
         fh = self._fh
         one_d: list[str] = []

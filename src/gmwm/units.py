@@ -31,7 +31,8 @@ DEG2RAD = pi / 180.0
 BI_AD_FACTOR = float(np.sqrt(2.0 * log(2.0) / pi))  # AD floor = 0.6643 B
 
 
-def _check_freq(freq: float) -> float:
+def check_freq(freq: float) -> float:
+    """``freq`` [Hz] as a float; an InputError unless it is finite and positive."""
     freq = float(freq)
     if not np.isfinite(freq) or freq <= 0:
         raise InputError(f"sampling frequency must be positive, got {freq}")
@@ -76,24 +77,24 @@ def micro_g_to_si(x: float, g: float = G0) -> float:
 
 def qn_q2_from_coefficient(q: float, freq: float) -> float:
     """Quantisation coefficient Q [u s] -> discrete Q2 = (Q f_s)^2 [u^2]."""
-    return (_nonneg(q, "Q") * _check_freq(freq)) ** 2
+    return (_nonneg(q, "Q") * check_freq(freq)) ** 2
 
 
 def qn_coefficient_from_q2(q2: float, freq: float) -> float:
     """Discrete Q2 [u^2] -> Q [u s] = sqrt(Q2) / f_s."""
-    return np.sqrt(_nonneg(q2, "Q2")) / _check_freq(freq)
+    return np.sqrt(_nonneg(q2, "Q2")) / check_freq(freq)
 
 
 # --- WN ---------------------------------------------------------------------------------------
 
 def wn_from_density(density: float, freq: float) -> float:
     """White-noise density N [u/sqrt(Hz) = u sqrt(s)] -> per-sample variance sigma2 = N^2 f_s [u^2]."""
-    return _nonneg(density, "white-noise density") ** 2 * _check_freq(freq)
+    return _nonneg(density, "white-noise density") ** 2 * check_freq(freq)
 
 
 def wn_density_from_sigma2(sigma2: float, freq: float) -> float:
     """Per-sample WN variance sigma2 [u^2] -> density N = sqrt(sigma2 / f_s) [u sqrt(s)]."""
-    return np.sqrt(_nonneg(sigma2, "sigma2") / _check_freq(freq))
+    return np.sqrt(_nonneg(sigma2, "sigma2") / check_freq(freq))
 
 
 def wn_from_arw_per_sqrt_hour(arw: float, freq: float) -> float:
@@ -105,12 +106,12 @@ def wn_from_arw_per_sqrt_hour(arw: float, freq: float) -> float:
 
 def rw_gamma2_from_coefficient(k: float, freq: float) -> float:
     """Rate random walk K [u/sqrt(s)] -> discrete innovation variance gamma2 = K^2 / f_s [u^2]."""
-    return _nonneg(k, "K") ** 2 / _check_freq(freq)
+    return _nonneg(k, "K") ** 2 / check_freq(freq)
 
 
 def rw_coefficient_from_gamma2(gamma2: float, freq: float) -> float:
     """gamma2 [u^2] -> K = sqrt(gamma2 f_s) [u/sqrt(s)]."""
-    return np.sqrt(_nonneg(gamma2, "gamma2") * _check_freq(freq))
+    return np.sqrt(_nonneg(gamma2, "gamma2") * check_freq(freq))
 
 
 def rw_from_per_hour_sqrt_hour(k_h: float, freq: float) -> float:
@@ -122,12 +123,12 @@ def rw_from_per_hour_sqrt_hour(k_h: float, freq: float) -> float:
 
 def dr_omega_from_coefficient(r: float, freq: float) -> float:
     """Rate ramp R [u/s] -> per-sample slope omega = R / f_s [u per sample]."""
-    return r / _check_freq(freq)
+    return r / check_freq(freq)
 
 
 def dr_coefficient_from_omega(omega: float, freq: float) -> float:
     """omega [u per sample] -> R = omega f_s [u/s]."""
-    return omega * _check_freq(freq)
+    return omega * check_freq(freq)
 
 
 def dr_from_per_hour2(r_h: float, freq: float) -> float:
@@ -139,7 +140,7 @@ def dr_from_per_hour2(r_h: float, freq: float) -> float:
 
 def gm_to_ar1(beta: float, sigma2_gm: float, freq: float) -> tuple[float, float]:
     """Gauss-Markov (beta [1/s], stationary variance [u^2]) -> AR1 (phi, innovation variance)."""
-    phi = float(np.exp(-_nonneg(beta, "GM beta") / _check_freq(freq)))
+    phi = float(np.exp(-_nonneg(beta, "GM beta") / check_freq(freq)))
     return phi, float(_nonneg(sigma2_gm, "GM sigma2") * -np.expm1(-2.0 * beta / freq))
 
 
@@ -147,17 +148,17 @@ def ar1_to_gm(phi: float, sigma2: float, freq: float) -> tuple[float, float]:
     """AR1 (phi in (0, 1), innovation variance) -> Gauss-Markov (beta [1/s], stationary variance)."""
     if not 0.0 < phi < 1.0:
         raise InputError(f"AR1 phi must be in (0, 1) to map to a Gauss-Markov process, got {phi}")
-    return float(-np.log(phi) * _check_freq(freq)), float(sigma2 / (1.0 - phi * phi))
+    return float(-np.log(phi) * check_freq(freq)), float(sigma2 / (1.0 - phi * phi))
 
 
 def sin_beta_from_hz(f_hz: float, freq: float) -> float:
     """Sinusoid frequency [Hz] -> beta = 2 pi f / f_s [rad/sample]."""
-    return 2.0 * pi * f_hz / _check_freq(freq)
+    return 2.0 * pi * f_hz / check_freq(freq)
 
 
 def sin_hz_from_beta(beta: float, freq: float) -> float:
     """beta [rad/sample] -> frequency [Hz] = beta f_s / (2 pi)."""
-    return beta * _check_freq(freq) / (2.0 * pi)
+    return beta * check_freq(freq) / (2.0 * pi)
 
 
 # --- datasheet coefficients of a fit ----------------------------------------------------------

@@ -40,8 +40,8 @@ from scipy.stats import norm
 
 from gmwm.atomic import to_jsonable
 from gmwm.errors import InputError, ModelError
-from gmwm.wccv import WaveletCrossCovariance, _as_array, _unpack, wccv
-from gmwm.wv import WaveletVariance, _n_levels
+from gmwm.wccv import WaveletCrossCovariance, as_array, unpack, wccv
+from gmwm.wv import WaveletVariance, n_levels_for
 
 __all__ = ["PAPER_OMEGA_LONG", "PAPER_OMEGA_SHORT", "SVOResult", "block_length", "equal",
            "mbb_svo_draws", "mbb_svo_draws_schemes", "mbb_wccv", "rdvg", "svo", "svo_coef",
@@ -276,14 +276,14 @@ def mbb_wccv(X: Any, levels: int | None = None, n_boot: int = 200, block: int | 
     """Moving-block bootstrap draws ``gamma*_h`` of the WCCV (docs/METHODS.md §11.4), ``(n_boot, J, p, p)``.
     Memory ``~ 8 J p^2 T / 2`` bytes: meant for small problems; :func:`svo` uses the projected
     draws (:func:`mbb_svo_draws`)."""
-    arr = _as_array(X)
+    arr = as_array(X)
     T, p = arr.shape
-    J = _n_levels(T, levels)
+    J = n_levels_for(T, levels)
     block = block_length(T, block_const) if block is None else int(block)
     n = T - (1 << np.arange(1, J + 1)) + 1
     out = _run_mbb(arr, J, True, np.zeros(p), 1.0 / n, _n_boot(n_boot), block,
                    np.random.default_rng(rng), scheme)
-    return _unpack(out.reshape(out.shape[0], J, -1), p)
+    return unpack(out.reshape(out.shape[0], J, -1), p)
 
 
 def _n_boot(n_boot: Any) -> int:
@@ -305,7 +305,7 @@ def mbb_svo_draws_schemes(X: Any, cov: np.ndarray, omega: np.ndarray, n_boot: in
                           runs: Sequence[tuple[str, np.random.Generator]]) -> list[np.ndarray]:
     """:func:`mbb_svo_draws` for each ``(scheme, rng)`` of ``runs``, equal to separate calls
     (each scheme draws from its own generator); distinct schemes share one pass over the data."""
-    arr = _as_array(X)
+    arr = as_array(X)
     T, p = arr.shape
     J = cov.shape[0]
     A = _weighted(cov, omega)
@@ -490,7 +490,7 @@ def _wccv_of(X: Any, levels: int | None, alpha: float, freq: float,
         if levels is not None and levels != X.n_levels:
             X = X.subset(levels)
         return None, X
-    arr = _as_array(X)
+    arr = as_array(X)
     return arr, wccv(arr, levels, alpha, freq, names)
 
 
@@ -532,7 +532,7 @@ def svo_schemes(X: Any, weights: Any = "short", *, levels: int | None = None, n_
     if not 0.0 < alpha < 1.0:
         raise InputError(f"alpha must be in (0, 1), got {alpha}")
     if wccv_of_x is not None and not isinstance(X, WaveletCrossCovariance):
-        arr, W = _as_array(X), wccv_of_x
+        arr, W = as_array(X), wccv_of_x
         if W.n_samples != arr.shape[0] or W.n_signals != arr.shape[1]:
             raise InputError(f"wccv_of_x is of {W.n_samples} x {W.n_signals} samples, X of "
                              f"{arr.shape[0]} x {arr.shape[1]}")

@@ -19,7 +19,14 @@ import numpy as np
 from scipy.stats import norm
 
 from gmwm.errors import InputError
-from gmwm.wv import WaveletVariance, _as_signal, _check_alpha_freq, _layout, _n_levels, chi2_ci
+from gmwm.wv import (
+    WaveletVariance,
+    as_signal,
+    check_alpha_freq,
+    chi2_ci,
+    default_layout,
+    n_levels_for,
+)
 
 __all__ = ["WaveletCrossCovariance", "wccv"]
 
@@ -29,7 +36,7 @@ def _wccv_raw(x: np.ndarray, J: int) -> np.ndarray:
     from gmwm._svokernels import wccv_sums  # Numba: loaded on first use
 
     T, p = x.shape
-    n_block, blen, panel = _layout(T, J)
+    n_block, blen, panel = default_layout(T, J)
     n_block = min(n_block, J)
     halo = (1 << n_block) - 1
     blen = min(T, blen)
@@ -53,9 +60,9 @@ def _wccv_raw(x: np.ndarray, J: int) -> np.ndarray:
 # validation helpers
 
 
-def _as_array(X: Any, name: str = "X") -> np.ndarray:
+def as_array(X: Any, name: str = "X") -> np.ndarray:
     """``X`` as a C-contiguous float64 ``(T, p)`` array with ``p >= 2`` finite columns."""
-    arr = _as_signal(X, name, ndim=2, layout="2-D (T samples, p signals)")
+    arr = as_signal(X, name, ndim=2, layout="2-D (T samples, p signals)")
     if arr.shape[1] < 2:
         raise InputError(f"{name} has {arr.shape[1]} signal column(s); at least 2 are needed")
     if arr.shape[1] > arr.shape[0]:
@@ -78,7 +85,7 @@ def _names(names: Sequence[str] | None, p: int) -> tuple[str, ...]:
     return out
 
 
-def _unpack(packed: np.ndarray, p: int) -> np.ndarray:
+def unpack(packed: np.ndarray, p: int) -> np.ndarray:
     """``(..., p(p+1)/2)`` packed upper triangles -> symmetric ``(..., p, p)``."""
     iu = np.triu_indices(p)
     out = np.zeros(packed.shape[:-1] + (p, p))
@@ -141,7 +148,7 @@ class WaveletCrossCovariance:
         lower, ``[..., 1]`` the upper bounds (the last axis as in every ``conf_int`` of the
         library)."""
         alpha = self.alpha if alpha is None else float(alpha)
-        _check_alpha_freq(alpha, self.freq)
+        check_alpha_freq(alpha, self.freq)
         eta = self.edof[:, None, None]
         var = np.einsum("jii->ji", self.cov)
         sd = np.sqrt((var[:, :, None] * var[:, None, :] + self.cov**2) / eta)
@@ -162,7 +169,7 @@ class WaveletCrossCovariance:
         """WV of the virtual signal ``c'X``: ``nu_j = c' A_j c`` (the WV of the combined
         coefficients, so equal to ``wvar(X @ c)`` up to rounding), with the intervals of
         :func:`gmwm.wvar` of that signal (``ci`` as there)."""
-        from gmwm.wv import _wv_ci
+        from gmwm.wv import wv_ci
 
         c = np.asarray(c, dtype=np.float64).reshape(-1)
         if c.size != self.n_signals or not np.all(np.isfinite(c)):
@@ -171,7 +178,7 @@ class WaveletCrossCovariance:
         nu = np.einsum("i,jik,k->j", c, self.cov, c)
         if np.any(nu <= 0):
             raise InputError("the virtual signal has a zero wavelet variance at some level")
-        edof, low, high = _wv_ci(ci, nu, self.scales, self.n, self.n_samples, alpha)
+        edof, low, high = wv_ci(ci, nu, self.scales, self.n, self.n_samples, alpha)
         return WaveletVariance(self.levels, self.scales, nu, low, high, self.n, self.n_samples,
                                self.freq, alpha, ci_kind=ci, ci_edof=edof)
 
@@ -189,14 +196,14 @@ def wccv(X: Any, levels: int | None = None, alpha: float = 0.05, freq: float = 1
     """Haar wavelet cross-covariance of the columns of ``X`` ``(T, p)`` at levels ``1..J`` (default
     ``J = floor(log2 T) - 1``) in one fused pass; each column's first sample is subtracted first
     (the filter annihilates constants), so large offsets cost no digits. ``freq`` in Hz."""
-    arr = _as_array(X)
+    arr = as_array(X)
     T, p = arr.shape
-    J = _n_levels(T, levels)
-    _check_alpha_freq(alpha, freq)
+    J = n_levels_for(T, levels)
+    check_alpha_freq(alpha, freq)
     sums = _wccv_raw(arr, J)
     if not np.all(np.isfinite(sums)):
         raise InputError("X is too large in magnitude: products of differences overflow float64")
     lev = np.arange(1, J + 1)
     n = T - (1 << lev) + 1
-    cov = _unpack(0.25 * sums / n[:, None], p)
+    cov = unpack(0.25 * sums / n[:, None], p)
     return WaveletCrossCovariance(lev, 2.0**lev, cov, n, T, _names(names, p), freq, alpha)

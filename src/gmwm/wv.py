@@ -28,7 +28,7 @@ in a temporary file).
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from functools import cache, lru_cache
 from typing import Any
@@ -40,7 +40,7 @@ from gmwm.errors import InputError
 __all__ = ["AllanVariance", "WaveletVariance", "avar", "biweight_tuning", "chi2_ci", "haar_coefficients",
            "kernel_name", "load_kernel", "wvar", "wvar_many", "wvar_robust"]
 
-def _layout(T: int, n_levels: int) -> tuple[int, int, int]:
+def default_layout(T: int, n_levels: int) -> tuple[int, int, int]:
     """Default (L, block length, panel width). Phase 1 does up to 11 levels (blocks of
     ``8 * 2**L`` samples, ~300 KiB of work arrays, sit in L2) and more only when needed to keep the
     phase-2 sub-series (``~T / 2**L`` samples) short. Chosen from ``bench_wv.py --tune``; timings
@@ -50,7 +50,7 @@ def _layout(T: int, n_levels: int) -> tuple[int, int, int]:
 
 
 @cache
-def _kernels() -> Any:
+def classical_kernels() -> Any:
     """The classical WV kernels (a module with ``phase1`` and ``phase2``): the C ones
     (``gmwm._haar``, built at install; no Numba start-up, several threads, releases the GIL) or
     else their Numba twins (``gmwm._wvkernels``, one thread). Both compute the same operations in
@@ -65,7 +65,7 @@ def _kernels() -> Any:
 
 def kernel_name() -> str:
     """``"c"`` or ``"numba"``: which classical WV kernel this installation uses."""
-    return "c" if _kernels().__name__ == "gmwm._haar" else "numba"
+    return "c" if classical_kernels().__name__ == "gmwm._haar" else "numba"
 
 
 #: signals shorter than this are done on one thread (starting a thread costs ~50 us)
@@ -96,11 +96,11 @@ def load_kernel(n: int = 1024) -> str:
     runtime's start-up and the cache load once per process."""
     n = max(4, int(n))
     J = n.bit_length() - 2
-    _Workspace(n, J).sums(np.arange(float(n)), J)
+    Workspace(n, J).sums(np.arange(float(n)), J)
     return kernel_name()
 
 
-def _aligned(n: int) -> np.ndarray:
+def aligned_empty(n: int) -> np.ndarray:
     """``np.empty(n)`` starting on a 64-byte boundary (whole cache lines for the kernel's
     panel-major stores)."""
     raw = np.empty(n + 8)
@@ -108,19 +108,19 @@ def _aligned(n: int) -> np.ndarray:
     return raw[skip:skip + n]
 
 
-class _Workspace:
+class Workspace:
     """Geometry and the phase-2 store for one signal length, reused across replicates by
     ``wvar_many``.
 
     ``n_block`` = L (levels done on time blocks, halo ``2**L - 1``), ``block`` = samples per time
     block, ``panel`` = sub-series per phase-2 panel; ``rows`` = length of a sub-series,
     ``n_out = T - 2**L + 1`` values of ``V_L``, ``store`` holds them panel-major
-    (``rows * 2**L`` values, only when ``J > L``). Defaults: see ``_layout``.
+    (``rows * 2**L`` values, only when ``J > L``). Defaults: see ``default_layout``.
     """
 
     def __init__(self, T: int, n_levels: int, n_block: int | None = None,
                  block: int | None = None, panel: int | None = None) -> None:
-        d_block, d_len, d_panel = _layout(T, n_levels)
+        d_block, d_len, d_panel = default_layout(T, n_levels)
         self.T = T
         self.n_block = d_block if n_block is None else min(n_block, n_levels)
         self.block = min(T, d_len if block is None else block)
@@ -135,7 +135,7 @@ class _Workspace:
     def store(self) -> np.ndarray:
         """The phase-2 store (``rows * 2**L`` values; allocated on first use, then reused)."""
         if self.phase2 and self._store.size == 0:
-            self._store = _aligned(self.rows << self.n_block)
+            self._store = aligned_empty(self.rows << self.n_block)
         return self._store
 
     def sums(self, x: np.ndarray, n_levels: int, threads: int | None = None,
@@ -143,7 +143,7 @@ class _Workspace:
         """``sum_t (2 W_{j,t})**2`` over the boundary-free coefficients of ``x``, ``j = 1..J``;
         ``kern``: the kernel module (default the dispatched one; the C kernel, any build of
         ``_haar``, takes ``threads``, default :func:`n_threads`; the Numba twin runs on one)."""
-        kern = _kernels() if kern is None else kern
+        kern = classical_kernels() if kern is None else kern
         out = np.zeros(n_levels)
         extra = ((n_threads(self.T) if threads is None else threads),) \
             if kern.__name__.rsplit(".", 1)[-1] == "_haar" else ()
@@ -160,7 +160,7 @@ class _Workspace:
 # validation helpers
 
 
-def _as_signal(x: Any, name: str = "signal", ndim: int = 1, layout: str | None = None
+def as_signal(x: Any, name: str = "signal", ndim: int = 1, layout: str | None = None
                ) -> np.ndarray:
     """``x`` as a C-contiguous float64 array of ``ndim`` dimensions (copied only if needed).
     ``layout`` names the expected shape in the error message (default "1-D (T,)" / "2-D (R, T)")."""
@@ -185,7 +185,7 @@ def _check_finite(arr: np.ndarray, name: str = "signal") -> None:
         raise InputError(f"{name} contains {' and '.join(parts)}")
 
 
-def _n_levels(T: int, levels: Any) -> int:
+def n_levels_for(T: int, levels: Any) -> int:
     """Number of levels J: default floor(log2 T) - 1, at most floor(log2 T) (M_J >= 1)."""
     if T < 4:
         raise InputError(f"signal has T={T} samples; at least 4 are needed")
@@ -202,7 +202,8 @@ def _n_levels(T: int, levels: Any) -> int:
     return int(levels)
 
 
-def _check_alpha_freq(alpha: float, freq: float) -> None:
+def check_alpha_freq(alpha: float, freq: float) -> None:
+    """InputError unless ``alpha`` lies in (0, 1) and ``freq`` [Hz] is finite and positive."""
     if not 0.0 < alpha < 1.0:
         raise InputError(f"alpha must be in (0, 1), got {alpha}")
     if not (np.isfinite(freq) and freq > 0.0):
@@ -215,7 +216,7 @@ def _check_ci(ci: str) -> None:
     check_ci_kind(ci)
 
 
-def _sums_checked(x: np.ndarray, J: int, ws: _Workspace, name: str) -> np.ndarray:
+def _sums_checked(x: np.ndarray, J: int, ws: Workspace, name: str) -> np.ndarray:
     sums = ws.sums(x, J)
     if not np.all(np.isfinite(sums)):
         # NaN/inf always propagate into the level-1 sum, so the finiteness check is done only here
@@ -228,7 +229,7 @@ def _sums_checked(x: np.ndarray, J: int, ws: _Workspace, name: str) -> np.ndarra
 # public API
 
 
-def _wv_ci(ci: str, variance: np.ndarray, scales: np.ndarray, n: np.ndarray, n_samples: int,
+def wv_ci(ci: str, variance: np.ndarray, scales: np.ndarray, n: np.ndarray, n_samples: int,
            alpha: float, efficiency: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(edof, ci_low, ci_high)`` of the interval kind ``ci`` (:mod:`gmwm.wvci`); ``"eta3"`` is
     :func:`chi2_ci` with ``efficiency * max(M_j / 2**j, 1)`` edof, as before the kinds existed."""
@@ -281,7 +282,7 @@ def _recognise_ci(variance: np.ndarray, scales: np.ndarray, n: np.ndarray, n_sam
     from gmwm import wvci
 
     for kind in wvci.CI_KINDS:
-        edof, lo, hi = _wv_ci(kind, variance, scales, n, n_samples, alpha)
+        edof, lo, hi = wv_ci(kind, variance, scales, n, n_samples, alpha)
         if np.allclose(lo, low, rtol=1e-6, atol=0.0) and np.allclose(hi, high, rtol=1e-6, atol=0.0):
             return kind, edof
     return "table", None
@@ -427,7 +428,7 @@ class WaveletVariance:
         WV and T, so a table of the same levels gets exactly its signal's interval. Given bounds
         are kept; they are recognised as ``"mixture"`` or ``"eta3"`` bounds when they equal
         those (to 1e-6, e.g. a table written by ``gmwm wv``), else ``ci_kind="table"``."""
-        _check_alpha_freq(alpha, freq)
+        check_alpha_freq(alpha, freq)
         _check_ci(ci)
         sc = np.asarray(scales, dtype=np.float64).reshape(-1)
         var = np.asarray(variance, dtype=np.float64).reshape(-1)
@@ -451,7 +452,7 @@ class WaveletVariance:
         if (ci_low is None) != (ci_high is None):
             raise InputError("give both ci_low and ci_high, or neither")
         if ci_low is None:
-            edof, low, high = _wv_ci(ci, var, sc, n, T, alpha)
+            edof, low, high = wv_ci(ci, var, sc, n, T, alpha)
             kind = ci
         else:
             low = np.asarray(ci_low, dtype=np.float64).reshape(-1)
@@ -534,11 +535,11 @@ def wvar(x: Any, levels: int | None = None, alpha: float = 0.05, freq: float = 1
     _check_ci(ci)
     if robust:
         return wvar_robust(x, levels, alpha, freq, eff=eff, ci=ci)
-    arr = _as_signal(x)
+    arr = as_signal(x)
     T = arr.shape[0]
-    J = _n_levels(T, levels)
-    _check_alpha_freq(alpha, freq)
-    return wv_from_sums(_sums_checked(arr, J, _Workspace(T, J), "signal"), T, alpha, freq, ci)
+    J = n_levels_for(T, levels)
+    check_alpha_freq(alpha, freq)
+    return wv_from_sums(_sums_checked(arr, J, Workspace(T, J), "signal"), T, alpha, freq, ci)
 
 
 def wv_from_sums(sums: np.ndarray, T: int, alpha: float = 0.05, freq: float = 1.0,
@@ -550,17 +551,17 @@ def wv_from_sums(sums: np.ndarray, T: int, alpha: float = 0.05, freq: float = 1.
     scales = 2.0 ** lev
     n = T - (1 << lev) + 1
     variance = 0.25 * np.asarray(sums, dtype=np.float64) / n
-    edof, low, high = _wv_ci(ci, variance, scales, n, T, alpha)
+    edof, low, high = wv_ci(ci, variance, scales, n, T, alpha)
     return WaveletVariance(lev, scales, variance, low, high, n, T, freq, alpha, ci_kind=ci,
                            ci_edof=edof)
 
 
 def wvar_many(X: Any, levels: int | None = None) -> np.ndarray:
     """Wavelet variances (no CI) of ``R`` replicates ``X`` of shape ``(R, T)``: array ``(R, J)``."""
-    arr = _as_signal(X, "X", ndim=2)
+    arr = as_signal(X, "X", ndim=2)
     R, T = arr.shape
-    J = _n_levels(T, levels)
-    ws = _Workspace(T, J)
+    J = n_levels_for(T, levels)
+    ws = Workspace(T, J)
     n = T - (1 << np.arange(1, J + 1)) + 1
     out = np.empty((R, J))
     for r in range(R):
@@ -658,20 +659,29 @@ def _start_scale(v: np.ndarray, n: int, m: int) -> float:
     return ms if ms > 0 else 1.0
 
 
+def haar_levels(x: Any, J: int) -> Iterator[tuple[int, np.ndarray]]:
+    """Yield ``(j, W_j)`` for j = 1..J: the boundary-free MODWT Haar coefficients of every level in
+    one pass of the pyramid (docs/METHODS.md §2.3), same convention as :func:`haar_coefficients`.
+    ``W_j`` is a view into one work array, valid until the next step."""
+    from gmwm._wvkernels import haar_step
+
+    v = np.ascontiguousarray(x, dtype=float) - float(x[0])
+    w = np.empty_like(v)
+    n = v.size
+    for j in range(1, int(J) + 1):
+        n = haar_step(v, w, n, 1 << (j - 1))
+        yield j, w[:n]
+
+
 def haar_coefficients(x: Any, level: int) -> np.ndarray:
     """Boundary-free MODWT Haar coefficients of level ``level`` (``M_j = T - 2**j + 1`` values,
     ``W_t`` for ``t = 2**j - 1 .. T - 1``, same convention as :func:`wvar`: ``mean(W**2)`` is the
     classical WV). Mainly for checks; :func:`wvar_robust` streams all levels in place."""
-    arr = _as_signal(x)
-    J = _n_levels(arr.shape[0], level)
-    from gmwm._wvkernels import _haar_step
-
-    v = arr - arr[0]
-    w = np.empty_like(v)
-    n = v.size
-    for j in range(1, J + 1):
-        n = _haar_step(v, w, n, 1 << (j - 1))
-    return w[:n].copy()
+    arr = as_signal(x)
+    J = n_levels_for(arr.shape[0], level)
+    for _, w in haar_levels(arr, J):
+        pass
+    return w.copy()
 
 
 def wvar_robust(x: Any, levels: int | None = None, alpha: float = 0.05, freq: float = 1.0, *,
@@ -684,12 +694,12 @@ def wvar_robust(x: Any, levels: int | None = None, alpha: float = 0.05, freq: fl
     at T = 1e6-1e7; memory: one copy of the signal.
     """
     _check_ci(ci)
-    arr = _as_signal(x)
+    arr = as_signal(x)
     T = arr.shape[0]
-    J = _n_levels(T, levels)
-    _check_alpha_freq(alpha, freq)
+    J = n_levels_for(T, levels)
+    check_alpha_freq(alpha, freq)
     _check_finite(arr)
-    from gmwm._wvkernels import _haar_average, _m_scale
+    from gmwm._wvkernels import haar_average, m_scale
 
     c, b, _ = biweight_tuning(eff)
     v = arr - arr[0]  # the only work array: the levels' local averages, updated in place
@@ -698,8 +708,8 @@ def wvar_robust(x: Any, levels: int | None = None, alpha: float = 0.05, freq: fl
     with np.errstate(over="ignore", invalid="ignore"):
         for j in range(1, J + 1):
             m = 1 << (j - 1)
-            nu = _m_scale(v, n - m, m, c, b, _start_scale(v, n - m, m))
-            n = _haar_average(v, n, m)
+            nu = m_scale(v, n - m, m, c, b, _start_scale(v, n - m, m))
+            n = haar_average(v, n, m)
             if not np.isfinite(nu):
                 raise InputError("signal is too large in magnitude: squared coefficients overflow "
                                  "float64")
@@ -707,6 +717,6 @@ def wvar_robust(x: Any, levels: int | None = None, alpha: float = 0.05, freq: fl
     lev = np.arange(1, J + 1)
     scales = 2.0 ** lev
     counts = T - (1 << lev) + 1
-    edof, low, high = _wv_ci(ci, variance, scales, counts, T, alpha, float(eff))
+    edof, low, high = wv_ci(ci, variance, scales, counts, T, alpha, float(eff))
     return WaveletVariance(lev, scales, variance, low, high, counts, T, freq, alpha, float(eff),
                            ci_kind=ci, ci_edof=edof)

@@ -47,7 +47,7 @@ from numba import njit
 import gmwm
 from gmwm.datasheet import allan_readings
 from gmwm.errors import InputError
-from gmwm.wv import AllanVariance, wvar, wvar_many
+from gmwm.wv import AllanVariance, haar_levels, wvar, wvar_many
 from gmwm_studies.seeds import replicate_rng, replicate_seed
 
 __all__ = [
@@ -608,20 +608,6 @@ def _wv_kind(x: np.ndarray, kind: str, levels: int | None = None) -> Any:
     if kind != "eta3":
         raise InputError(f"interval kind {kind!r} is not offered by this gmwm.wvar")
     return wvar(x, levels)
-
-
-def haar_levels(x: np.ndarray, J: int) -> Any:
-    """Yield ``(j, W_j)`` for j = 1..J: the boundary-free Haar coefficients of every level in one
-    pass of the pyramid (docs/METHODS.md §2.3; the kernel of :func:`gmwm.wv.haar_coefficients`,
-    which restarts from level 1 for each level). ``W_j`` is a view, valid until the next step."""
-    from gmwm._wvkernels import _haar_step
-
-    v = np.ascontiguousarray(x, dtype=float) - float(x[0])
-    w = np.empty_like(v)
-    n = v.size
-    for j in range(1, int(J) + 1):
-        n = _haar_step(v, w, n, 1 << (j - 1))
-        yield j, w[:n]
 
 
 def bartlett_lrv(y: np.ndarray, b: int) -> float:

@@ -17,13 +17,13 @@ from matplotlib.figure import Figure
 
 from gmwm.plots import (
     PALETTE,
-    _draw_model,
-    _finish_loglog,
-    _model_theta,
-    _positive,
-    _scale_label,
+    draw_model,
+    finish_loglog,
+    model_theta,
     new_axes,
     param_label,
+    positive,
+    scale_label,
     style,
     variance_label,
 )
@@ -47,7 +47,7 @@ def plot_wv_replicates(
 ) -> Axes:
     """Empirical WVs of many replicates (light grey, shape (R, J)) with the true model WV and its
     components ([Vibration] Figure 3 style); ``scales`` in samples."""
-    model, theta = _model_theta(model, theta, None)
+    model, theta = model_theta(model, theta, None)
     ax = new_axes(ax)
     scales = np.asarray(scales, dtype=float)
     v = np.atleast_2d(np.asarray(variances, dtype=float))
@@ -56,16 +56,16 @@ def plot_wv_replicates(
     x = scales / freq
     with style():
         # one LineCollection instead of R Line2D objects: fast for hundreds of replicates
-        segs = [np.column_stack([x, _positive(row)]) for row in v]
+        segs = [np.column_stack([x, positive(row)]) for row in v]
         lc = LineCollection(segs, colors=REPLICATE_COLOR, linewidths=0.5, alpha=0.5, zorder=1,
                             label=f"Empirical WV ({v.shape[0]} replicates)", gid="replicates")
         ax.add_collection(lc)
-        _draw_model(ax, x, scales, model, theta, components, label="Model WV")
+        draw_model(ax, x, scales, model, theta, components, label="Model WV")
         ax.set_xlim(x.min() / 1.2, x.max() * 1.2)
         pos = v[v > 0]
         if pos.size:
             ax.set_ylim(pos.min() / 2, pos.max() * 2)
-        _finish_loglog(ax, _scale_label(freq), variance_label("Wavelet variance", units))
+        finish_loglog(ax, scale_label(freq), variance_label("Wavelet variance", units))
     return ax
 
 
@@ -223,7 +223,7 @@ def plot_rmse_curves(
             p = params[k]
             for i, m in enumerate(methods):
                 if p in rmse[m]:
-                    ax.plot(T, _positive(rmse[m][p]), "o-", color=PALETTE[1 + i % 7], label=m)
+                    ax.plot(T, positive(rmse[m][p]), "o-", color=PALETTE[1 + i % 7], label=m)
             ax.set_xscale("log")
             ax.set_yscale("log")
             ax.set_title((param_labels or {}).get(p, p))
@@ -251,7 +251,7 @@ def plot_runtime(
     ax = new_axes(ax)
     with style():
         for i, (m, t) in enumerate(times.items()):
-            ax.plot(T, _positive(t), "o-", color=PALETTE[1 + i % 7], label=m)
+            ax.plot(T, positive(t), "o-", color=PALETTE[1 + i % 7], label=m)
         if ratio is None and len(times) >= 2:
             order = sorted(times, key=lambda m: float(np.nanmean(np.asarray(times[m], float))))
             ratio = (order[-1], order[0])

@@ -26,7 +26,7 @@ from gmwm.units import (
     HOUR2,
     HOUR_SQRT_HOUR,
     SQRT_HOUR,
-    _check_freq,
+    check_freq,
     deg_per_hour_to_rad_per_second,
     dr_coefficient_from_omega,
     dr_from_per_hour2,
@@ -172,7 +172,7 @@ def bias_instability_wv(b: float, f0: float, scales, freq: float) -> np.ndarray:
 
     WV at level j = AV(tau = 2^{j-1} / f_s) / 2. As f0 tau -> inf it tends to (ln2/pi) B^2.
     """
-    tau_s = np.asarray(scales, dtype=float) / (2.0 * _check_freq(freq))
+    tau_s = np.asarray(scales, dtype=float) / (2.0 * check_freq(freq))
     return bias_instability_av(b, f0, tau_s) / 2.0
 
 
@@ -208,7 +208,7 @@ def navchip_datasheet(sensor: str, freq: float = 250.0, g: float = G0) -> Datash
     (secondary source). RW, QN, DR: not given.
     """
     sensor = canonical_sensor(sensor)
-    freq = _check_freq(freq)
+    freq = check_freq(freq)
     if sensor == "gyroscope":
         density = 0.003 * DEG2RAD
         b = deg_per_hour_to_rad_per_second(10.0)

@@ -191,7 +191,7 @@ def _finish(p: Path, fmt: str, channels: dict[str, np.ndarray], file_units: dict
             temperature: tuple[np.ndarray, str] | None = None) -> Recording:
     """Check the channels, merge the user's units with the file's, settle the time base;
     ``stamps`` (in ``tb.unit``) give :attr:`Recording.time_s`, ``temperature`` (deg C, source)."""
-    from gmwm.readers.tables import _validated
+    from gmwm.readers.tables import validated_numbers as _validated
 
     names = list(channels)
     given = _check_unit_map(units, names, p)
@@ -274,7 +274,7 @@ def _from_table(p: Path, columns: Any, time_unit: str | None, freq: float | None
     names = _select(data, columns, p, default_all=known)
     chans = {n: numeric(t, n, str(p)) for n in names}
     if t.header:  # a WV/AV table read as a very short signal is almost surely a mistake
-        from gmwm.readers.tables import _check_not_a_table
+        from gmwm.readers.tables import check_not_a_table as _check_not_a_table
 
         _check_not_a_table(list(t.columns), next(iter(chans.values())).size, p)
     tb = None

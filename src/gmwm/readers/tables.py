@@ -38,8 +38,8 @@ __all__ = [
 ]
 
 _CSV_SEPARATORS = {".csv": ",", ".tsv": "\t", ".txt": r"\s+"}
-_HDF5_SUFFIXES = (".h5", ".hdf5")
-SIGNAL_SUFFIXES = (".npy", *_CSV_SEPARATORS, *_HDF5_SUFFIXES)
+HDF5_SUFFIXES = (".h5", ".hdf5")
+SIGNAL_SUFFIXES = (".npy", *_CSV_SEPARATORS, *HDF5_SUFFIXES)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -61,22 +61,23 @@ def read_signal(
     path (default: the only 1-D dataset in the file). With ``check_finite`` NaN or inf raise
     :class:`InputError` naming the first bad sample.
     """
-    p = _existing_file(path)
+    p = existing_file(path)
     suffix = p.suffix.lower()
     if suffix == ".npy":
         x = _select_column(_load_npy(p), column, p)
     elif suffix in _CSV_SEPARATORS:
         x = _read_csv_column(p, column)
-    elif suffix in _HDF5_SUFFIXES:
+    elif suffix in HDF5_SUFFIXES:
         x = _select_column(_read_hdf5(p, dataset), column, p)
     else:
         raise InputError(
             f"unknown file extension '{p.suffix}' for {p}: use one of {', '.join(SIGNAL_SUFFIXES)}"
         )
-    return _validated(x, p, check_finite)
+    return validated_numbers(x, p, check_finite)
 
 
-def _existing_file(path: str | os.PathLike) -> Path:
+def existing_file(path: str | os.PathLike) -> Path:
+    """``path`` as a Path; an InputError when it does not exist or is no file."""
     p = Path(path)
     if not p.exists():
         raise InputError(f"file not found: {p}")
@@ -230,7 +231,7 @@ def _read_csv_column(p: Path, column: str | int | None) -> np.ndarray:
     else:
         idx = _resolve_column(column, names, p)
     x = _numeric_column(df, idx, names, p)
-    _check_not_a_table(header, len(df), p)
+    check_not_a_table(header, len(df), p)
     return x
 
 
@@ -272,7 +273,8 @@ def _read_hdf5_open(fh: Any, p: Path, dataset: str | None) -> np.ndarray:
     return ds[()]
 
 
-def _validated(x: np.ndarray, p: Path, check_finite: bool, name: str | None = None) -> np.ndarray:
+def validated_numbers(x: np.ndarray, p: Path, check_finite: bool, name: str | None = None) -> np.ndarray:
+    """``x`` (read from ``p``) checked to hold numbers (and, with ``check_finite``, no NaN/inf)."""
     where = p if name is None else f"column '{name}' of {p}"
     if x.dtype.kind not in "biuf":
         raise InputError(f"{where} does not hold numbers (dtype {x.dtype})")
@@ -359,7 +361,7 @@ def read_channels(
     a time column (``time``, ``t``, ``timestamp[_ns|_us|_ms]``, ``%time``, ...) or from an HDF5
     attribute (``freq``, ``sampling_rate``, ``rate``, ``fs``, ... in Hz; ``dt`` in s).
     """
-    p = _existing_file(path)
+    p = existing_file(path)
     suffix = p.suffix.lower()
     if suffix == ".npy":
         a = _load_npy(p)
@@ -368,13 +370,13 @@ def read_channels(
     elif suffix in _CSV_SEPARATORS:
         signals, time = _csv_channels(p, columns)
         freq, source, notes, tb = _time_freq(time, p)
-    elif suffix in _HDF5_SUFFIXES:
+    elif suffix in HDF5_SUFFIXES:
         signals, freq, source, notes, tb = _hdf5_channels(p, columns, dataset)
     else:
         raise InputError(
             f"unknown file extension '{p.suffix}' for {p}: use one of {', '.join(SIGNAL_SUFFIXES)}"
         )
-    out = {name: _validated(x, p, check_finite, name if len(signals) > 1 else None)
+    out = {name: validated_numbers(x, p, check_finite, name if len(signals) > 1 else None)
            for name, x in signals.items()}
     return Channels(out, freq, source, tuple(notes), tb)
 
@@ -454,12 +456,12 @@ def _csv_channels(p: Path, columns: Any
     else:
         idx = _pick(names, numeric, columns, p, None if t is None else t[0])
     out = {str(names[i]): _numeric_column(df, i, names, p) for i in idx}
-    _check_not_a_table(header, len(df), p)
+    check_not_a_table(header, len(df), p)
     time = None if t is None else (names[t[0]], _numeric_column(df, t[0], names, p), t[1])
     return out, time
 
 
-def _check_not_a_table(header: Sequence[str] | None, n_rows: int, p: Path) -> None:
+def check_not_a_table(header: Sequence[str] | None, n_rows: int, p: Path) -> None:
     """A file with WV/AV table columns read as a very short signal is almost surely a mistake."""
     if header is None or n_rows >= MIN_TABLE_SIGNAL:
         return
@@ -488,7 +490,9 @@ def _numeric_column(df: Any, idx: int, names: Sequence[str], p: Path) -> np.ndar
     return col.to_numpy(dtype=np.float64)
 
 
-def _hdf5_freq_attr(obj: Any) -> tuple[float, str] | None:
+def hdf5_freq_attr(obj: Any) -> tuple[float, str] | None:
+    """The sampling rate [Hz] an HDF5 object's attributes state (a rate or a period), with the
+    attribute's name; None when none does."""
     attrs = {str(k).lower(): k for k in obj.attrs}
     for names, period in ((_FREQ_ATTRS, False), (_PERIOD_ATTRS, True)):
         for n in names:
@@ -540,7 +544,7 @@ def _hdf5_channels(p: Path, columns: Any, dataset: str | None
                 return signals, tb.freq, f"time dataset /{tname}", list(tb.notes), tb
         for obj in objs:  # the dataset, then its groups up to the root
             while obj is not None:
-                found = _hdf5_freq_attr(obj)
+                found = hdf5_freq_attr(obj)
                 if found is not None:
                     return signals, found[0], found[1], [], None
                 obj = obj.parent if obj.name != "/" else None
@@ -606,7 +610,7 @@ def is_wv_table(path: str | os.PathLike) -> bool:
 def table_channels(path: str | os.PathLike) -> list[str]:
     """Channel names of a multi-channel table (columns ``variance[gx]``, ``allan_var[gx]``, ...), in
     file order; [] for a single-channel table."""
-    p = _existing_file(path)
+    p = existing_file(path)
     header = _csv_header(p, _CSV_SEPARATORS.get(p.suffix.lower(), ","))
     out: list[str] = []
     for h in header or []:
@@ -639,7 +643,7 @@ def read_wv_table(
     """
     from gmwm.wv import WaveletVariance
 
-    p = _existing_file(path)
+    p = existing_file(path)
     if p.suffix.lower() not in _CSV_SEPARATORS:
         raise InputError(f"a wavelet-variance table must be a .csv/.tsv/.txt file, got {p}")
     df, header = _read_table(p)

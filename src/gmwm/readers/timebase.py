@@ -305,7 +305,8 @@ def segments_wv(x: np.ndarray, segments: tuple[tuple[int, int], ...], levels: in
     of :func:`gmwm.wv.wvar` (default ``"mixture"``) computed from the pooled counts and the
     samples used, as for one contiguous signal with that many coefficients (the segments are
     independent, so this slightly overstates the estimator's variance: on the safe side)."""
-    from gmwm.wv import WaveletVariance, _wv_ci, wvar
+    from gmwm.wv import WaveletVariance, wvar
+    from gmwm.wv import wv_ci as _wv_ci
 
     x = np.asarray(x, dtype=np.float64)
     longest = max(b - a for a, b in segments)
