@@ -124,3 +124,29 @@ def test_ar1_sigma_interval_is_unbounded_when_phi_may_be_one():
                       se={"AR1[1].phi": 1e-3, "AR1[1].sigma2": 1e-4})
     lo, hi = datasheet(res)["GM[1]"]["sigma"]["ci95"]
     assert 0 < lo < math.sqrt(1e-2 / (1 - 0.81)) < hi < math.inf
+
+
+def test_a_process_the_datasheet_does_not_know_is_an_error(monkeypatch: pytest.MonkeyPatch):
+    # a process class with no datasheet_kind (e.g. a new one) stops the datasheet: no silent gap
+    from gmwm.errors import ModelError
+    from gmwm.processes import PROCESSES
+
+    res = fake_result("WN+RW", {"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-6})
+    assert set(datasheet(res, "deg/s")) == {"ARW", "RRW"}
+    monkeypatch.setattr(PROCESSES["RW"], "datasheet_kind", None)
+    with pytest.raises(ModelError, match="does not know process RW"):
+        datasheet(res, "deg/s")
+
+
+def test_every_process_says_what_it_gives_on_a_datasheet():
+    from gmwm.datasheet import COEFFICIENT_KINDS
+    from gmwm.processes import PROCESSES
+
+    us = unit_system("deg/s")
+    for name, proc in PROCESSES.items():
+        assert proc.datasheet_kind in (*COEFFICIENT_KINDS, "sinusoid", "gauss_markov", "ar1"), name
+        if proc.datasheet_kind in COEFFICIENT_KINDS:
+            us.coefficient(proc.datasheet_kind)
+            # monotone increasing in the scale parameter, 0 at 0 (so intervals map end to end)
+            assert proc.coefficient(0.0, FS) == 0.0 < proc.coefficient(1.0, FS) < proc.coefficient(
+                2.0, FS), name

@@ -261,3 +261,15 @@ def test_every_process_states_its_domain():
     assert PROCESSES["AR1"].domain[0] == (-1.0, 1.0)
     assert PROCESSES["SIN"].domain[1] == (0.0, math.pi)
     assert PROCESSES["GM"].domain[0] == (0.0, math.inf)
+
+
+def test_process_lookup_and_roles():
+    from gmwm.processes import SINGLETONS, process
+
+    assert process("GM") is PROCESSES["GM"]
+    with pytest.raises(ModelError, match="unknown process 'XX'"):
+        process("XX")
+    assert SINGLETONS == {"QN", "WN", "RW", "DR"}
+    assert {n for n, p in PROCESSES.items() if p.filter_term} == {"WN", "RW"}
+    assert {n for n, p in PROCESSES.items() if p.slow_term} == {"GM", "AR1"}
+    assert {n for n, p in PROCESSES.items() if p.scale_power == 2} == {"SIN", "DR"}

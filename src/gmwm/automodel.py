@@ -62,6 +62,7 @@ import numpy as np
 from .criteria import DEFAULT, TIE_CHI2, chi2_unit
 from .errors import GMWMError, InputError
 from .model import Model, parse_model, spec_of
+from .processes import PROCESSES
 from .search import shared_memo
 from .select import Ranking, merge, rank_models
 from .settings import prepare_wv
@@ -73,10 +74,14 @@ KINDS = ("gyroscope", "accelerometer")
 #: the most GM terms a candidate gets
 MAX_GM = 3
 #: components every candidate of a sensor kind contains (the terms a navigation filter needs)
-REQUIRED: dict[str, tuple[str, ...]] = {"gyroscope": ("WN", "RW"),
-                                        "accelerometer": ("WN", "RW")}
-_LINEAR = ("QN", "WN", "RW", "DR")
-_SLOW = ("GM", "AR1")
+#: (the processes with a ``filter_term``: WN and RW)
+REQUIRED: dict[str, tuple[str, ...]] = {
+    k: tuple(n for n, p in PROCESSES.items() if p.filter_term is not None) for k in KINDS}
+# the roles of the processes in the candidates (attributes of their classes): the one-per-model
+# terms each candidate has or not, the slow correlated terms it has 0..max_gm of, the periodic one
+_LINEAR = tuple(n for n, p in PROCESSES.items() if p.singleton)
+_SLOW = tuple(n for n, p in PROCESSES.items() if p.slow_term)
+_PERIODIC = next(n for n, p in PROCESSES.items() if p.oscillating)
 
 
 # -- candidates -----------------------------------------------------------------------------------
@@ -108,7 +113,7 @@ def candidate_models(kind: str | None = None, *, max_gm: int = MAX_GM, sin: bool
                 if sum(counts.values()) == 0:
                     continue
                 for s in ((0, 1) if sin else (0,)):
-                    spec = Model(spec_of({**counts, "SIN": s})).spec
+                    spec = Model(spec_of({**counts, _PERIODIC: s})).spec
                     if spec not in out:
                         out.append(spec)
     return sorted(out, key=lambda m: (parse_model(m).get(slow, 0), Model(m).n_params))
@@ -347,10 +352,10 @@ def _sin_variants(spec: str, kind: str | None) -> list[str]:
     or DR)."""
     required = REQUIRED.get(kind, ()) if kind else ()
     counts = dict(parse_model(spec))
-    out = [_with(spec, "SIN")]
+    out = [_with(spec, _PERIODIC)]
     for c in _LINEAR:
         if counts.get(c) and c not in required and sum(counts.values()) > 1:
-            out.append(_with(Model(spec_of({**counts, c: 0})).spec, "SIN"))
+            out.append(_with(Model(spec_of({**counts, c: 0})).spec, _PERIODIC))
     return out
 
 

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from gmwm.errors import InputError
+from gmwm.errors import InputError, ModelError
 
 __all__ = ["SIGNAL_UNITS", "TERM_KINDS", "UNIT_SYSTEMS", "CoefficientUnit", "UnitSystem",
            "allan_readings", "coefficient_unit", "convert", "datasheet", "from_signal_units",
@@ -64,6 +64,25 @@ class UnitSystem:
     ramp: tuple[str, float]
     level: tuple[str, float]
     si: float | None
+
+    def coefficient(self, kind: str) -> tuple[str, tuple[str, float]]:
+        """``(name, (label, factor))`` of a one-number datasheet coefficient of ``kind`` (one of
+        :data:`COEFFICIENT_KINDS`, a process's ``datasheet_kind``): e.g. ``("ARW", ("deg/sqrt(h)",
+        ...))`` for ``"white"`` of a gyroscope."""
+        if kind == "white":
+            return self.white_name, self.white
+        if kind == "rw":
+            return self.rw_name, self.rw
+        if kind == "qn":
+            return "QN", self.qn
+        if kind == "ramp":
+            return "RR", self.ramp
+        raise ValueError(f"unknown coefficient kind {kind!r}; known: {', '.join(COEFFICIENT_KINDS)}")
+
+
+#: the one-number datasheet coefficients a :class:`UnitSystem` prints (a process's
+#: ``datasheet_kind``): white noise, random walk, quantisation, rate ramp
+COEFFICIENT_KINDS = ("white", "rw", "qn", "ramp")
 
 
 _H, _SQH = 3600.0, 60.0
@@ -450,6 +469,7 @@ def datasheet(result: Any, units: str | None = None, alpha: float = 0.05) -> dic
     variance (:func:`gmwm.intervals.function_interval`).
     """
     from gmwm.intervals import function_interval, image_interval
+    from gmwm.processes import AR1, GaussMarkov, Sinusoid, process
 
     us = unit_system(units)
     freq = float(result.wv.freq)
@@ -477,12 +497,6 @@ def datasheet(result: Any, units: str | None = None, alpha: float = 0.05) -> dic
             entry[shape].update(value=None, ci95=None, note=f"not identified: {size} is 0")
         return entry
 
-    def corr_time_of_phi(phi: float) -> float:
-        # -1 / (f_s ln phi), increasing on (0, 1); 0 for phi <= 0, infinite for phi >= 1
-        if phi <= 0:
-            return 0.0
-        return math.inf if phi >= 1 else -1.0 / (freq * math.log(phi))
-
     def ar1_sigma(idx: list[int]) -> dict[str, Any]:
         """The stationary sigma sqrt(sigma2 / (1 - phi^2)) of an AR1 [signal units]."""
         label, factor = us.level
@@ -490,7 +504,7 @@ def datasheet(result: Any, units: str | None = None, alpha: float = 0.05) -> dic
         theta = theta_all[idx]
 
         def var(t: np.ndarray) -> float:
-            return max(t[1], 0.0) / max(1.0 - t[0] ** 2, 1e-300)
+            return AR1.stationary_variance(t[0], t[1])
 
         reaches_zero = ci_all[i_s2, 0] == 0.0
         phi_lo, phi_hi = ci_all[idx[0]]
@@ -518,45 +532,44 @@ def datasheet(result: Any, units: str | None = None, alpha: float = 0.05) -> dic
 
     gm_k = 0
     for (ctype, k), pars in comps.items():
+        proc = process(ctype)
+        kind = proc.datasheet_kind
         suffix = f"[{k}]" if counts[ctype] > 1 else ""
-        if ctype == "WN":
-            out[us.white_name + suffix] = image(lambda s: math.sqrt(max(s, 0.0) / freq),
-                                                pars["sigma2"], us.white)
-        elif ctype == "RW":
-            out[us.rw_name + suffix] = image(lambda g: math.sqrt(max(g, 0.0) * freq),
-                                             pars["gamma2"], us.rw)
-        elif ctype == "QN":
-            out["QN" + suffix] = image(lambda q: math.sqrt(max(q, 0.0)) / freq, pars["Q2"], us.qn)
-        elif ctype == "DR":
-            out["RR" + suffix] = image(lambda w: w * freq, pars["omega"], us.ramp)
-        elif ctype == "SIN":
+        if kind in COEFFICIENT_KINDS:
+            name, label_factor = us.coefficient(kind)
+            out[name + suffix] = image(lambda v, c=proc.coefficient: c(v, freq),
+                                       pars[proc.param_names[proc.scale_index]], label_factor)
+        elif kind == "sinusoid":
             ia, ib = pars["alpha"], pars["beta"]
-            entry = {"frequency": image(lambda b: b * freq / (2 * math.pi), ib, ("Hz", 1.0)),
+            entry = {"frequency": image(lambda b: Sinusoid.frequency_hz(b, freq), ib, ("Hz", 1.0)),
                      "amplitude": image(abs, ia, us.level)}
             for e in entry.values():
                 e["parameters"] = [names[ia], names[ib]]
             out[f"SIN[{k}]"] = blank_shape(entry, "amplitude", "frequency")
-        elif ctype == "GM":
+        elif kind == "gauss_markov":
             gm_k += 1
             ib, i2 = pars["beta"], pars["sigma2"]
-            entry = {"correlation_time": image(lambda b: 1.0 / b if b > 0 else math.inf, ib,
-                                               ("s", 1.0)),
+            entry = {"correlation_time": image(GaussMarkov.correlation_time, ib, ("s", 1.0)),
                      "sigma": image(lambda s2: math.sqrt(max(s2, 0.0)), i2, us.level)}
             for e in entry.values():
                 e["parameters"] = [names[ib], names[i2]]
             out[f"GM[{gm_k}]"] = blank_shape(entry, "sigma", "correlation_time")
-        elif ctype == "AR1":
+        elif kind == "ar1":
             idx = [pars["phi"], pars["sigma2"]]
             phi = theta_all[idx[0]]
             if 0.0 < phi < 1.0:  # a Gauss-Markov process sampled at f_s
                 gm_k += 1
-                entry = {"correlation_time": image(corr_time_of_phi, idx[0], ("s", 1.0)),
+                entry = {"correlation_time": image(lambda p: AR1.correlation_time(p, freq), idx[0],
+                                                   ("s", 1.0)),
                          "sigma": ar1_sigma(idx)}
                 entry["correlation_time"]["parameters"] = [names[i] for i in idx]
                 out[f"GM[{gm_k}]"] = blank_shape(entry, "sigma", "correlation_time")
             else:  # phi <= 0 has no continuous-time counterpart: report the AR1 itself
                 out[f"AR1[{k}]"] = {"sigma": ar1_sigma(idx),
                                     "phi": image(lambda p: p, idx[0], ("", 1.0))}
+        else:  # a process whose class does not say what it gives: never a silent gap
+            raise ModelError(f"the datasheet does not know process {ctype} (datasheet_kind "
+                             f"{kind!r}): set datasheet_kind on its class in gmwm.processes")
     return out
 
 

@@ -362,12 +362,20 @@ def _check_rate(update_rate: float | None, freqs: Mapping[str, float]) -> float:
     return rate
 
 
-def _scale_index(result: Any, prefix: str) -> list[tuple[str, int]]:
-    """(component name, index of its scale parameter) of each component of type ``prefix``."""
+def filter_process(term: str) -> Any:
+    """The process (:mod:`gmwm.processes`) that gives filter term ``term`` (``"noise_density"``,
+    ``"random_walk"``; :attr:`gmwm.processes.Process.filter_term`)."""
+    from gmwm.processes import PROCESSES  # SciPy: only once a file is written
+
+    return next(p for p in PROCESSES.values() if p.filter_term == term)
+
+
+def _scale_index(result: Any, proc: Any) -> list[tuple[str, int]]:
+    """(component name, index of its scale parameter) of each component of process ``proc``."""
     names = list(result.param_names)
-    key = {"WN": "sigma2", "RW": "gamma2"}[prefix]
+    key = proc.param_names[proc.scale_index]
     return [(n.split(".")[0], i) for i, n in enumerate(names)
-            if n.startswith(prefix + "[") and n.endswith("." + key)]
+            if n.startswith(proc.name + "[") and n.endswith("." + key)]
 
 
 def _flag(result: Any, comp: str, i: int) -> str | None:
@@ -405,15 +413,14 @@ def _axis(name: str, unit: str, sensor: str, result: Any, readings: Mapping[str,
         ds = datasheet(result, unit)
     terms = {}
     used_keys: set[str] = set()
-    for term, prefix, label, to_si, from_param in (
-            ("noise_density", "WN", us.white_name, us.white[1],
-             lambda p: math.sqrt(max(p, 0.0) / freq)),
-            ("random_walk", "RW", us.rw_name, us.rw[1], lambda p: math.sqrt(max(p, 0.0) * freq))):
-        comps = _scale_index(result, prefix)
+    for term in ("noise_density", "random_walk"):
+        proc = filter_process(term)
+        label, (_, to_si) = us.coefficient(proc.datasheet_kind)
+        comps = _scale_index(result, proc)
         keys = [k for k in ds if k.split("[")[0] == label]
         used_keys.update(keys)
         terms[term] = _axis_term(result, comps, [ds[k] for k in keys], us.si / to_si,
-                                 lambda p, f=from_param: us.si * f(p), prefix)
+                                 lambda p, c=proc.coefficient: us.si * c(p, freq), proc.name)
     others, extra = _other_terms(ds, used_keys, us, result, unit, readings)
     model = getattr(getattr(result, "model", None), "spec", None) or "+".join(
         dict.fromkeys(n.split("[")[0] for n in result.param_names))
@@ -612,7 +619,7 @@ def _key_lines(exp: NoiseExport, key: _Key, indent: str = "") -> list[str]:
     conv = key.convert
     kind = "noise density" if key.term == "noise_density" else "random walk"
     lines = [f"{key.name} [{key.unit}]: {key.meaning}."]
-    comp = "WN" if key.term == "noise_density" else "RW"
+    comp = filter_process(key.term).name
     if c.value is None:
         whys = [] if c.axes else [f"no {key.sensor} axis"]
         if c.missing:

@@ -288,15 +288,10 @@ def _wv_cov(result: Any, V: np.ndarray | None) -> np.ndarray:
 def _notes(result: Any) -> list[str]:
     notes = []
     model, wv = result.model, result.wv
-    names = {c.process.name for c in model.components}
-    if "SIN" in names:
-        T = float(wv.n_samples)
-        for c in model.components:
-            if c.process.name == "SIN":
-                beta = float(np.asarray(result.params)[c.slice][1])
-                if beta > 0 and 2 * np.pi / beta > T / 20:
-                    notes.append(f"{c.name} has a period over 1/20 of the signal: its WV depends "
-                                 "on the phase and the test is liberal")
+    for c in model.components:
+        note = c.process.gof_note(c.name, np.asarray(result.params)[c.slice], wv.n_samples)
+        if note:
+            notes.append(note)
     if np.any(wv.edof < 4):
         notes.append(f"{int(np.sum(wv.edof < 4))} longest scale(s) have fewer than 4 degrees of "
                      "freedom (non-Gaussian WV estimate)")

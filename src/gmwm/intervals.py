@@ -177,7 +177,7 @@ def boundary_upper(result: Any, alpha: float = 0.05) -> np.ndarray:
             var = float(G[-1] @ Vf @ G[-1]) / d[-1] ** 2
             if np.isfinite(var) and var >= 0:
                 end = z * math.sqrt(var)
-                out[i] = math.sqrt(end) if c.process.name in ("SIN", "DR") else end
+                out[i] = math.sqrt(end) if c.process.scale_power == 2 else end
     return out
 
 

@@ -28,6 +28,7 @@ import numpy as np
 from scipy.special import expit, logit
 
 from . import diagnostics as dg
+from .errors import ModelError
 
 # Free-space values are clamped so that wild optimiser steps cannot overflow exp().
 _ETA_MAX = 300.0
@@ -97,6 +98,32 @@ class Process:
     #: Index of the scale parameter (variance, amplitude or drift; the one that is 0 when the
     #: component vanishes).
     scale_index: int = 0
+    #: The WV is linear in ``p[scale_index] ** scale_power`` (2 for an amplitude or a slope).
+    scale_power: int = 1
+    #: At most one per model: a sum of two is the same process (QN, WN, RW, DR).
+    singleton: bool = False
+    #: A correlated term the automatic model choice adds 0..``max_gm`` of (GM, or AR1 on request).
+    slow_term: bool = False
+    #: The noise term of a navigation filter's configuration this process is
+    #: (``"noise_density"``: WN, ``"random_walk"``: RW); every automatically chosen model of an
+    #: inertial sensor contains these (:data:`gmwm.automodel.REQUIRED`), and the filter exports
+    #: (:mod:`gmwm.exports`) read them. None for the other processes.
+    filter_term: str | None = None
+    #: What the process gives on a datasheet (:func:`gmwm.datasheet.datasheet`): one continuous
+    #: coefficient, :meth:`coefficient`, printed with the :class:`gmwm.units.UnitSystem` entry of
+    #: that name (``"white"``, ``"rw"``, ``"qn"``, ``"ramp"``); or ``"sinusoid"`` (frequency and
+    #: amplitude), ``"gauss_markov"`` (correlation time and sigma), ``"ar1"`` (a GM when 0 < phi <
+    #: 1, else sigma and phi). None: the datasheet does not know the process (an error there).
+    datasheet_kind: str | None = None
+
+    def coefficient(self, value: float, freq: float) -> float:
+        """The continuous-time datasheet coefficient (SI seconds, signal units) of the scale
+        parameter ``value`` at ``freq`` [Hz], monotone in ``value`` (one-coefficient processes)."""
+        raise NotImplementedError(f"{self.name} has no single datasheet coefficient")
+
+    def gof_note(self, label: str, p: np.ndarray, n_samples: int) -> str | None:
+        """A caveat on the goodness-of-fit test (:mod:`gmwm.gof`) the component brings, if any."""
+        return None
 
     @property
     def n_params(self) -> int:
@@ -245,6 +272,12 @@ class WhiteNoise(Process):
     name = "WN"
     param_names = ("sigma2",)
     linear = True
+    singleton = True
+    filter_term = "noise_density"
+    datasheet_kind = "white"
+
+    def coefficient(self, value, freq):
+        return math.sqrt(max(value, 0.0) / freq)   # N = sqrt(sigma2 / f_s) [u sqrt(s)]
 
     def wv(self, p, tau, freq=1.0):
         return p[0] / tau
@@ -270,6 +303,11 @@ class QuantizationNoise(Process):
     name = "QN"
     param_names = ("Q2",)
     linear = True
+    singleton = True
+    datasheet_kind = "qn"
+
+    def coefficient(self, value, freq):
+        return math.sqrt(max(value, 0.0)) / freq   # Q = sqrt(Q2) / f_s [u s]
 
     def wv(self, p, tau, freq=1.0):
         return 6.0 * p[0] / tau**2
@@ -295,6 +333,12 @@ class RandomWalk(Process):
     name = "RW"
     param_names = ("gamma2",)
     linear = True
+    singleton = True
+    filter_term = "random_walk"
+    datasheet_kind = "rw"
+
+    def coefficient(self, value, freq):
+        return math.sqrt(max(value, 0.0) * freq)   # K = sqrt(gamma2 f_s) [u / sqrt(s)]
 
     def wv(self, p, tau, freq=1.0):
         return p[0] * (tau**2 + 2.0) / (12.0 * tau)
@@ -322,6 +366,12 @@ class Drift(Process):
     param_names = ("omega",)
     linear = True
     signed = True
+    singleton = True
+    scale_power = 2
+    datasheet_kind = "ramp"
+
+    def coefficient(self, value, freq):
+        return value * freq   # R = omega f_s [u / s]
 
     def wv(self, p, tau, freq=1.0):
         return p[0] ** 2 * tau**2 / 16.0
@@ -467,6 +517,21 @@ class AR1(_AR1Like):
     param_names = ("phi", "sigma2")
     free_kinds = ("phi", "log")
     domain = ((-1.0, 1.0), (0.0, math.inf))
+    slow_term = True
+    datasheet_kind = "ar1"
+
+    @staticmethod
+    def correlation_time(phi: float, freq: float) -> float:
+        """Correlation time [s] of the Gauss-Markov process an AR1 with ``phi`` samples at ``freq``
+        [Hz]: ``-1 / (f_s ln phi)``, increasing on (0, 1); 0 for phi <= 0, inf for phi >= 1."""
+        if phi <= 0:
+            return 0.0
+        return math.inf if phi >= 1 else -1.0 / (freq * math.log(phi))
+
+    @staticmethod
+    def stationary_variance(phi: float, sigma2: float) -> float:
+        """Stationary variance ``sigma2 / (1 - phi^2)`` [u^2] (innovation variance clamped at 0)."""
+        return max(sigma2, 0.0) / max(1.0 - phi ** 2, 1e-300)
 
     def free_limits(self):
         # 2 expit(eta) - 1 rounds to 1 from eta ~ 37 on: phi = 1 is a random walk, not an AR1
@@ -554,6 +619,13 @@ class GaussMarkov(_AR1Like):
 
     name = "GM"
     param_names = ("beta", "sigma2")
+    slow_term = True
+    datasheet_kind = "gauss_markov"
+
+    @staticmethod
+    def correlation_time(beta: float) -> float:
+        """Correlation time ``1 / beta`` [s] (inf for beta <= 0)."""
+        return 1.0 / beta if beta > 0 else math.inf
 
     def _ar1(self, p, freq):
         a = p[0] / freq
@@ -624,6 +696,20 @@ class Sinusoid(Process):
     free_kinds = ("log", "pi")
     domain = ((0.0, math.inf), (0.0, math.pi))
     oscillating = True
+    scale_power = 2
+    datasheet_kind = "sinusoid"
+
+    @staticmethod
+    def frequency_hz(beta: float, freq: float) -> float:
+        """Frequency [Hz] of angular frequency ``beta`` [rad/sample] at ``freq`` [Hz]."""
+        return beta * freq / (2 * math.pi)
+
+    def gof_note(self, label, p, n_samples):
+        beta = float(p[1])
+        if beta > 0 and 2 * np.pi / beta > float(n_samples) / 20:
+            return (f"{label} has a period over 1/20 of the signal: its WV depends on the phase "
+                    "and the test is liberal")
+        return None
     pair_rel = dg.PAIR_REL_SIN
     pair_what = "beta"
     swap_verb = "swap roles"
@@ -739,4 +825,13 @@ PROCESSES: dict[str, Process] = {
 """Registry in canonical model order (roughly the time scale each process dominates)."""
 
 #: Processes of which a model may hold at most one (sums of them are the same process).
-SINGLETONS = frozenset({"QN", "WN", "RW", "DR"})
+SINGLETONS = frozenset(n for n, proc in PROCESSES.items() if proc.singleton)
+
+
+def process(name: str) -> Process:
+    """The registered process ``name`` (:data:`PROCESSES`); a ModelError naming the known ones
+    for any other name."""
+    try:
+        return PROCESSES[name]
+    except KeyError:
+        raise ModelError(f"unknown process {name!r}; known: {', '.join(PROCESSES)}") from None
