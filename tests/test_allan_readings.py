@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 from scipy.special import chdtri
 
-from gmwm.datasheet import BI_AD_FACTOR, _line_reading, allan_readings
+from gmwm.datasheet import _line_reading, allan_readings
 from gmwm.model import Model
+from gmwm.units import BI_AD_FACTOR
 from gmwm.wv import AllanVariance, WaveletVariance, avar, wvar_many
 from gmwm.wvci import mixture_edof, power_law_wv_cov
 from gmwm.wvcov import wv_covariance

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from _ulog_writer import write_ulog
-from gmwm.datasheet import parse_unit
 from gmwm.errors import GMWMError, InputError
 from gmwm.readers.recording import read_recording
 from gmwm.readers.timebase import decide_gaps, segments_wv, time_base
+from gmwm.units import parse_unit
 from test_recordings import T0, _sensor_combined, _signals, _stamps, write_bag
 
 pytest.importorskip("rosbags")

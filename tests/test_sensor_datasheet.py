@@ -14,13 +14,6 @@ from scipy.optimize import minimize_scalar
 
 from gmwm import units as u
 from gmwm.cli import main
-from gmwm.datasheet import (
-    UNIT_SYSTEMS,
-    coefficient_unit,
-    convert,
-    from_signal_units,
-    to_signal_units,
-)
 from gmwm.errors import InputError
 from gmwm.model import Model
 from gmwm.sensor_datasheet import (
@@ -37,6 +30,7 @@ from gmwm.sensor_datasheet import (
     to_model,
 )
 from gmwm.sensor_datasheet import _interval_verdict as verdict
+from gmwm.units import UNIT_SYSTEMS, coefficient_unit, convert, from_signal_units, to_signal_units
 from gmwm.wv import wvar
 
 G = 9.80665

@@ -345,8 +345,8 @@ def test_timeline_drawn_while_fitting_is_not_drawn_again(tmp_path):
     """gmwm.report.warm_up draws the stationarity timeline ahead (the CLI does it while the
     axes' models are chosen); write_report with it in ``drawn`` lists the file and leaves it."""
     import gmwm
+    from gmwm.datasheet import datasheet
     from gmwm.report import warm_up, write_report
-    from gmwm.units import datasheet
 
     moving = _imu(seed=23, seconds=120.0)
     bs.inject_tilt(moving, FS, 60.0, 3.0, 5.0)

@@ -373,7 +373,7 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
         sign is not identified and ``robust`` is not available).
     freq : sampling frequency [Hz] of a signal (GM correlation times in seconds use it).
     kind : ``"gyroscope"``, ``"accelerometer"`` (every candidate then has WN and RW) or None;
-        from a signal unit: ``gmwm.datasheet.unit_system(units).sensor``.
+        from a signal unit: ``gmwm.units.unit_system(units).sensor``.
     max_gm : the most GM (or ``slow``) terms of a candidate (0..5, default 3).
     sin : ``"auto"`` (SIN candidates when :func:`wv_bump` sees a bump), True or False.
     slow : ``"GM"`` (default) or ``"AR1"`` (also negative correlation) for the slow terms.

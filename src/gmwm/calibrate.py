@@ -116,7 +116,7 @@ def _fit_one(data: Any, spec: str, freq: float, levels: int | None,
     lv = levels if isinstance(data, np.ndarray) else None  # a pooled WV is already subset
     if spec.strip().lower() == AUTO:
         from gmwm.automodel import choose_model
-        from gmwm.datasheet import unit_system
+        from gmwm.units import unit_system
 
         kind = unit_system(unit).sensor if unit else None
         opts = {k: v for k, v in options.items() if k in ("seed", "n_starts", "robust", "eff")}

@@ -112,8 +112,8 @@ class GMWMResult:
 
     def datasheet(self, units: str | None = None, alpha: float = 0.05) -> dict[str, Any]:
         """Continuous datasheet coefficients (ARW/VRW, RRW, QN, RR, GM, SIN) in ``units``
-        (see :func:`gmwm.units.datasheet`)."""
-        from .units import datasheet
+        (see :func:`gmwm.datasheet.datasheet`)."""
+        from .datasheet import datasheet
 
         return datasheet(self, units, alpha)
 

@@ -43,8 +43,9 @@ from typing import Any
 
 import numpy as np
 
-from gmwm.datasheet import datasheet, fit_readings, parse_unit, unit_system
+from gmwm.datasheet import datasheet, fit_readings
 from gmwm.errors import InputError
+from gmwm.units import parse_unit, unit_system
 
 __all__ = ["AXIS_RULES", "TARGETS", "AxisNoise", "AxisTerm", "Combined", "Inflation", "NoiseExport",
            "Target", "noise_export", "parse_inflation", "parse_targets", "render", "write_exports"]
@@ -299,7 +300,7 @@ def noise_export(per_axis: Mapping[str, tuple[str | None, Any]],
     """Build the noise representation from per-axis fits.
 
     ``per_axis[axis] = (unit, result)``: the signal unit (its sensor role and SI factor from
-    :data:`gmwm.datasheet.SIGNAL_UNITS`, e.g. 'deg/s', 'rad/s', 'm/s^2', 'g', '0.00875*deg/s') and
+    :data:`gmwm.units.SIGNAL_UNITS`, e.g. 'deg/s', 'rad/s', 'm/s^2', 'g', '0.00875*deg/s') and
     the GMWM fit of that axis. Axes without a gyroscope/accelerometer unit are skipped (listed in
     the files); none at all is an :class:`InputError`. ``update_rate`` [Hz] defaults to the fits'
     common sampling frequency and must equal it. ``topic``: the IMU's ROS topic if known.

@@ -212,7 +212,7 @@ def readings_text(readings: Mapping[str, Mapping[str, dict]], single: bool) -> s
 
 def datasheet_rows(ds: Mapping[str, dict]) -> list[tuple]:
     """(term, quantity, value, ci95 or None, unit) per coefficient of a
-    :func:`gmwm.units.datasheet` dict (terms with several quantities give several rows)."""
+    :func:`gmwm.datasheet.datasheet` dict (terms with several quantities give several rows)."""
     rows = []
     for term, e in ds.items():
         parts = [("", e)] if "value" in e else list(e.items())

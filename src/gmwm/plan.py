@@ -155,7 +155,8 @@ def _coefficients(model: Any, theta: np.ndarray, cov: np.ndarray, wv: Any, unit:
     the predicted covariance), plus the bias instability (``bi``: the component standing for it)."""
     from types import SimpleNamespace
 
-    from gmwm.datasheet import datasheet, unit_system
+    from gmwm.datasheet import datasheet
+    from gmwm.units import unit_system
 
     se = np.sqrt(np.clip(np.diag(cov), 0, None))
     fake = SimpleNamespace(model=model, params=theta, param_names=model.param_names, se=se, cov=cov,

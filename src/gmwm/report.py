@@ -197,7 +197,7 @@ def warm_up(stationarity: Any = None, outdir: str | os.PathLike | None = None,
         return drawn
     with contextlib.suppress(Exception):  # a warm-up is an optimisation only
         import gmwm
-        from gmwm.units import datasheet
+        from gmwm.datasheet import datasheet
 
         rng = np.random.default_rng(0)
         x = np.cumsum(rng.standard_normal(4096)) * 1e-3 + rng.standard_normal(4096)

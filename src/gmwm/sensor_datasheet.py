@@ -17,7 +17,7 @@ The file (documented in docs/METHODS.md §17.1; examples under ``gmwm/data/datas
 Terms (per sensor): ``white``, ``bias_instability``, ``random_walk``, ``quantization``, ``ramp``,
 ``gauss_markov`` (a mapping or list of mappings with ``sigma`` and ``correlation_time``). Every value
 is ``"NUMBER UNIT"`` (or ``{value: NUMBER, unit: UNIT}``) in any unit of the right dimension
-(:func:`gmwm.datasheet.coefficient_unit`).
+(:func:`gmwm.units.coefficient_unit`).
 
 Bias instability. The flicker floor of a datasheet has no finite model among the GMWM processes. For
 a **plan** (and the simulation benchmark) it becomes one Gauss-Markov component whose Allan
@@ -41,16 +41,16 @@ from typing import Any
 
 import numpy as np
 
-from gmwm.datasheet import (
+from gmwm.datasheet import datasheet
+from gmwm.errors import InputError
+from gmwm.units import (
     BI_AD_FACTOR,
     coefficient_unit,
     convert,
-    datasheet,
     parse_unit,
     to_signal_units,
     unit_system,
 )
-from gmwm.errors import InputError
 
 __all__ = [
     "GM_PEAK_AD",
@@ -84,7 +84,7 @@ VERDICT_RULE = ("within: the datasheet value lies inside the measured 95 % inter
                 "datasheet states); a correlation time is shorter / longer")
 _Z95 = NormalDist().inv_cdf(0.975)
 
-#: YAML term key -> (coefficient kind of gmwm.datasheet.TERM_KINDS, process)
+#: YAML term key -> (coefficient kind of gmwm.units.TERM_KINDS, process)
 _TERMS = {"white": ("white", "WN"), "random_walk": ("random_walk", "RW"),
           "quantization": ("quantization", "QN"), "ramp": ("ramp", "DR"),
           "bias_instability": ("level", "BI")}
@@ -565,8 +565,8 @@ def judge(result: Any, sheet: Datasheet, unit: str, alpha: float = 0.05) -> dict
     section; a unit of no known sensor, or a datasheet without that section, is an InputError."""
     parsed = parse_unit(unit) if unit else None
     if parsed is None:
-        raise InputError("--datasheet needs the signal unit (--units) to tell a gyroscope from an "
-                         "accelerometer")
+        raise InputError("comparing with a datasheet (`sheet`) needs the signal unit (`unit`) to "
+                         "tell a gyroscope from an accelerometer")
     spec = sheet.sensor(parsed[2])
     wv = result.wv
     scales = np.asarray(wv.scales, float)

@@ -363,7 +363,7 @@ class StationarityReport:
 
 def _si_factor(unit: str | None) -> tuple[str | None, float]:
     """(sensor type, SI value of one signal unit) of a unit, or (None, nan)."""
-    from gmwm.datasheet import SIGNAL_UNITS, parse_unit
+    from gmwm.units import SIGNAL_UNITS, parse_unit
 
     try:
         p = parse_unit(unit)

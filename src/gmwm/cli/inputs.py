@@ -305,7 +305,7 @@ def units_by_column(args: argparse.Namespace, columns: Sequence[str],
     """Per column: the ``--units`` given (validated; an unknown unit is an error listing the known
     ones, one contradicting ``file_units`` too), else the unit the file defines (bags, ULog,
     EuRoC headers), else ''."""
-    from gmwm.datasheet import parse_unit
+    from gmwm.units import parse_unit
 
     given = _by_column(getattr(args, "units", []) or [], columns, "--units", None)
     out = {}

@@ -33,7 +33,6 @@ from typing import Any
 
 import numpy as np
 
-from gmwm.datasheet import parse_unit
 from gmwm.errors import InputError
 from gmwm.readers.timebase import (
     TIME_UNITS,
@@ -44,6 +43,7 @@ from gmwm.readers.timebase import (
     time_column,
     time_from_freq,
 )
+from gmwm.units import parse_unit
 
 __all__ = ["FORMATS", "Recording", "imu_topics", "read_recording", "read_recordings", "sample_range",
            "select_samples"]
@@ -60,7 +60,7 @@ class Recording:
     """Signals of one recording, in the units of the file.
 
     ``channels`` name -> 1-D float64 array (all one length); ``units`` name -> signal unit (a
-    :data:`gmwm.datasheet.SIGNAL_UNITS` key, a raw-count ``'K*UNIT'``, or None: unknown);
+    :data:`gmwm.units.SIGNAL_UNITS` key, a raw-count ``'K*UNIT'``, or None: unknown);
     ``roles`` name -> 'gyroscope' / 'accelerometer' / None; ``time`` the measured or given time
     base (None: neither stamps nor ``freq``); ``format`` one of :data:`FORMATS`; ``topic`` the
     bag or ULog topic; ``notes`` what the user should know (shown as warnings); ``time_s`` the

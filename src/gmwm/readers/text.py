@@ -7,7 +7,7 @@ What is recognised, from the first lines of the file:
 * gzip compression (by its magic bytes, whatever the suffix: ``imu.csv.gz``);
 * a header, also when it is a ``#`` comment line (EuRoC / TUM-VI: ``#timestamp [ns],w_RS_S_x
   [rad s^-1],...,a_RS_S_x [m s^-2]``); a unit in brackets or parentheses after a column name is
-  read with :func:`gmwm.datasheet.parse_unit` (``rad s^-1`` = rad/s, ``m s^-2`` = m/s^2) or, for
+  read with :func:`gmwm.units.parse_unit` (``rad s^-1`` = rad/s, ``m s^-2`` = m/s^2) or, for
   a time column, :func:`gmwm.readers.timebase.time_column`;
 * ``rostopic echo -p`` output of a ``sensor_msgs/Imu`` topic (``%time,field.header.stamp,...,
   field.angular_velocity.x,...``): the gyroscope (rad/s) and accelerometer (m/s^2) axes by ROS's
@@ -25,9 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from gmwm.datasheet import parse_unit
 from gmwm.errors import InputError
 from gmwm.readers.timebase import time_column
+from gmwm.units import parse_unit
 
 __all__ = ["Table", "read_text_table", "temperature_column"]
 

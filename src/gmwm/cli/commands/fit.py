@@ -25,7 +25,7 @@ from gmwm.formatting import fit_json, fit_text, fit_warnings, json_text
 @dataclass(frozen=True)
 class ColumnFit:
     """One channel's fit: the result, the signal unit ('' unknown), its datasheet coefficients
-    (:func:`gmwm.units.datasheet`), the identifiability check (``--check``) and the datasheet
+    (:func:`gmwm.datasheet.datasheet`), the identifiability check (``--check``) and the datasheet
     verdict (``--datasheet``, :func:`gmwm.sensor_datasheet.judge`), None when not asked for."""
 
     result: Any
@@ -96,8 +96,8 @@ def fit_columns(args: argparse.Namespace, err: TextIO, require_time: str | None 
     each channel's WV figure as soon as it is chosen (a report without a datasheet verdict);
     the files drawn are appended to ``drawn``."""
     import gmwm
+    from gmwm.datasheet import datasheet
     from gmwm.model import Model
-    from gmwm.units import datasheet
 
     settings = fit_settings(args)
     from gmwm.calibrate import start_warm_server, stop_warm_server
@@ -173,7 +173,7 @@ def _choose(args: argparse.Namespace, name: str, data: Any, settings: Any, freq:
     """The automatic model choice of one channel (:func:`gmwm.automodel.choose_model`): the
     sensor kind from its unit; without one every sum of the candidate terms is tried."""
     from gmwm.automodel import choose_model
-    from gmwm.datasheet import unit_system
+    from gmwm.units import unit_system
 
     kind = unit_system(units or None).sensor if units else None
     args.progress(f"choosing the model of {name}"
@@ -311,8 +311,8 @@ def attach_verdicts(fits: dict[str, ColumnFit], sheet: Any, err: TextIO, multi: 
     for its sensor type) gets a warning, a column without a known unit is an error."""
     if sheet is None:
         return fits
-    from gmwm.datasheet import parse_unit
     from gmwm.sensor_datasheet import judge
+    from gmwm.units import parse_unit
 
     out = {}
     for name, f in fits.items():

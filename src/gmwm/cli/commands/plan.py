@@ -55,7 +55,7 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 def _plan_inputs(args: argparse.Namespace) -> list[dict[str, Any]]:
     """What to plan: per sensor (or the one model) the model, values, unit and notes."""
-    from gmwm.datasheet import parse_unit
+    from gmwm.units import parse_unit
 
     if (args.datasheet is None) == (args.model is None):
         raise UsageError("give a datasheet (--datasheet FILE) or a MODEL with -p values, not both")
@@ -103,7 +103,7 @@ def _plan_inputs(args: argparse.Namespace) -> list[dict[str, Any]]:
 
 def _plan_labels(model: Any, unit: str | None, bi: str | None) -> dict[str, str]:
     """Component -> the name a datasheet gives it (ARW, RRW, ..., BI)."""
-    from gmwm.datasheet import unit_system
+    from gmwm.units import unit_system
 
     us = unit_system(unit)
     names = {"WN": us.white_name, "RW": us.rw_name, "QN": "QN", "DR": "RR"}

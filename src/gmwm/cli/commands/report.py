@@ -135,7 +135,7 @@ def _several_imus(args: argparse.Namespace, out: TextIO, err: TextIO, targets: A
         for c, axis in sec.axes.items():
             res = axis["result"]
             if sheet is not None and axis["units"]:
-                from gmwm.datasheet import parse_unit
+                from gmwm.units import parse_unit
 
                 kind = parse_unit(axis["units"])
                 if kind is not None and kind[2] in sheet.sensors:
