@@ -1,5 +1,5 @@
 """Diagnostics of a fit: one set of thresholds, used by the fit's warnings (:func:`gmwm.fit`),
-the identifiability checks (:mod:`gmwm.identify`, the CLI's ``--check``) and the reports.
+the identifiability checks (:mod:`gmwm.identify`) and the reports.
 
 Every rule about one process (an AR1 at |phi| -> 1, a SIN at Nyquist or too slow, ...) is a method
 of that process (:mod:`gmwm.processes`) and reads its threshold here. Why each threshold:
@@ -151,7 +151,8 @@ def fit_warnings(model: Any, theta: np.ndarray, se: np.ndarray, cond: float,
             out += c.process.fit_warnings(c.name, theta[c.slice], tau_max, model.freq)
     if not np.isfinite(cond) or cond > COND_MAX:
         out.append(f"the WV Jacobian is ill-conditioned (condition number {cond:.3g}): more "
-                   "parameters than the WV can identify; try a smaller model or `--check`")
+                   "parameters than the WV can identify; try a smaller model or the identifiability "
+                   "check (`gmwm.identify.check`)")
     bad_se = [n for n, s, f in zip(model.param_names, se, fixed, strict=True)
               if not np.isfinite(s) and not f]
     if bad_se:
