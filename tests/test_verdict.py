@@ -127,3 +127,30 @@ def test_decide(filtered_noise) -> None:
     v = decide({"gx": good}, n_samples=x.size, kinds={"gx": "gyroscope"}, to_si={"gx": 57.3 * 4})
     assert any("deg/s read as rad/s" in c for c in v.caveats)
     assert decide({}, n_samples=x.size).status == WRITTEN
+
+
+def test_caveats_are_the_first_comment_lines_of_every_file(filtered_noise) -> None:
+    import json
+
+    from gmwm.exports import TARGETS, noise_export, render
+
+    x, _ = filtered_noise
+    good = gmwm.fit(x, "WN+AR1", freq=200.0)
+    v = decide({"gx": good}, n_samples=x.size, kinds={"gx": "gyroscope"},
+               caveats=["the recording moved: 3.1 % of the samples (12.0-14.5 s) excluded"])
+    exp = noise_export({"gx": ("rad/s", good)}, caveats=v.caveats)
+    for target in TARGETS:
+        text = render(exp, target)
+        if target == "json":
+            assert json.loads(text)["caveats"] == list(v.caveats)
+            continue
+        comments = [ln for ln in text.splitlines() if ln.startswith("#")]
+        assert comments[0].startswith(f"# CAUTION ({len(v.caveats)})"), target
+        assert "recording moved" in comments[1], target
+    plain = render(noise_export({"gx": ("rad/s", good)}), "kalibr")
+    assert "CAUTION" not in plain
+    # the value written is the white-noise-equivalent density, the WN term's beside it
+    we = white_equivalent(good)
+    term = exp.axes["gx"].noise_density
+    assert term.value == pytest.approx(we.density) and term.ci95[0] < we.density < term.ci95[1]
+    assert f"{we.white:.4g}" in term.note and "AR1[1]" in term.note
