@@ -79,8 +79,12 @@ def test_rank_picks_generating_linear_model() -> None:
     for seed in range(4):
         ranking = rank_models(_signal(seed), cands)
         assert ranking.best.model == "WN+RW"
-        crit = [e.criterion for e in ranking.ranked]
-        assert crit == sorted(crit)
+        # accepted candidates first, each group by criterion
+        flags = [e.rejected() for e in ranking.ranked]
+        assert flags == sorted(flags)
+        for group in (False, True):
+            crit = [e.criterion for e in ranking.ranked if e.rejected() is group]
+            assert crit == sorted(crit)
         assert ranking.criterion == "wic" and ranking.factor == 2.0
         for e in ranking.ranked:
             assert e.criterion == pytest.approx(e.objective + 2.0 * e.penalty)
@@ -95,6 +99,35 @@ def test_rank_picks_ar1_over_rw() -> None:
     ranking = rank_models(x, ["WN", "WN+RW", "WN+AR1"], criterion="wic-log")
     assert ranking.best.model == "WN+AR1"
     assert ranking.factor == pytest.approx(np.log(2**14))
+
+
+def test_a_rejected_model_is_never_ranked_above_an_accepted_one() -> None:
+    """WN + RW + AR1 (phi 0.995) at T = 2^20 ranked by WIC-log: WN+AR1 has the lower criterion
+    (the log T penalty outweighs the objective drop the RW brings) but the goodness-of-fit test
+    rejects it, while WN+AR1+RW passes; the accepted model ranks first, under every criterion
+    and after a re-ranking or a merge."""
+    from gmwm.select import merge
+
+    m = Model("WN+AR1+RW")
+    th = m.theta({"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-6, "AR1[1].phi": 0.995,
+                  "AR1[1].sigma2": 2e-3})
+    x = m.simulate(th, 2**20, np.random.default_rng([40, 2]))
+    ranking = rank_models(x, ["WN+AR1", "WN+AR1+RW"], criterion="wic-log")
+    by_model = {e.model: e for e in ranking.ranked}
+    small, full = by_model["WN+AR1"], by_model["WN+AR1+RW"]
+    assert small.rejected() and not full.rejected()
+    assert ranking.best.model == full.model
+    assert [e.model for e in ranking.ranked] == [full.model, small.model]
+    for crit in ("wic", "wic-hq", "wic-log"):
+        assert rerank(ranking, crit).best.model == full.model
+    parts = [rank_models(x, [s], criterion="wic-log") for s in ("WN+AR1", "WN+AR1+RW")]
+    assert merge(parts).best.model == full.model
+    d = ranking.to_json_dict()
+    assert d["ranking"][1]["rejected"] is True and d["ranking"][0]["p_value"] >= 0.05
+    assert "REJECTED" in ranking.summary().splitlines()[-1]
+    # a level no candidate fails: the criterion alone orders them
+    lax = rank_models(x, ["WN+AR1", "WN+AR1+RW"], criterion="wic-log", gof_alpha=1e-300)
+    assert [e.criterion for e in lax.ranked] == sorted(e.criterion for e in lax.ranked)
 
 
 def test_superset_with_a_zero_component_ties_and_loses() -> None:

@@ -220,14 +220,18 @@ class Choice:
 
     @property
     def notes(self) -> list[str]:
-        """Why this model: candidates ranked above it that the test rejects, the ranking's near
-        ties, the bump, the stages not fitted."""
+        """Why this model: candidates with a lower criterion that the test rejects (ranked below
+        every accepted one), the ranking's near ties, the bump, the stages not fitted."""
         out = []
         chosen = self.result.model.spec
-        above = [e.model for e in self.ranking.ranked[:self.rank - 1]]
-        if above and self.passed:
-            rej = ", ".join(f"{m} (p {fmt_p(self.p_values.get(m, np.nan))})" for m in above)
-            out.append(f"ranked above {chosen} but rejected by the goodness-of-fit test: {rej}")
+        mine = next((e.criterion for e in self.ranking.ranked if e.model == chosen), np.inf)
+        lower = [e.model for e in self.ranking.ranked
+                 if e.criterion < mine and e.rejected(self.alpha)]
+        if lower and self.passed:
+            rej = ", ".join(f"{m} (p {fmt_p(self.p_values.get(m, np.nan))})" for m in lower)
+            out.append(f"lower {self.ranking.criterion.upper()} than {chosen} but rejected by "
+                       f"the goodness-of-fit test, so ranked below every accepted candidate: "
+                       f"{rej}")
         out += self.ranking.notes
         if self.bump is not None:
             out.append(f"SIN candidates tried: {self.bump.describe()}")
@@ -386,7 +390,6 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
     Returns a :class:`Choice`; :class:`~gmwm.errors.GMWMError` if no candidate can be fitted.
     """
     from . import fit
-    from .gof import gof_test
 
     _check_kind(kind)
     if not 0 < alpha < 1:
@@ -418,11 +421,11 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
         def rank(specs: list[str]) -> Ranking:
             nonlocal done
             r = rank_models(data, specs, criterion=criterion, freq=freq, seed=seed,
-                            n_starts=n_starts, progress=report, **wv_opts)
+                            n_starts=n_starts, progress=report, gof_alpha=alpha, **wv_opts)
             done += len(specs)
             rankings.append(r)
             for e in r.ranked:
-                p_values[e.model] = float(gof_test(e.result).p_value)
+                p_values[e.model] = e.p_value
             return r
 
         for k in range(max_gm + 1):

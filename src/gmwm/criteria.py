@@ -74,7 +74,8 @@ def chi2_unit(entry: Any) -> float:
 
 def near_ties(ranking: Any, tol: float = TIE_CHI2) -> list[Any]:
     """Ranked entries (best excluded) whose criterion exceeds the best's by less than ``tol``
-    chi-square units (criterion difference / the best fit's ``tr(Omega V) / J``)."""
+    chi-square units (criterion difference / the best fit's ``tr(Omega V) / J``). A candidate
+    the goodness-of-fit test rejects is no tie of an accepted best, whatever its criterion."""
     ranked = ranking.ranked
     if len(ranked) < 2:
         return []
@@ -82,7 +83,13 @@ def near_ties(ranking: Any, tol: float = TIE_CHI2) -> list[Any]:
     if not np.isfinite(unit) or unit <= 0:
         return []
     best = ranked[0].criterion
-    return [e for e in ranked[1:] if (e.criterion - best) / unit < tol]
+    alpha = getattr(ranking, "gof_alpha", None)
+
+    def rejected(e: Any) -> bool:
+        return alpha is not None and hasattr(e, "rejected") and e.rejected(alpha)
+
+    same = [e for e in ranked[1:] if rejected(e) == rejected(ranked[0])]
+    return [e for e in same if (e.criterion - best) / unit < tol]
 
 
 @dataclass(frozen=True)

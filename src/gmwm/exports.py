@@ -223,6 +223,9 @@ class NoiseExport:
     combined: Mapping[str, Mapping[str, Combined]]
     skipped: tuple[str, ...] = ()
     source: str | None = None
+    #: what the tool knows about these numbers (gmwm.verdict): the first comment lines of every
+    #: file, and "caveats" in the JSON
+    caveats: tuple[str, ...] = ()
 
     def sensor_axes(self, sensor: str) -> list[AxisNoise]:
         return [a for a in self.axes.values() if a.sensor == sensor]
@@ -234,7 +237,7 @@ class NoiseExport:
         rate = self.update_rate
         return {
             "format": "gmwm IMU noise export", "format_version": 1, "gmwm_version": __version__,
-            "source": self.source, "rostopic": self.topic, "update_rate_hz": rate,
+            "caveats": list(self.caveats), "source": self.source, "rostopic": self.topic, "update_rate_hz": rate,
             "conventions": {
                 "continuous": {
                     "noise_density": "white-noise density N, rad/s/sqrt(Hz) (gyroscope) or "
@@ -295,8 +298,8 @@ def noise_export(per_axis: Mapping[str, tuple[str | None, Any]],
                  flagged: str = "upper",
                  readings: Mapping[str, Mapping[str, Any] | None] | None = None,
                  source: str | None = None,
-                 datasheets: Mapping[str, Mapping[str, Any] | None] | None = None
-                 ) -> NoiseExport:
+                 datasheets: Mapping[str, Mapping[str, Any] | None] | None = None,
+                 caveats: Sequence[str] = ()) -> NoiseExport:
     """Build the noise representation from per-axis fits.
 
     ``per_axis[axis] = (unit, result)``: the signal unit (its sensor role and SI factor from
@@ -309,7 +312,8 @@ def noise_export(per_axis: Mapping[str, tuple[str | None, Any]],
     bound) or ``"estimate"``. ``readings[axis]``: the IEEE 952 readings of
     :func:`gmwm.datasheet.allan_readings` (computed from the fit's WV when not given; their bias
     instability goes into the comments). ``datasheets[axis]``: that fit's
-    :func:`gmwm.datasheet.datasheet` in ``unit`` (computed when not given).
+    :func:`gmwm.datasheet.datasheet` in ``unit`` (computed when not given). ``caveats``: lines
+    every file starts with (:attr:`gmwm.verdict.Verdict.caveats`).
     """
     if rule not in AXIS_RULES:
         raise InputError(f"unknown axis rule {rule!r}; use one of {', '.join(AXIS_RULES)}")
@@ -342,7 +346,8 @@ def noise_export(per_axis: Mapping[str, tuple[str | None, Any]],
         axes = {n: _estimate_policy(a) for n, a in axes.items()}
     combined = {s: {t: _combine(s, t, [a for a in axes.values() if a.sensor == s], rule, infl)
                     for t in TERMS} for s in SENSORS}
-    return NoiseExport(rate, topic, rule, flagged, infl, axes, combined, tuple(skipped), source)
+    return NoiseExport(rate, topic, rule, flagged, infl, axes, combined, tuple(skipped), source,
+                       tuple(str(c) for c in caveats))
 
 
 def _check_rate(update_rate: float | None, freqs: Mapping[str, float]) -> float:
@@ -422,6 +427,7 @@ def _axis(name: str, unit: str, sensor: str, result: Any, readings: Mapping[str,
         used_keys.update(keys)
         terms[term] = _axis_term(result, comps, [ds[k] for k in keys], us.si / to_si,
                                  lambda p, c=proc.coefficient: us.si * c(p, freq), proc.name)
+    terms["noise_density"] = _fold_fast_terms(terms["noise_density"], result, us.si)
     others, extra = _other_terms(ds, used_keys, us, result, unit, readings)
     model = getattr(getattr(result, "model", None), "spec", None) or "+".join(
         dict.fromkeys(n.split("[")[0] for n in result.param_names))
@@ -429,6 +435,28 @@ def _axis(name: str, unit: str, sensor: str, result: Any, readings: Mapping[str,
                                    or []))
     return AxisNoise(name, sensor, unit, model, terms["noise_density"], terms["random_walk"],
                      tuple(others), warns, extra)
+
+
+def _fold_fast_terms(term: AxisTerm, result: Any, si: float) -> AxisTerm:
+    """The noise density with the GM/AR1 terms white at the sampling rate folded in
+    (:func:`gmwm.verdict.white_equivalent`); ``term`` unchanged when there are none. The WN
+    term alone stays in the note, so the files and the datasheet table show both."""
+    from gmwm.verdict import white_equivalent
+
+    if getattr(result, "model", None) is None:
+        return term
+    we = white_equivalent(result)
+    if we is None or not we.changed:
+        return term
+    lo, hi = we.ci95
+    ci = (lo * si, hi * si) if math.isfinite(lo) and math.isfinite(hi) else None
+    value = we.density * si
+    parts = ", ".join(f"{t.component} (correlation time {t.tau_samples:.2g} sampling intervals, "
+                      f"{t.density * si:.4g})" for t in we.folded)
+    white = "none" if term.estimate is None else f"{term.estimate:.4g}"
+    return AxisTerm(value, ci, None, value,
+                    f"white-noise-equivalent density: the WN term ({white}) and {parts} added in "
+                    f"quadrature; {we.rule()}")
 
 
 def _axis_term(result: Any, comps: list[tuple[str, int]], entries: list[dict], to_si: float,
@@ -588,7 +616,9 @@ def _header(exp: NoiseExport, tool: str, what: str, values: str, topic_key: bool
             ) -> list[str]:
     from gmwm import __version__
 
-    lines = [f"{tool} IMU noise ({what}), written by gmwm {__version__}"
+    first = [f"CAUTION ({len(exp.caveats)}): read before using these values:",
+             *(f"- {c}" for c in exp.caveats), ""] if exp.caveats else []
+    lines = [*first, f"{tool} IMU noise ({what}), written by gmwm {__version__}"
              + (f" from {exp.source}" if exp.source else "") + ".",
              f"Values: {values}",
              f"Axis rule: one value per sensor = {AXIS_RULES[exp.rule]}.",

@@ -58,6 +58,8 @@ import numpy as np
 
 from .criteria import CRITERIA, DEFAULT, disagreements, factor, near_ties, ranking_notes
 from .errors import GMWMError, InputError, ModelError
+from .gof import ALPHA as GOF_ALPHA
+from .gof import gof_test
 from .model import Model, as_model, parse_model, spec_of
 from .processes import PROCESSES, SINGLETONS
 from .search import shared_memo
@@ -87,11 +89,19 @@ class RankedModel:
     converged: bool
     result: Any = None
     error: str | None = None
+    #: goodness-of-fit p-value of this fit (:func:`gmwm.gof.gof_test`; NaN: not tested or not
+    #: testable, e.g. as many parameters as scales)
+    p_value: float = float("nan")
+
+    def rejected(self, alpha: float = GOF_ALPHA) -> bool:
+        """True if the goodness-of-fit test rejects this candidate at ``alpha``."""
+        return bool(np.isfinite(self.p_value) and self.p_value < alpha)
 
     def to_json_dict(self) -> dict[str, Any]:
         out = {"model": self.model, "criterion": _num(self.criterion),
                "objective": _num(self.objective), "n_params": self.n_params,
-               "penalty": _num(self.penalty), "converged": self.converged}
+               "penalty": _num(self.penalty), "converged": self.converged,
+               "p_value": _num(self.p_value), "rejected": self.rejected()}
         if self.error is not None:
             out["error"] = self.error
         return out
@@ -103,7 +113,10 @@ def _num(v: float) -> float | None:
 
 @dataclass(frozen=True)
 class Ranking:
-    """Candidates ranked best first (fitted ones by criterion, then failed ones)."""
+    """Candidates ranked best first: the fitted ones the goodness-of-fit test does not reject
+    at ``gof_alpha`` by criterion, then the rejected ones by criterion, then failed ones. A
+    candidate the test rejects is never ranked above one it accepts (a lower criterion does not
+    make a wrong model right)."""
 
     entries: list[RankedModel]
     criterion: str
@@ -111,6 +124,8 @@ class Ranking:
     wv: WaveletVariance
     #: sign of the signal's mean slope (None when a WV was ranked): the fits' drift sign
     drift_sign: float | None = None
+    #: level of the goodness-of-fit test that splits the ranking (accepted first)
+    gof_alpha: float = GOF_ALPHA
 
     @property
     def best(self) -> RankedModel:
@@ -155,6 +170,7 @@ class Ranking:
         """criterion, penalty_factor, ranking (best first), near_ties (:meth:`near_ties`), notes
         (:attr:`notes`), skipped (if any)."""
         out: dict[str, Any] = {"criterion": self.criterion, "penalty_factor": self.factor,
+                               "gof_alpha": self.gof_alpha,
                                "ranking": [e.to_json_dict() for e in self.ranked],
                                "near_ties": self.near_ties(), "notes": self.notes}
         if self.skipped:
@@ -165,10 +181,11 @@ class Ranking:
         lines = [(f"model ranking by {self.criterion.upper()} = objective + {self.factor:.3g} x "
                   f"penalty (best first)"),
                  (f"{'rank':>4}  {'model':<24}{'criterion':>12}{'objective':>12}{'penalty':>10}"
-                  f"{'params':>7}  converged")]
+                  f"{'params':>7}  converged{'GOF p':>10}")]
         for i, e in enumerate(self.ranked, 1):
             lines.append(f"{i:>4}  {e.model:<24}{e.criterion:>12.5g}{e.objective:>12.5g}"
-                         f"{e.penalty:>10.4g}{e.n_params:>7}  {'yes' if e.converged else 'NO'}")
+                         f"{e.penalty:>10.4g}{e.n_params:>7}  {'yes' if e.converged else 'NO ':<9}"
+                         f"{e.p_value:>10.3g}{'  REJECTED' if e.rejected(self.gof_alpha) else ''}")
         for e in self.skipped:
             lines.append(f"   -  {e.model:<24} skipped: {e.error}")
         lines += [f"note: {n}" for n in self.notes]
@@ -265,7 +282,8 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = DE
                 weights: str | np.ndarray = "ci", robust: bool = False, eff: float = 0.6,
                 alpha: float = 0.05, n_starts: int | None = None, seed: int = 0,
                 progress: Callable[[int, int, str], None] | None = None,
-                cov: str = "gaussian", fit_kwargs: dict[str, Any] | None = None) -> Ranking:
+                cov: str = "gaussian", fit_kwargs: dict[str, Any] | None = None,
+                gof_alpha: float = GOF_ALPHA) -> Ranking:
     """Fit every candidate model to the WV of ``data`` and rank them, best first.
 
     Parameters
@@ -286,6 +304,8 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = DE
         penalises extra components less). Ignored when ``weights`` is a covariance matrix.
     fit_kwargs : further keywords for :func:`gmwm.fit` (default: with ``cov="gaussian"``,
         ``se_cov="gaussian"``, skipping the fit's own model-based WV covariance).
+    gof_alpha : level of the goodness-of-fit test (:func:`gmwm.gof.gof_test`, run on every
+        fitted candidate): a candidate it rejects is ranked below every candidate it accepts.
 
     Candidates that cannot be fitted (e.g. more parameters than scales) are listed as skipped.
     """
@@ -301,6 +321,8 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = DE
             specs.append(spec)
     if not specs:
         raise InputError("no candidate models to rank")
+    if not 0 < gof_alpha < 1:
+        raise InputError(f"gof_alpha must lie in (0, 1), got {gof_alpha}")
     if cov not in ("gaussian", "model"):
         raise InputError(f"unknown cov {cov!r}; use 'gaussian' or 'model'")
     user_cov = None if isinstance(weights, str) else np.asarray(weights, dtype=float)
@@ -331,21 +353,30 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = DE
                     V = np.asarray(V) / wv.efficiency
             pen = optimism(res, V)
             crit = float(res.objective) + k * pen
+            g = res.gof if res.gof is not None else gof_test(res)
             entries.append(RankedModel(spec, crit if np.isfinite(crit) else np.inf,
                                        float(res.objective), pen, model.n_params,
-                                       bool(res.converged), res))
+                                       bool(res.converged), res, p_value=float(g.p_value)))
     bad = [e for e in entries if e.error is not None]
     if len(bad) == len(entries):
         raise GMWMError("no candidate model could be fitted: " + "; ".join(
             f"{e.model}: {e.error}" for e in bad))
-    return Ranking(_order([e for e in entries if e.error is None]) + bad, criterion, k, wv,
-                   drift_sign)
+    return Ranking(_order([e for e in entries if e.error is None], gof_alpha) + bad, criterion,
+                   k, wv, drift_sign, gof_alpha)
 
 
-def _order(entries: list[RankedModel]) -> list[RankedModel]:
-    """Best first; criteria equal up to the optimiser's precision (relative 1e-7: a superset
-    whose extra component sits at 0 reproduces the submodel's fit, and a variance-like
-    parameter at 0 has a zero Jacobian column) count as ties, won by fewer parameters."""
+def _order(entries: list[RankedModel], gof_alpha: float) -> list[RankedModel]:
+    """Best first: the candidates the goodness-of-fit test accepts at ``gof_alpha`` (or cannot
+    test), then those it rejects, each group by criterion. Criteria equal up to the optimiser's
+    precision (relative 1e-7: a superset whose extra component sits at 0 reproduces the
+    submodel's fit, and a variance-like parameter at 0 has a zero Jacobian column) count as
+    ties, won by fewer parameters."""
+    accepted = [e for e in entries if not e.rejected(gof_alpha)]
+    rejected = [e for e in entries if e.rejected(gof_alpha)]
+    return _by_criterion(accepted) + _by_criterion(rejected)
+
+
+def _by_criterion(entries: list[RankedModel]) -> list[RankedModel]:
     ranked = sorted(entries, key=lambda e: e.criterion)
     out: list[RankedModel] = []
     i = 0
@@ -364,8 +395,8 @@ def rerank(ranking: Ranking, criterion: str) -> Ranking:
     k = factor(criterion, ranking.wv.n_samples)
     entries = [dataclasses.replace(e, criterion=e.objective + k * e.penalty)
                for e in ranking.ranked]
-    return Ranking(_order(entries) + ranking.skipped, criterion, k, ranking.wv,
-                   ranking.drift_sign)
+    return Ranking(_order(entries, ranking.gof_alpha) + ranking.skipped, criterion, k,
+                   ranking.wv, ranking.drift_sign, ranking.gof_alpha)
 
 
 def merge(rankings: Sequence[Ranking]) -> Ranking:
@@ -377,7 +408,8 @@ def merge(rankings: Sequence[Ranking]) -> Ranking:
     seen: set[str] = set()
     entries: list[RankedModel] = []
     for r in rankings:
-        if r.criterion != first.criterion or r.wv.n_samples != first.wv.n_samples or \
+        if r.criterion != first.criterion or r.gof_alpha != first.gof_alpha or \
+                r.wv.n_samples != first.wv.n_samples or \
                 not np.array_equal(r.wv.variance, first.wv.variance):
             raise InputError("rankings to merge must rank the same WV by the same criterion")
         for e in r.entries:
@@ -385,8 +417,8 @@ def merge(rankings: Sequence[Ranking]) -> Ranking:
                 seen.add(e.model)
                 entries.append(e)
     fitted = [e for e in entries if e.error is None]
-    return Ranking(_order(fitted) + [e for e in entries if e.error is not None], first.criterion,
-                   first.factor, first.wv, first.drift_sign)
+    return Ranking(_order(fitted, first.gof_alpha) + [e for e in entries if e.error is not None],
+                   first.criterion, first.factor, first.wv, first.drift_sign, first.gof_alpha)
 
 
 def select_model(data: Any, models: Sequence[str | Model] | str | Model, **kwargs: Any) -> Any:

@@ -72,9 +72,14 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                       f"{', robust WV' if args.robust else ''}; {len(models)} candidates, "
                       f"{sec:.2f} s\n")
             rows = [(i, e.model, e.criterion, e.objective, e.penalty, e.n_params,
-                     "yes" if e.converged else "NO") for i, e in enumerate(r.ranked, 1)]
+                     "yes" if e.converged else "NO", e.p_value,
+                     "REJECTED" if e.rejected(r.gof_alpha) else "")
+                    for i, e in enumerate(r.ranked, 1)]
             out.write(table(["rank", "model", "criterion", "objective", "penalty",
-                                    "n_params", "converged"], rows) + "\n")
+                             "n_params", "converged", "GOF p", "GOF"], rows) + "\n")
+            if any(e.rejected(r.gof_alpha) for e in r.ranked):
+                out.write(f"candidates the goodness-of-fit test rejects at {r.gof_alpha:g} are "
+                          "ranked below every accepted one, whatever their criterion\n")
             out.writelines(f"skipped {e.model}: {e.error}\n" for e in r.skipped)
     for col, (r, _) in rankings.items():
         if not r.best.converged:

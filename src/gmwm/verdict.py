@@ -1,0 +1,313 @@
+"""What a configuration file may say: the checks between a calibration and the file a user keeps.
+
+A filter configuration is copied into Kalibr, OpenVINS, ... long after the terminal that printed
+the warnings is gone, so what the tool knows about the numbers has to travel in the file, and a
+file whose numbers the tool knows to be meaningless must not be written at all. This module holds
+those rules (docs/METHODS.md §10.7); the calibration path applies them and the writers put
+:attr:`Verdict.caveats` at the top of every configuration file.
+
+Rules (each a function below, each with its constant):
+
+* **Too short** (:data:`MIN_SAMPLES`): fewer samples than the shortest record on which the white
+  noise level's interval and the goodness-of-fit test mean something: no configuration.
+* **Not identifiable at this length** (:func:`identifiability`): a component whose predicted 95 %
+  interval at the fitted values and this length includes 0 (:func:`gmwm.plan.predict`, the
+  rule of ``gmwm plan``) is flagged, with the length from which it would be identifiable.
+* **White at the sampling rate** (:func:`white_equivalent`): a GM or AR1 term whose correlation
+  time is at most :data:`FAST_TAU_SAMPLES` sampling intervals is white noise for a filter
+  running at that rate; its white-noise-equivalent density is added to the white noise's
+  (``N_eff^2 = (sigma2_WN + sum_k LRV_k) / f``, ``LRV`` the term's long-run variance per sample,
+  the sum of its autocovariances: ``sigma2 (1 + phi) / (1 - phi)`` for a GM of stationary
+  variance ``sigma2``, ``s2 / (1 - phi)^2`` for an AR1 of innovation variance ``s2``), with a
+  delta-method interval on the log scale.
+* **Misfit** (:func:`misfit`): when the goodness-of-fit test rejects the model (the rule on long
+  real recordings), its size in the WV's own terms: the largest relative departure of the model
+  WV from the estimated WV, and the scale where it occurs.
+* **Units** (:func:`unit_warning`): a white-noise density beyond any known sensor of its class
+  names the likely mix-up (deg/s read as rad/s, g or mg read as m/s^2).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+__all__ = ["FAST_TAU_SAMPLES", "FLAGGED", "MAX_DENSITY", "MIN_SAMPLES", "NOT_WRITTEN", "WRITTEN",
+           "FastTerm", "Misfit", "Verdict", "WhiteEquivalent", "decide", "identifiability",
+           "misfit", "too_short", "unit_warning", "white_equivalent"]
+
+#: shortest record for a configuration [samples]: 2^12 gives 11 dyadic scales, the white-noise
+#: variance to ~3 % (relative SE sqrt(2 / T) at the first scale's ~T/2 coefficients) and a
+#: goodness-of-fit test with enough scales to have degrees of freedom left after a WN+GM+RW fit
+MIN_SAMPLES = 4096
+#: a GM/AR1 whose correlation time is at most this many sampling intervals is white for a filter
+#: at that rate (lag-1 autocorrelation <= exp(-1/2) = 0.61, lag 3 <= 0.22)
+FAST_TAU_SAMPLES = 2.0
+#: white-noise densities beyond every known sensor of the class, SI per sqrt(Hz): consumer MEMS
+#: gyroscopes are ~1e-3..1e-2 rad/s/sqrt(Hz), accelerometers ~1e-3..1e-2 m/s^2/sqrt(Hz); a
+#: value 10x beyond the noisiest is a unit mix-up, not a sensor
+MAX_DENSITY = {"gyroscope": 0.1, "accelerometer": 1.0}
+_LIKELY_MIXUP = {"gyroscope": "deg/s read as rad/s (x 57.3)",
+                 "accelerometer": "mg read as m/s^2 (x 1000) or g read as m/s^2 (x 9.81 is "
+                                  "plausible; x 1000 is not)"}
+_Z95 = 1.959963984540054
+
+
+def too_short(n_samples: int) -> str | None:
+    """The one-line reason no configuration can be written from ``n_samples`` samples, or None."""
+    if n_samples >= MIN_SAMPLES:
+        return None
+    return (f"{n_samples} samples used: fewer than the {MIN_SAMPLES} a configuration needs (the "
+            "white-noise level's interval and the goodness-of-fit test need at least "
+            f"{int(math.log2(MIN_SAMPLES)) - 1} scales)")
+
+
+# -- white at the sampling rate ------------------------------------------------------------------
+@dataclass(frozen=True)
+class FastTerm:
+    """A GM/AR1 component white at the sampling rate: its correlation time [s] and in sampling
+    intervals, and its white-noise-equivalent density [unit/sqrt(Hz)]."""
+
+    component: str
+    tau_s: float
+    tau_samples: float
+    density: float
+
+
+@dataclass(frozen=True)
+class WhiteEquivalent:
+    """The white-noise density a filter at the sampling rate should use [unit/sqrt(Hz)]: the WN
+    term's own (``white``) and the one with every fast term folded in (``density``, ``ci95``)."""
+
+    white: float
+    density: float
+    ci95: tuple[float, float]
+    folded: tuple[FastTerm, ...] = ()
+
+    @property
+    def changed(self) -> bool:
+        return bool(self.folded)
+
+    def rule(self) -> str:
+        """The rule as the configuration files state it."""
+        return (f"a Gauss-Markov/AR1 term with a correlation time of at most "
+                f"{FAST_TAU_SAMPLES:g} sampling intervals is white noise for a filter at this "
+                "rate: its white-noise-equivalent density (its long-run variance per sample / "
+                "rate, square-rooted) is added in quadrature to the white noise's")
+
+
+def _ar1_lrv(process: str, p: np.ndarray, freq: float) -> tuple[float, float, np.ndarray]:
+    """(phi, long-run variance per sample, its gradient in the component's parameters)."""
+    if process == "GM":
+        beta, s2 = float(p[0]), float(p[1])
+        a = beta / freq
+        phi = math.exp(-a)
+        lrv = s2 * (1 + phi) / (1 - phi) if phi < 1 else math.inf
+        # d lrv / d beta = s2 * d/dphi[(1+phi)/(1-phi)] * dphi/dbeta = s2 * 2/(1-phi)^2 * (-phi/f)
+        g = np.array([s2 * 2 / (1 - phi) ** 2 * (-phi / freq), (1 + phi) / (1 - phi)])
+        return phi, lrv, g
+    phi, s2 = float(p[0]), float(p[1])
+    lrv = s2 / (1 - phi) ** 2 if phi < 1 else math.inf
+    g = np.array([2 * s2 / (1 - phi) ** 3, 1 / (1 - phi) ** 2])
+    return phi, lrv, g
+
+
+def white_equivalent(result: Any, max_tau_samples: float = FAST_TAU_SAMPLES
+                     ) -> WhiteEquivalent | None:
+    """The white-noise density with every fast GM/AR1 term folded in (module docstring), or None
+    if the model has no WN and no fast term. Interval: delta method on ``log N_eff^2`` with the
+    fit's covariance (kept positive); the WN's own interval when nothing is folded and the fit
+    has no covariance."""
+    model, theta = result.model, np.asarray(result.params, float)
+    freq = float(model.freq)
+    cov = getattr(result, "cov", None)
+    total, grad = 0.0, np.zeros(theta.size)
+    white = 0.0
+    folded = []
+    has_wn = False
+    for c in model.components:
+        name = c.process.name
+        p = theta[c.slice]
+        if name == "WN":
+            has_wn = True
+            total += float(p[0])
+            white += float(p[0])
+            grad[c.start] += 1.0
+        elif name in ("GM", "AR1"):
+            phi, lrv, g = _ar1_lrv(name, p, freq)
+            if not (0 < phi < 1) or not math.isfinite(lrv) or p[1] <= 0:
+                continue
+            tau_samples = -1.0 / math.log(phi)
+            if tau_samples > max_tau_samples:
+                continue
+            total += lrv
+            grad[c.slice] += g
+            folded.append(FastTerm(c.name, tau_samples / freq, tau_samples,
+                                   math.sqrt(lrv / freq)))
+    if not has_wn and not folded:
+        return None
+    density = math.sqrt(max(total, 0.0) / freq)
+    used = grad != 0
+    if cov is not None and total > 0 and np.all(np.isfinite(np.asarray(cov)[np.ix_(used, used)])):
+        var = float(grad @ np.asarray(cov, float) @ grad)
+        se_log = math.sqrt(max(var, 0.0)) / total  # SE of log N_eff^2
+        half = 0.5 * _Z95 * se_log  # N = sqrt(N^2): half the log-scale interval
+        lo, hi = density * math.exp(-half), density * math.exp(half)
+    else:
+        lo, hi = (math.nan, math.nan)
+    return WhiteEquivalent(math.sqrt(white / freq), density, (lo, hi), tuple(folded))
+
+
+# -- misfit ----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Misfit:
+    """Largest relative departure of the model WV from the estimated WV (``model / estimate -
+    1``, signed) and the scale where it occurs [s]; ``outside`` the share of scales whose model
+    WV lies outside the estimate's 95 % interval."""
+
+    relative: float
+    scale_s: float
+    outside: float
+
+    def describe(self) -> str:
+        more = "above" if self.relative > 0 else "below"
+        return (f"the fitted model's WV departs from the data's by up to "
+                f"{abs(self.relative) * 100:.3g} % ({more}) at scale {self.scale_s:.4g} s; "
+                f"{self.outside * 100:.0f} % of the scales lie outside the WV's 95 % interval")
+
+
+def misfit(result: Any) -> Misfit:
+    """The misfit of a fit in the WV's own terms (:class:`Misfit`)."""
+    wv = result.wv
+    nu = np.asarray(wv.variance, float)
+    model_nu = np.asarray(result.model.wv(result.params, wv.scales), float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = model_nu / nu - 1.0
+    ok = np.isfinite(rel)
+    if not np.any(ok):
+        return Misfit(math.nan, math.nan, math.nan)
+    i = int(np.argmax(np.where(ok, np.abs(rel), -1.0)))
+    lo, hi = (np.asarray(wv.ci_low, float), np.asarray(wv.ci_high, float)) \
+        if hasattr(wv, "ci_low") else (nu, nu)
+    outside = float(np.mean((model_nu < lo) | (model_nu > hi)))
+    return Misfit(float(rel[i]), float(wv.scales[i] / wv.freq), outside)
+
+
+# -- identifiability at this length ------------------------------------------------------------------
+def identifiability(result: Any, n_samples: int | None = None) -> dict[str, float | None]:
+    """Per component NOT identifiable at the length used (:func:`gmwm.plan.predict` at the
+    fitted values): the length [s] from which it would be (None: not within the plan's search
+    range). Identifiable components are absent. Components at the boundary 0 are left to the
+    fit's own flags (a zero scale has no length)."""
+    from gmwm.plan import make_plan, predict
+
+    model, theta = result.model, np.asarray(result.params, float)
+    n = int(n_samples if n_samples is not None else result.wv.n_samples)
+    try:
+        pred = predict(model, theta, n)
+    except Exception:  # noqa: BLE001 - a plan that cannot be made flags nothing
+        return {}
+    out: dict[str, float | None] = {}
+    weak = [c for c in model.components
+            if not pred.identifiable.get(c.name, True) and theta[c.start + c.process.scale_index] > 0]
+    if not weak:
+        return out
+    try:
+        plan = make_plan(model, theta, [n / model.freq])
+        lengths = getattr(plan, "min_length", {}) or {}
+    except Exception:  # noqa: BLE001
+        lengths = {}
+    for c in weak:
+        v = lengths.get(c.name)
+        out[c.name] = float(v) if v is not None and math.isfinite(v) else None
+    return out
+
+
+# -- units -----------------------------------------------------------------------------------------
+def unit_warning(sensor: str | None, density_si: float) -> str | None:
+    """A one-line warning when a white-noise density [SI/sqrt(Hz)] is beyond every known sensor
+    of its class, naming the likely unit mix-up; else None."""
+    limit = MAX_DENSITY.get(sensor or "")
+    if limit is None or not (density_si > limit):
+        return None
+    unit = "rad/s/sqrt(Hz)" if sensor == "gyroscope" else "m/s^2/sqrt(Hz)"
+    return (f"{sensor} white-noise density {density_si:.3g} {unit} is beyond any known "
+            f"{sensor} (> {limit:g}): check the input unit; likely {_LIKELY_MIXUP[sensor]}")
+
+
+# -- the verdict ------------------------------------------------------------------------------------
+WRITTEN, FLAGGED, NOT_WRITTEN = "written", "written with flagged terms", "not written"
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What happens to the configuration files: ``status`` (:data:`WRITTEN`, :data:`FLAGGED`,
+    :data:`NOT_WRITTEN`), ``reasons`` (why not written, one line each), ``caveats`` (the first
+    comment lines of every configuration file written; empty when there is nothing to say)."""
+
+    status: str
+    reasons: tuple[str, ...] = ()
+    caveats: tuple[str, ...] = ()
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def written(self) -> bool:
+        return self.status != NOT_WRITTEN
+
+    def line(self) -> str:
+        """The terminal's last line, e.g. ``verdict: configuration not written: ...``."""
+        if self.status == NOT_WRITTEN:
+            return "verdict: configuration NOT written: " + "; ".join(self.reasons)
+        if self.status == FLAGGED:
+            return (f"verdict: configuration written with {len(self.caveats)} caveat(s) in its "
+                    "first comment lines")
+        return "verdict: configuration written"
+
+
+def decide(axes: Mapping[str, Any], *, n_samples: int,
+           kinds: Mapping[str, str | None] | None = None,
+           to_si: Mapping[str, float] | None = None,
+           refusals: Sequence[str] = (), caveats: Sequence[str] = ()) -> Verdict:
+    """The verdict for the per-axis fits ``axes`` (channel -> result or choice) of a record of
+    ``n_samples`` used samples; ``kinds``: channel -> sensor kind, ``to_si``: channel -> factor
+    from its signal unit to SI (for the unit check; 1 when absent). ``refusals``: reasons the caller already has for not writing
+    (motion beyond the excluded share, an ambiguous rate); ``caveats``: lines it already has
+    (ranges excluded, motion allowed). Adds: too short (refusal), every candidate rejected with
+    the misfit, terms not identifiable at this length, fast terms folded into the noise density,
+    unit mix-ups."""
+    reasons = list(refusals)
+    short = too_short(n_samples)
+    if short:
+        reasons.append(short)
+    lines = list(caveats)
+    kinds = dict(kinds or {})
+    for ch, obj in axes.items():
+        res = getattr(obj, "result", obj)
+        gof = getattr(res, "gof", None)
+        if gof is not None and gof.rejected():
+            lines.append(f"{ch}: model {res.model.spec} REJECTED by the goodness-of-fit test "
+                         f"(p {gof.p_value:.2g}): {misfit(res).describe()}")
+        for comp, need in identifiability(res, n_samples).items():
+            from gmwm.plan import format_duration
+
+            lines.append(f"{ch}: {comp} not identifiable at this length ("
+                         f"{format_duration(n_samples / res.model.freq)}); "
+                         + (f"identifiable from {format_duration(need)}" if need else
+                            "not within 30 days") + ": its value is not written as a measurement")
+        we = white_equivalent(res)
+        if we is not None and we.changed:
+            parts = ", ".join(f"{t.component} (correlation time {t.tau_samples:.2g} samples)"
+                              for t in we.folded)
+            lines.append(f"{ch}: noise density includes {parts}: {we.rule()}")
+        if we is not None:
+            warn = unit_warning(kinds.get(ch), we.density * float((to_si or {}).get(ch, 1.0)))
+            if warn:
+                lines.append(f"{ch}: {warn}")
+    if reasons:
+        return Verdict(NOT_WRITTEN, tuple(reasons), tuple(lines))
+    return Verdict(FLAGGED if lines else WRITTEN, (), tuple(lines))
+
