@@ -235,7 +235,7 @@ def test_rescanned_flags_are_exact(tmp_path: Path, monkeypatch) -> None:
     """With the same median and scale everywhere (a fixed robust estimate), the bounded check
     (every test subsampled, flagged blocks re-read from the file) flags exactly what the in-memory
     check flags: spans, statistics, sizes and peaks, for window means (a step and a ramp) and noise
-    bursts, from several places in the file."""
+    bursts, from several places in the file; also riding on the streamed WV's read."""
     rng = np.random.default_rng(8)
     n = 300_000
     x = rng.standard_normal(n)
@@ -251,6 +251,9 @@ def test_rescanned_flags_are_exact(tmp_path: Path, monkeypatch) -> None:
         for chunk in (4096, 100_000):
             got = check_stationarity_stream(src, chunk=chunk, robust_sample=MIN_DIFFS)
             _assert_same(ref, got)
+        check = StationarityStream.for_source(src, robust_sample=MIN_DIFFS)  # as gmwm wv does
+        wvar_stream(src, memory=1 << 18, observe=check.push)
+        _assert_same(ref, check.finish())
 
 
 def test_subsampled_scale_finds_the_same_motion(tmp_path: Path) -> None:

@@ -672,24 +672,43 @@ class _Cascade:
         out = []
         g = self.nxt[0]
         for i in range(self.n_levels):
-            if not v.size or g is None:
+            if not v.size:
                 break
             tail = self.tail[i]
-            c = np.concatenate((tail, v)) if tail.size else v
-            if c.size >= 4:
-                out.append((i, g - tail.size, 0.5 * (c[2:-1] + c[3:] - c[:-3] - c[1:-2])))
-            self.tail[i] = c[-3:].copy()
+            nt, total = tail.size, tail.size + v.size
+            if total >= 4:
+                d = np.empty(total - 3)
+                k = 0
+                if nt:  # the differences that reach into the tail
+                    c = np.concatenate((tail, v[:3]))
+                    k = c.size - 3
+                    d[:k] = 0.5 * (c[2:-1] + c[3:] - c[:-3] - c[1:-2])
+                if v.size >= 4:  # the rest, in place (the same operations in the same order)
+                    dd = d[k:]
+                    np.add(v[2:-1], v[3:], out=dd)
+                    np.subtract(dd, v[:-3], out=dd)
+                    np.subtract(dd, v[1:-2], out=dd)
+                    np.multiply(dd, 0.5, out=dd)
+                out.append((i, g - nt, d))
+            self.tail[i] = v[-3:].copy() if v.size >= 3 else np.concatenate((tail, v))[-3:]
             self.nxt[i] = g + v.size
             if i + 1 == self.n_levels:
                 break
-            p = np.concatenate((self.odd[i], v)) if self.odd[i].size else v
-            gp = g - self.odd[i].size
-            if gp % 2:  # its pair lies before the first block pushed
-                p, gp = p[1:], gp + 1
-            m = p.size // 2
-            self.odd[i] = p[2 * m:].copy()
-            v = 0.5 * (p[: 2 * m: 2] + p[1: 2 * m: 2])
-            g = gp // 2
+            odd = self.odd[i]
+            if odd.size:  # odd[0] (an even index) pairs with v[0]
+                pre, s, g = 0.5 * (odd[0] + v[0]), 1, (g - 1) // 2
+            else:  # an odd first index: its pair lies before the first block pushed
+                pre, s, g = None, g % 2, (g + g % 2) // 2
+            rest = v[s:]
+            m = rest.size // 2
+            nv = np.empty(m + (pre is not None))
+            body = nv[1:] if pre is not None else nv
+            if pre is not None:
+                nv[0] = pre
+            np.add(rest[: 2 * m: 2], rest[1: 2 * m: 2], out=body)
+            np.multiply(body, 0.5, out=body)
+            self.odd[i] = rest[2 * m:].copy()
+            v = nv
         return out
 
 
@@ -728,7 +747,8 @@ class _Series:
         p = (j0 + s) // self.r
         self.vals[p: p + sub.size] = sub
         g = self.g
-        starts = np.r_[0, np.arange((-j0) % g or g, v.size, g)]
+        starts = np.arange(-(j0 % g), v.size, g)
+        starts[0] = 0
         b = j0 // g
         sl = slice(b, b + starts.size)
         np.maximum(self.hi[sl], np.maximum.reduceat(v, starts), out=self.hi[sl])
