@@ -662,15 +662,15 @@ class _Cascade:
 
     def __init__(self, n_levels: int, first: int) -> None:
         self.n_levels = n_levels
-        self.first = first
+        self.next = first  # index of the next B_0 value
         self.tail: list[np.ndarray] = [_NONE] * n_levels  # the last <= 3 values of B_i
         self.odd: list[np.ndarray] = [_NONE] * n_levels  # a B_i value waiting for its pair
-        self.nxt: list[int | None] = [first] + [None] * (n_levels - 1)
 
     def push(self, v: np.ndarray) -> list[tuple[int, int, np.ndarray]]:
         """The new differences of B_0 values ``v``: (level, index of the first, values)."""
         out = []
-        g = self.nxt[0]
+        g = self.next  # index of v[0] among the B_i
+        self.next += v.size
         for i in range(self.n_levels):
             if not v.size:
                 break
@@ -691,7 +691,6 @@ class _Cascade:
                     np.multiply(dd, 0.5, out=dd)
                 out.append((i, g - nt, d))
             self.tail[i] = v[-3:].copy() if v.size >= 3 else np.concatenate((tail, v))[-3:]
-            self.nxt[i] = g + v.size
             if i + 1 == self.n_levels:
                 break
             odd = self.odd[i]
@@ -1102,8 +1101,10 @@ class StationarityStream:
     ``robust_sample`` blocks). After the
     read, the blocks whose extremes pass the threshold are re-read from the source and their
     statistics recomputed with the same bits (flagged ranges come out exactly, a static recording
-    is read once). Per channel that is at most ``robust_sample`` + 2 x 2048 values per test and
-    window length (about 30 window lengths at most), plus the flagged ranges found. Thresholds and
+    is read once; one flagged everywhere is read twice). Per channel that is at most
+    ``robust_sample`` + 2 x 2048 values per test and window length (log2(n / (131 h0)) window
+    lengths: 19 for 2e8 samples at h0 = 4 samples, under 12 MB with the default), plus the pieces
+    being processed (:data:`_PIECE` rows) and the flagged ranges found. Thresholds and
     counts are those of the in-memory check; the median and scale of a long test are those of its
     subsample, so a statistic within about 1 / sqrt(robust_sample) (relative) of the threshold may
     be flagged by one and not the other."""
