@@ -2,7 +2,8 @@
 
 Usage: python benchmarks/bench_stream.py [--dir DIR] [--channels 6] [--hdf5-samples 5e7]
        [--npy-samples 3e8] [--no-in-memory] [--readme]
-       python benchmarks/bench_stream.py --check [--check-samples 2e8] [--dir DIR] [--readme]
+       python benchmarks/bench_stream.py --check [--check-samples 2e8] [--before SRC] [--dir DIR]
+       [--readme]
 
 1. Writes a six-channel HDF5 recording (/imu/gx ... /imu/az, float64, 1 kHz attribute, 5e7
    samples per channel: WN + RW on offsets up to 1e3) and runs `gmwm report rec.h5 WN+RW
@@ -18,7 +19,9 @@ streamed WV on a one-channel .npy (WN + RW on a 1e8 offset, 2e8 samples = 1.6 GB
 and a noise burst, so flagged blocks are re-read): peak RSS (GNU time around a child process)
 and time of `gmwm.stream.wvar_stream`, `gmwm.stationarity.check_stationarity_stream` (no rate:
 windows from 8 samples, the most statistics; and at 100 Hz), `gmwm wv big.npy` (WV and check in
-one read) and `gmwm report big.npy --freq 100`; --readme writes the section bench_stream_check.
+one read) and `gmwm report big.npy --freq 100`; ``--before SRC`` also runs the check and
+`gmwm wv` of another checkout (e.g. /work/main/src); --readme writes the section
+bench_stream_check.
 
 Peak RSS is each CLI process's own (wait4 rusage). The files go to a temporary directory under
 --dir (default: the system's) and are deleted; the free disk is checked first and a part that
@@ -175,8 +178,9 @@ def _child(what: str, path: str, freq: str) -> int:
     return 0
 
 
-def check_part(tmp: Path, n: int) -> dict:
-    """The streamed check against the streamed WV on a one-channel .npy of ``n`` samples."""
+def check_part(tmp: Path, n: int, before: str | None = None) -> dict:
+    """The streamed check against the streamed WV on a one-channel .npy of ``n`` samples; with
+    ``before`` (another checkout's src directory) also its check and `gmwm wv`."""
     path = tmp / "big.npy"
     t0 = time.perf_counter()
     out = np.lib.format.open_memmap(path, mode="w+", dtype=np.float64, shape=(n,))
@@ -209,6 +213,15 @@ def check_part(tmp: Path, n: int) -> dict:
     r = _gmwm("report", str(path), "--freq", "100", "-o", str(tmp / "report"), cwd=tmp)
     r["seconds"] = None
     res["runs"].append(("`gmwm report big.npy --freq 100`", r))
+    if before:
+        env = dict(os.environ, PYTHONPATH=before)
+        r = run_measured([*me, "check", str(path), "none"], env=env, cwd=str(tmp))
+        if r["code"] == 0:
+            r.update(json.loads(str(r["out"]).strip().splitlines()[-1]))
+            res["runs"].append((f"before ({before}): `check_stationarity_stream`, no rate", r))
+        r = _gmwm("wv", str(path), "--json", env=env, cwd=tmp)
+        r["seconds"] = json.loads(str(r["out"]))["seconds"]
+        res["runs"].append((f"before ({before}): `gmwm wv big.npy`", r))
     path.unlink()
     shutil.rmtree(tmp / "report", ignore_errors=True)
     return res
@@ -223,7 +236,7 @@ def check_main(args: argparse.Namespace) -> int:
         need = n * 8 / GB * 2.1  # the file and the WV's panel file
         if _free_gb(tmp) < need:
             raise SystemExit(f"{_free_gb(tmp):.1f} GB free in {base}, {need:.1f} GB needed")
-        res = check_part(tmp, n)
+        res = check_part(tmp, n, args.before)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     load_after = load()
@@ -267,6 +280,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--check", action="store_true",
                         help="the streamed stationarity check against the streamed WV instead")
     parser.add_argument("--check-samples", type=float, default=2e8)
+    parser.add_argument("--before", default=None, metavar="SRC",
+                        help="with --check: also run another checkout's src directory")
     if argv is None and len(sys.argv) > 1 and sys.argv[1] == "--child":
         return _child(*sys.argv[2:5])
     args = parser.parse_args(argv)
