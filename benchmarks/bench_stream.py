@@ -2,6 +2,8 @@
 
 Usage: python benchmarks/bench_stream.py [--dir DIR] [--channels 6] [--hdf5-samples 5e7]
        [--npy-samples 3e8] [--no-in-memory] [--readme]
+       python benchmarks/bench_stream.py --check [--check-samples 2e8] [--before SRC] [--dir DIR]
+       [--readme]
 
 1. Writes a six-channel HDF5 recording (/imu/gx ... /imu/az, float64, 1 kHz attribute, 5e7
    samples per channel: WN + RW on offsets up to 1e3) and runs `gmwm report rec.h5 WN+RW
@@ -11,6 +13,15 @@ Usage: python benchmarks/bench_stream.py [--dir DIR] [--channels 6] [--hdf5-samp
    (streamed), then the same with streaming disabled (GMWM_STREAM_MIN_BYTES huge: the whole file in
    memory, the previous behaviour) when the machine has the memory, and compares the two WVs.
 3. Projects wall time and memory to 6 channels x 2.6e8 samples (72 h at 1 kHz).
+
+``--check [--check-samples 2e8]`` instead measures the streamed stationarity check against the
+streamed WV on a one-channel .npy (WN + RW on a 1e8 offset, 2e8 samples = 1.6 GB, with a knock
+and a noise burst, so flagged blocks are re-read): peak RSS (GNU time around a child process)
+and time of `gmwm.stream.wvar_stream`, `gmwm.stationarity.check_stationarity_stream` (no rate:
+windows from 8 samples, the most statistics; and at 100 Hz), `gmwm wv big.npy` (WV and check in
+one read) and `gmwm report big.npy --freq 100`; ``--before SRC`` also runs the check and
+`gmwm wv` of another checkout (e.g. /work/main/src); --readme writes the section
+bench_stream_check.
 
 Peak RSS is each CLI process's own (wait4 rusage). The files go to a temporary directory under
 --dir (default: the system's) and are deleted; the free disk is checked first and a part that
@@ -147,6 +158,114 @@ def npy_part(tmp: Path, n: int, in_memory: bool) -> dict:
     return res
 
 
+def _child(what: str, path: str, freq: str) -> int:
+    """One computation measured in this (child) process: prints its wall and CPU seconds as JSON
+    (imports and opening the file excluded)."""
+    from gmwm.stationarity import check_stationarity_stream
+    from gmwm.stream import open_source, wvar_stream
+
+    f = None if freq == "none" else float(freq)
+    with open_source(path) as src:
+        t0, c0 = time.perf_counter(), time.process_time()
+        out: dict = {}
+        if what == "wv":
+            wvar_stream(src, freq=f)
+        else:
+            rep = check_stationarity_stream(src, freq=f)
+            out = {"moving": rep.moving, "flags": len(rep.flags), "windows": len(rep.windows)}
+        out.update(comp_s=time.perf_counter() - t0, comp_cpu=time.process_time() - c0)
+    print(json.dumps(out))
+    return 0
+
+
+def check_part(tmp: Path, n: int, before: str | None = None) -> dict:
+    """The streamed check against the streamed WV on a one-channel .npy of ``n`` samples; with
+    ``before`` (another checkout's src directory) also its check and `gmwm wv`."""
+    path = tmp / "big.npy"
+    t0 = time.perf_counter()
+    out = np.lib.format.open_memmap(path, mode="w+", dtype=np.float64, shape=(n,))
+    rng = np.random.default_rng(11)
+    for a, x in _signal_chunks(n, 7, 1e8):
+        out[a:a + x.size] = x
+    k = int(0.4 * n)
+    out[k:k + 1000] += 50.0  # a knock
+    k = int(0.7 * n)
+    out[k:k + 20_000] += 30.0 * rng.standard_normal(20_000)  # a burst of vibration
+    out.flush()
+    del out
+    gen_s = time.perf_counter() - t0
+    me = [sys.executable, str(Path(__file__).resolve()), "--child"]
+    res: dict = {"n": n, "size_gb": path.stat().st_size / GB, "gen_s": gen_s, "runs": []}
+    for label, cmd in (
+            ("`gmwm.stream.wvar_stream` (streamed WV)", [*me, "wv", str(path), "none"]),
+            ("`check_stationarity_stream`, no rate (windows from 8 samples)",
+             [*me, "check", str(path), "none"]),
+            ("`check_stationarity_stream`, 100 Hz (windows from 10 samples)",
+             [*me, "check", str(path), "100"])):
+        r = run_measured(cmd, env=_env(), cwd=str(tmp))
+        if r["code"] != 0:
+            raise SystemExit(f"{label} failed:\n{str(r['err'])[-3000:]}")
+        r.update(json.loads(str(r["out"]).strip().splitlines()[-1]))
+        res["runs"].append((label, r))
+    r = _gmwm("wv", str(path), "--json", cwd=tmp)
+    r["comp_s"] = json.loads(str(r["out"]))["seconds"]
+    res["runs"].append(("`gmwm wv big.npy` (WV and check in one read; WV seconds)", r))
+    r = _gmwm("report", str(path), "--freq", "100", "-o", str(tmp / "report"), cwd=tmp)
+    res["runs"].append(("`gmwm report big.npy --freq 100`", r))
+    if before:
+        env = dict(os.environ, PYTHONPATH=before)
+        r = run_measured([*me, "check", str(path), "none"], env=env, cwd=str(tmp))
+        if r["code"] == 0:
+            r.update(json.loads(str(r["out"]).strip().splitlines()[-1]))
+            res["runs"].append((f"before ({before}): `check_stationarity_stream`, no rate", r))
+        r = _gmwm("wv", str(path), "--json", env=env, cwd=tmp)
+        r["comp_s"] = json.loads(str(r["out"]))["seconds"]
+        res["runs"].append((f"before ({before}): `gmwm wv big.npy` (WV seconds)", r))
+    path.unlink()
+    shutil.rmtree(tmp / "report", ignore_errors=True)
+    return res
+
+
+def check_main(args: argparse.Namespace) -> int:
+    base = Path(args.dir or tempfile.gettempdir())
+    tmp = Path(tempfile.mkdtemp(prefix="gmwm-bench-check-", dir=base))
+    n = int(args.check_samples)
+    load_before = load()
+    try:
+        need = n * 8 / GB * 2.1  # the file and the WV's panel file
+        if _free_gb(tmp) < need:
+            raise SystemExit(f"{_free_gb(tmp):.1f} GB free in {base}, {need:.1f} GB needed")
+        res = check_part(tmp, n, args.before)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    load_after = load()
+    lines = [("| run | peak RSS [MB] | process wall / CPU [s] | computation wall / CPU [s] | "
+              "result |"), "|---|---|---|---|---|"]
+    for label, r in res["runs"]:
+        comp = "" if r.get("comp_s") is None else (
+            f"{r['comp_s']:.1f}" + (f" / {r['comp_cpu']:.1f}" if "comp_cpu" in r else ""))
+        what = (f"{'moving' if r['moving'] else 'static'}, {r['flags']} flagged range(s), "
+                f"{r['windows']} window lengths" if "moving" in r else "")
+        lines.append(f"| {label} | {r['rss_mb']:.0f} | {r['wall']:.1f} / {r['cpu']:.1f} | {comp} | "
+                     f"{what} |")
+    wv = res["runs"][0][1]["comp_s"]
+    ratios = ", ".join(f"{r['comp_s'] / wv:.2f}x" for _, r in res["runs"][1:3])
+    text = (f"`python benchmarks/bench_stream.py --check` ({machine()}; load average "
+            f"{load_before} before, {load_after} after; one channel of {res['n']:.3g} float64 "
+            f"samples, {res['size_gb']:.2f} GB, WN + RW on a 1e8 offset with a knock at 40 % and a "
+            f"burst of vibration at 70 %, written to {base} in {res['gen_s']:.0f} s and deleted)."
+            "\n\n" + "\n".join(lines) + "\n\n"
+            f"* The streamed check takes {ratios} the streamed WV's wall time (no rate, 100 Hz); "
+            "its memory does not grow with the length (per test at most 65536 statistics for the "
+            "robust scale and the extremes of 2048 blocks; the flagged blocks are re-read).\n"
+            "* Peak RSS is each process's own (GNU time); process wall / CPU include start-up "
+            "and imports, computation wall / CPU (in the process) do not.\n")
+    print(text)
+    if args.readme:
+        update_section("bench_stream_check", text)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--dir", default=None, help="where the temporary files go")
@@ -158,8 +277,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-in-memory", action="store_true",
                         help="skip the whole-file (non-streamed) gmwm wv run")
     parser.add_argument("--readme", action="store_true", help="write the results into README.md")
+    parser.add_argument("--check", action="store_true",
+                        help="the streamed stationarity check against the streamed WV instead")
+    parser.add_argument("--check-samples", type=float, default=2e8)
+    parser.add_argument("--before", default=None, metavar="SRC",
+                        help="with --check: also run another checkout's src directory")
+    if argv is None and len(sys.argv) > 1 and sys.argv[1] == "--child":
+        return _child(*sys.argv[2:5])
     args = parser.parse_args(argv)
     sys.path.insert(0, str(REPO / "src"))
+    if args.check:
+        return check_main(args)
     base = Path(args.dir or tempfile.gettempdir())
     tmp = Path(tempfile.mkdtemp(prefix="gmwm-bench-stream-", dir=base))
     n_h, n_n, C = int(args.hdf5_samples), int(args.npy_samples), args.channels

@@ -4,15 +4,18 @@ bit, whatever the chunks; in the same read as the streamed WV; the WV of a sampl
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
 
+import gmwm.stationarity as st_mod
 from conftest import load_benchmark
 from gmwm.errors import InputError
 from gmwm.stationarity import (
+    MIN_DIFFS,
     StationarityStream,
     check_stationarity,
     check_stationarity_stream,
@@ -163,9 +166,9 @@ def test_uniform_sample_range_matches_time_stamps() -> None:
         uniform_sample_range(100, 10.0, 50.0, None)
 
 
-def test_summaries_are_small_and_bounded() -> None:
-    """The per-channel summaries hold O(n / h0) values (h0 = 5 samples at 100 Hz): about a fifth
-    of the signal for the window means, a 25th for the noise levels, and a fixed timeline."""
+def test_summaries_without_a_source_keep_everything() -> None:
+    """Pushed without a source (nothing to re-read), every statistic is kept: per window length its
+    n // h - 3 window-mean differences, the (n - 1) // 25 - 1 noise levels, a fixed timeline."""
     x = _imu(300.0, 1, False)
     n = x["gx"].size
     st = StationarityStream(list(x), n, freq=FS, units=bs.UNITS)
@@ -176,11 +179,130 @@ def test_summaries_are_small_and_bounded() -> None:
     sums = [acc.finish() for acc in st.accs]
     assert len(sums) == 7  # six axes and |a|
     for sm in sums:
-        assert sm.means.size == n // 5 and sm.noise.size == (n - 1) // 25
+        assert [s.vals.size for s in sm.levels] == [n // h - 3 for h in st.hs]
+        assert all(s.whole for s in sm.levels) and sm.noise.vals.size == (n - 1) // 25 - 1
         assert sm.temp_means.size == 0
         assert all(v.size <= 1500 for v in sm.timeline)
-        assert sm.means.nbytes + sm.noise.nbytes < 0.25 * n * 8  # 8 bytes per sample: 1/4
-        assert sum(v.nbytes for v in sm.timeline) <= 4 * 1500 * 8
+    assert sums[-1].means.vals.size == n // 5 and sums[0].means is None  # |a| only
+
+
+# ---- bounded memory: a source to re-read ----------------------------------------------------------
+
+
+@pytest.mark.parametrize("h", [1, 2, 3, 4, 5, 7, 8, 13])
+def test_block_means_have_the_bits_of_a_reshape_mean(h: int) -> None:
+    rng = np.random.default_rng(h)
+    for m in (1, 5, 1000, 77_777):
+        v = rng.standard_normal(m * h) * 10.0 ** rng.integers(-9, 9, m * h)
+        assert st_mod._block_means(v, h).tobytes() == v.reshape(m, h).mean(axis=1).tobytes()
+
+
+def test_cascade_from_any_block_in_any_pieces_gives_the_whole_array_differences() -> None:
+    """The window-mean differences of every level, from B_0 pushed in random pieces from block
+    ``first`` (a re-read starts anywhere): those of the whole-array expressions, with their
+    indices, for every window inside the blocks pushed."""
+    rng = np.random.default_rng(3)
+    B = rng.standard_normal(5000) * 1e3
+    whole, b = [], B
+    for i in range(6):
+        if i:
+            m = b.size // 2
+            b = 0.5 * (b[: 2 * m: 2] + b[1: 2 * m: 2])
+        whole.append(0.5 * (b[2:-1] + b[3:] - b[:-3] - b[1:-2]))
+    for first in (0, 1, 2, 3, 37, 64, 1001):
+        cas = st_mod._Cascade(6, first)
+        got: dict[int, dict[int, float]] = {i: {} for i in range(6)}
+        a = first
+        while a < B.size:
+            e = min(B.size, a + int(rng.integers(1, 300)))
+            for i, j0, d in cas.push(B[a:e]):
+                got[i].update(zip(range(j0, j0 + d.size), d.tolist(), strict=True))
+            a = e
+        for i in range(6):
+            j_lo = -(-first // 2 ** i)  # the first level-i block whose samples were all pushed
+            want = whole[i][j_lo:]
+            assert sorted(got[i]) == list(range(j_lo, j_lo + want.size)), (first, i)
+            assert np.array_equal([got[i][j] for j in sorted(got[i])], want), (first, i)
+
+
+def _write_1d(tmp_path: Path, x: np.ndarray, name: str = "sig") -> Path:
+    p = tmp_path / f"{name}.npy"
+    np.save(p, x)
+    return p
+
+
+def test_rescanned_flags_are_exact(tmp_path: Path, monkeypatch) -> None:
+    """With the same median and scale everywhere (a fixed robust estimate), the bounded check
+    (every test subsampled, flagged blocks re-read from the file) flags exactly what the in-memory
+    check flags: spans, statistics, sizes and peaks, for window means (a step and a ramp) and noise
+    bursts, from several places in the file; also riding on the streamed WV's read."""
+    rng = np.random.default_rng(8)
+    n = 300_000
+    x = rng.standard_normal(n)
+    x[100_003:] += 9.0  # a step
+    x[200_000:200_500] += np.linspace(0.0, 40.0, 500)  # a ramp, then back
+    x[250_000:251_000] += 30.0 * rng.standard_normal(1000)  # a burst of noise
+    x[7:19] += 50.0  # at the very start
+    monkeypatch.setattr(st_mod, "_robust", lambda v: (0.0, 1.0))
+    ref = check_stationarity({"sig": x})
+    assert ref.moving and {f.test for f in ref.flags} == {"mean", "noise"}
+    p = _write_1d(tmp_path, x)
+    with open_source(p) as src:
+        for chunk in (4096, 100_000):
+            got = check_stationarity_stream(src, chunk=chunk, robust_sample=MIN_DIFFS)
+            _assert_same(ref, got)
+        check = StationarityStream.for_source(src, robust_sample=MIN_DIFFS)  # as gmwm wv does
+        wvar_stream(src, memory=1 << 18, observe=check.push)
+        _assert_same(ref, check.finish())
+
+
+def test_subsampled_scale_finds_the_same_motion(tmp_path: Path) -> None:
+    """A moving 6-axis recording checked with a small robust subsample (every test longer than 300
+    statistics subsampled): the same verdict and flagged ranges as the in-memory check, thresholds
+    and counts identical, largest statistics within a few per cent."""
+    x = _imu(600.0, 12, True)
+    p = _write(tmp_path, x, "npy")
+    with open_source(p, columns="all") as src:
+        units = {nm: bs.UNITS[c] for nm, c in zip(src.names, x, strict=True)}
+        got = check_stationarity_stream(src, freq=FS, units=units, robust_sample=300)
+    ref = check_stationarity(dict(zip(units, x.values(), strict=True)), freq=FS, units=units)
+    assert got.moving and ref.moving
+    assert got.n_tests == ref.n_tests and got.threshold == ref.threshold
+    for a, b in zip(got.peaks, ref.peaks, strict=True):
+        assert a[:4] == b[:4] and a[5] == b[5]
+        assert abs(a[4] - b[4]) <= 3.0 / math.sqrt(300) * max(b[4], 1.0)  # the scale's error
+    assert [(s.i0, s.i1) for s in got.segments] == [(s.i0, s.i1) for s in ref.segments]
+
+
+def test_streamed_check_memory_does_not_grow_with_the_length(tmp_path: Path, monkeypatch) -> None:
+    """tracemalloc peak of the streamed check (small pieces and chunks): a file 4x longer needs
+    about the same memory, far below its size (8 bytes per sample), and gets the in-memory
+    report of the same samples when every test fits the robust subsample."""
+    import tracemalloc
+
+    monkeypatch.setattr(st_mod, "_PIECE", 1 << 13)
+    rng = np.random.default_rng(4)
+    peaks = {}
+    for n in (1 << 18, 1 << 20):
+        x = rng.standard_normal(n)
+        x[n // 2: n // 2 + 300] += 5.0
+        p = _write_1d(tmp_path, x, f"s{n}")
+        del x
+        with open_source(p) as src:
+            if not peaks:  # imports and first-call caches outside the measurement
+                check_stationarity_stream(src, chunk=1 << 13, robust_sample=512)
+            tracemalloc.start()
+            rep = check_stationarity_stream(src, chunk=1 << 13, robust_sample=512)
+            peaks[n] = tracemalloc.get_traced_memory()[1]
+            tracemalloc.stop()
+        assert rep.moving
+    small, big = peaks[1 << 18], peaks[1 << 20]
+    assert big < 1.2 * small, peaks
+    assert big < (1 << 20) * 8 / 8, peaks  # an eighth of the file
+    x = np.load(tmp_path / f"s{1 << 18}.npy")
+    with open_source(tmp_path / f"s{1 << 18}.npy") as src:
+        got = check_stationarity_stream(src, chunk=1 << 13, robust_sample=1 << 16)
+    _assert_same(check_stationarity({f"s{1 << 18}": x}), got)
 
 
 def test_nonfinite_sample_is_named_and_counts_are_checked() -> None:

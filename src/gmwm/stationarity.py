@@ -382,18 +382,6 @@ def ceiling_sd(sensor: str, window_s: float) -> float:
     return math.sqrt(2.0 * av)
 
 
-@dataclass
-class _Hits:
-    """Flagged windows of one channel and test: sample spans, statistics and sizes."""
-
-    i0: list[int] = field(default_factory=list)
-    i1: list[int] = field(default_factory=list)
-    peak: list[int] = field(default_factory=list)
-    window: list[int] = field(default_factory=list)
-    stat: list[float] = field(default_factory=list)
-    thr: list[float] = field(default_factory=list)
-    size: list[float] = field(default_factory=list)
-
 
 def _z_quantile(p: float) -> float:
     from scipy.special import ndtri
@@ -411,18 +399,6 @@ def _ladder(n: int, freq: float | None) -> list[int]:
     while n // h - 3 >= MIN_DIFFS:
         out.append(h)
         h *= 2
-    return out
-
-
-def _mean_diffs(B: np.ndarray, hs: list[int]) -> list[np.ndarray]:
-    """Per half-window h: d_k = mean(x[kh:(k+2)h]) - mean(x[(k-2)h:kh]), k = 2..K-2, from the
-    block means ``B`` of x over hs[0] samples (halved upwards by pairs)."""
-    out = []
-    for i, _h in enumerate(hs):
-        if i:
-            m = B.size // 2
-            B = 0.5 * (B[: 2 * m: 2] + B[1: 2 * m: 2])
-        out.append(0.5 * (B[2:-1] + B[3:] - B[:-3] - B[1:-2]))
     return out
 
 
@@ -450,79 +426,110 @@ def _robust(v: np.ndarray) -> tuple[float, float]:
     return med, s
 
 
-@dataclass(frozen=True)
-class _Level:
-    """One test of one channel at one window length: statistic ``z`` per grid point (window
-    boundary ``k * stride``, window ``window`` samples, span ``(k - back) * stride`` to
-    ``(k + ahead) * stride``), ``size`` per point, and the test name."""
-
-    test: str
-    window: int
-    stride: int
-    back: int
-    ahead: int
-    offset: int
-    z: np.ndarray
-    size: np.ndarray
-
-
-def _levels(sm: _Summary, hs: list[int], w_noise: int, freq: float | None, sensor: str | None,
-            si: float) -> list[_Level]:
-    """The standardised statistics of one channel (from its summary): window-mean differences
-    per window length ('mean', or 'ceiling' where the static ceiling caps the robust scale) and
-    the windowed white-noise level ('noise', upper side only)."""
-    q = sm.quantum
-    out = []
-    for h, d in zip(hs, _mean_diffs(sm.means, hs), strict=True):
-        L = 2 * h
-        med, s = _robust(d)
-        s = max(s, q / math.sqrt(6.0 * L))  # rounding noise of a quantised signal
-        test = "mean"
-        if sensor is not None and freq is not None:
-            cap = ceiling_sd(sensor, L / freq) / si
-            if cap < s:
-                s, test = cap, "ceiling"
-        dev = np.abs(d - med)
-        out.append(_Level(test, L, h, 2, 2, 2, dev / max(s, np.finfo(float).tiny), dev))
-    if w_noise and sm.n // (w_noise // 2) - 1 >= MIN_DIFFS:
-        u = _noise_levels(sm.noise, q)
-        med, s = _robust(u)
-        if s > 0:
-            out.append(_Level("noise", w_noise, w_noise // 2, 0, 2, 0, (u - med) / s,
-                              np.exp(u - med)))
-    return out
-
-
 def _threshold(z0: float, k: int) -> float:
     """Bonferroni quantile z0, inflated for the uncertainty of a robust scale from k values."""
     return z0 * (1.0 + SMALL_SAMPLE / math.sqrt(k))
 
 
-def _channel_hits(sm: _Summary, hs: list[int], w_noise: int, z0: float, freq: float | None,
-                  sensor: str | None, si: float) -> tuple[dict[str, _Hits], list[tuple]]:
-    """Flagged windows of one channel, for the tests 'mean', 'ceiling' and 'noise', and per
-    test and window length (test, window, count, largest statistic, threshold)."""
-    hits = {"mean": _Hits(), "ceiling": _Hits(), "noise": _Hits()}
-    peaks = []
-    for lv in _levels(sm, hs, w_noise, freq, sensor, si):
-        thr = _threshold(z0, lv.z.size)
-        peaks.append((lv.test, lv.window, int(lv.z.size), float(lv.z.max()), thr))
-        idx = np.flatnonzero(lv.z > thr)
-        if not idx.size:
-            continue
-        hh = hits[lv.test]
-        k = idx + lv.offset  # boundary index on the grid of stride lv.stride
-        hh.i0 += list((k - lv.back) * lv.stride)
-        hh.i1 += list((k + lv.ahead) * lv.stride)
-        hh.peak += list(k * lv.stride + (lv.stride if lv.test == "noise" else 0))
-        hh.window += [lv.window] * idx.size
-        hh.stat += list(lv.z[idx])
-        hh.thr += [thr] * idx.size
-        hh.size += list(lv.size[idx])
-    return hits, peaks
+@dataclass(frozen=True)
+class _Scale:
+    """One test of one channel at one window length, standardised: the statistic of a value v is
+    |v - med| / scale ('mean', 'ceiling': window-mean differences) or (v - med) / scale ('noise':
+    log noise levels, upper side only), flagged beyond ``thr``; ``count`` values. Value j sits at
+    the boundary k = j + ``offset`` of a grid of ``stride`` samples: its span is ``(k - back)`` to
+    ``(k + ahead)`` strides, its peak ``k * stride + shift``; ``order`` ranks the window lengths
+    (ties between equal statistics go to the earlier span, then the shorter window)."""
+
+    test: str
+    order: int
+    window: int
+    stride: int
+    back: int
+    ahead: int
+    offset: int
+    shift: int
+    med: float
+    scale: float
+    thr: float
+    count: int
+
+    def z(self, v: np.ndarray) -> np.ndarray:
+        if self.test == "noise":
+            return (v - self.med) / self.scale
+        return np.abs(v - self.med) / max(self.scale, np.finfo(float).tiny)
+
+    def size(self, v: np.ndarray) -> np.ndarray:
+        """The change reported for values ``v`` (signal units; 'noise': a variance ratio)."""
+        return np.exp(v - self.med) if self.test == "noise" else np.abs(v - self.med)
+
+    def region(self, j0: int, j1: int, n: int) -> tuple[int, int]:
+        """The samples [a, b) the values ``j0:j1`` are computed from."""
+        if self.test == "noise":  # u_j: differences j*s .. (j+2)*s - 1
+            return j0 * self.stride, min(n, (j1 + 1) * self.stride + 1)
+        return j0 * self.stride, min(n, (j1 + 3) * self.stride)  # d_j: blocks j .. j+3
 
 
-def _merge(i0: np.ndarray, i1: np.ndarray) -> list[tuple[int, int, np.ndarray]]:
+@dataclass(frozen=True)
+class _Span:
+    """Flagged statistics of one ``test``, channel and window length that touch one another: samples
+    ``a:b``; the largest ``ratio`` statistic / threshold (the first such by ``i0``) and its
+    ``i0``, window ``order``, ``peak`` sample, ``window``, ``stat`` and ``thr``; the largest
+    ``size``."""
+
+    test: str
+    a: int
+    b: int
+    ratio: float
+    i0: int
+    order: int
+    peak: int
+    window: int
+    stat: float
+    thr: float
+    size: float
+
+
+def _spans(sc: _Scale, j0: int, v: np.ndarray) -> list[_Span]:
+    """The flagged spans of the values ``v`` (indices ``j0...``) of one test: consecutive flagged
+    statistics whose spans touch are one :class:`_Span`."""
+    z = sc.z(v)
+    idx = np.flatnonzero(z > sc.thr)
+    if not idx.size:
+        return []
+    k = idx + (j0 + sc.offset)
+    i0 = (k - sc.back) * sc.stride
+    i1 = (k + sc.ahead) * sc.stride
+    zs = z[idx]
+    ratio = zs / sc.thr
+    size = sc.size(v[idx])
+    cut = np.flatnonzero(i0[1:] > i1[:-1]) + 1
+    out = []
+    for a, b in zip(np.r_[0, cut], np.r_[cut, idx.size], strict=True):
+        m = int(a + np.argmax(ratio[a:b]))
+        out.append(_Span(sc.test, int(i0[a]), int(i1[b - 1]), float(ratio[m]), int(i0[m]), sc.order,
+                         int(k[m] * sc.stride + sc.shift), sc.window, float(zs[m]), sc.thr,
+                         float(np.max(size[a:b]))))
+    return out
+
+
+def _merge(spans: list[_Span]) -> list[tuple[int, int, _Span, float]]:
+    """Spans of one test and channel (any window lengths) merged where they overlap or touch:
+    (a, b, the member with the largest ratio, ties to the smallest i0 then order, largest
+    size)."""
+    out: list[list[Any]] = []
+    for s in sorted(spans, key=lambda s: (s.a, s.order)):
+        if out and s.a <= out[-1][1]:
+            g = out[-1]
+            g[1] = max(g[1], s.b)
+            if (s.ratio, -s.i0, -s.order) > (g[2].ratio, -g[2].i0, -g[2].order):
+                g[2] = s
+            g[3] = max(g[3], s.size)
+        else:
+            out.append([s.a, s.b, s, s.size])
+    return [(a, b, s, size) for a, b, s, size in out]
+
+
+def _union(i0: np.ndarray, i1: np.ndarray) -> list[tuple[int, int, np.ndarray]]:
     """Merge overlapping spans; per merged span the indices of its members."""
     order = np.argsort(i0, kind="stable")
     out: list[tuple[int, int, list[int]]] = []
@@ -535,9 +542,39 @@ def _merge(i0: np.ndarray, i1: np.ndarray) -> list[tuple[int, int, np.ndarray]]:
     return [(a, b, np.asarray(m)) for a, b, m in out]
 
 
+def _scales(sm: _Summary, hs: Sequence[int], w_noise: int, z0: float, freq: float | None,
+            sensor: str | None, si: float) -> list[tuple[int, _Scale, _Series]]:
+    """The tests of one channel, standardised from its summary, with their statistics:
+    window-mean differences per window length ('mean', or 'ceiling' where the static ceiling
+    caps the robust scale) and the windowed white-noise level ('noise', upper side only; absent
+    when its scale is 0)."""
+    q = sm.quantum
+    out = []
+    for i, (h, series) in enumerate(zip(hs, sm.levels, strict=True)):
+        L = 2 * h
+        med, s = _robust(series.vals)
+        s = max(s, q / math.sqrt(6.0 * L))  # rounding noise of a quantised signal
+        test = "mean"
+        if sensor is not None and freq is not None:
+            cap = ceiling_sd(sensor, L / freq) / si
+            if cap < s:
+                s, test = cap, "ceiling"
+        out.append((i, _Scale(test, i, L, h, 2, 2, 2, 0, med, s, _threshold(z0, series.count),
+                              series.count), series))
+    nz = sm.noise
+    if nz is not None and w_noise and sm.n // (w_noise // 2) - 1 >= MIN_DIFFS:
+        med, s = _robust(nz.vals)
+        if s > 0:
+            h = w_noise // 2
+            out.append((len(hs), _Scale("noise", len(hs), w_noise, h, 0, 2, 0, h, med, s,
+                                        _threshold(z0, nz.count), nz.count), nz))
+    return out
+
+
 # --------------------------------------------------------------------------------------------------
-# per-channel summaries: what the tests need of a channel, O(n / h0) values, built from the signal
-# pushed in consecutive pieces (one piece: the whole array)
+# per-channel summaries: the statistics of every test of a channel, computed from the signal pushed
+# in consecutive pieces (one piece: the whole array), kept whole or, with a source to re-read,
+# bounded (a subsample and block extremes)
 # --------------------------------------------------------------------------------------------------
 
 #: the offset removed before averaging (exactness of the means, docs/METHODS.md §2.3) is the
@@ -549,27 +586,182 @@ _QUANTUM_SAMPLES = 1 << 16
 _TEMP_WINDOWS = 64
 #: interpolated temperature values generated at a time (bounded memory over a long gap)
 _EMIT = 1 << 20
+#: bounded summaries (a recording read from a source): a test with more statistics than this takes
+#: its median and robust scale from a systematic subsample of at most this many (every r-th)
+ROBUST_SAMPLE = 1 << 16
+#: bounded summaries: the largest and smallest statistic of at most this many blocks of
+#: consecutive ones per test (where to look for flagged ones when the source is re-read)
+_EXTREME_BLOCKS = 2048
+#: rows processed at a time (bounds the temporaries of a large push)
+_PIECE = 1 << 18
+_NONE = np.empty(0)
+
+
+def _block_means(v: np.ndarray, h: int) -> np.ndarray:
+    """Means of the consecutive blocks of ``h`` values of ``v`` (``v.size`` a multiple of h), with
+    the bits of ``v.reshape(-1, h).mean(axis=1)``: below 8 values NumPy adds a row from left to
+    right, which strided additions do faster (tests/test_stationarity_stream.py checks it)."""
+    if h >= 8:
+        return v.reshape(-1, h).mean(axis=1)
+    out = v[0::h] + v[1::h] if h > 1 else v.copy()
+    for i in range(2, h):
+        out += v[i::h]
+    out /= h
+    return out
 
 
 class _Blocks:
-    """Means of the first ``n_blocks`` consecutive blocks of ``h`` values of a series pushed in
-    pieces. Each block is reduced on its own (one row of a reshape), so the means have the bits of
-    one reshape-mean of the whole series whatever the pieces."""
+    """Means of consecutive blocks of ``h`` values of a series pushed in order: block b holds
+    values ``[b h, (b + 1) h)``; the series starts at block ``first`` and stops after block
+    ``stop - 1``. :meth:`push` returns the blocks it completes (``keep``: also collected in
+    :attr:`out`). Each block is reduced on its own (one row of a reshape), so the means have the
+    bits of one reshape-mean of the whole series whatever the pieces."""
 
-    def __init__(self, h: int, n_blocks: int) -> None:
-        self.h, self.out, self.k = h, np.empty(max(n_blocks, 0)), 0
-        self.rest = np.empty(0)
+    def __init__(self, h: int, stop: int, first: int = 0, keep: bool = False) -> None:
+        self.h, self.next, self.stop = h, first, max(stop, first)
+        self.rest = _NONE
+        self.kept: list[np.ndarray] | None = [] if keep else None
 
-    def push(self, v: np.ndarray) -> None:
-        if self.k >= self.out.size:
-            return
+    def push(self, v: np.ndarray) -> np.ndarray:
+        if self.next >= self.stop:
+            return _NONE
         if self.rest.size:
             v = np.concatenate((self.rest, v))
-        m = min(v.size // self.h, self.out.size - self.k)
-        if m:
-            self.out[self.k:self.k + m] = v[: m * self.h].reshape(m, self.h).mean(axis=1)
-            self.k += m
-        self.rest = v[m * self.h:].copy() if self.k < self.out.size else np.empty(0)
+        m = min(v.size // self.h, self.stop - self.next)
+        out = _block_means(v[: m * self.h], self.h) if m else _NONE
+        self.next += m
+        self.rest = v[m * self.h:].copy() if self.next < self.stop else _NONE
+        if self.kept is not None and m:
+            self.kept.append(out)
+        return out
+
+    @property
+    def out(self) -> np.ndarray:
+        return np.concatenate(self.kept) if self.kept else _NONE
+
+
+def _half_sq_diff(x: np.ndarray, prev: Any) -> np.ndarray:
+    """diff(x)^2 / 2 of a piece, preceded by the difference to the previous sample ``prev`` (None:
+    the first piece), with the bits of ``np.diff(...) ** 2 * 0.5``."""
+    if prev is None:
+        d = np.diff(x)
+    else:
+        d = np.empty(x.size)
+        d[0] = x[0] - prev
+        np.subtract(x[1:], x[:-1], out=d[1:])
+    np.square(d, out=d)
+    d *= 0.5
+    return d
+
+
+class _Cascade:
+    """The window-mean differences of every window length from the block means B_0 over h0 samples
+    pushed in order from block ``first``: B_i[m] = (B_{i-1}[2m] + B_{i-1}[2m+1]) / 2 (blocks of
+    h0 2^i samples) and d_j = (B_i[j+2] + B_i[j+3] - B_i[j] - B_i[j+1]) / 2 for every j whose four
+    blocks were pushed (in the order and with the bits of the whole-array expressions)."""
+
+    def __init__(self, n_levels: int, first: int) -> None:
+        self.n_levels = n_levels
+        self.next = first  # index of the next B_0 value
+        self.tail: list[np.ndarray] = [_NONE] * n_levels  # the last <= 3 values of B_i
+        self.odd: list[np.ndarray] = [_NONE] * n_levels  # a B_i value waiting for its pair
+
+    def push(self, v: np.ndarray) -> list[tuple[int, int, np.ndarray]]:
+        """The new differences of B_0 values ``v``: (level, index of the first, values)."""
+        out = []
+        g = self.next  # index of v[0] among the B_i
+        self.next += v.size
+        for i in range(self.n_levels):
+            if not v.size:
+                break
+            tail = self.tail[i]
+            nt, total = tail.size, tail.size + v.size
+            if total >= 4:
+                d = np.empty(total - 3)
+                k = 0
+                if nt:  # the differences that reach into the tail
+                    c = np.concatenate((tail, v[:3]))
+                    k = c.size - 3
+                    d[:k] = 0.5 * (c[2:-1] + c[3:] - c[:-3] - c[1:-2])
+                if v.size >= 4:  # the rest, in place (the same operations in the same order)
+                    dd = d[k:]
+                    np.add(v[2:-1], v[3:], out=dd)
+                    np.subtract(dd, v[:-3], out=dd)
+                    np.subtract(dd, v[1:-2], out=dd)
+                    np.multiply(dd, 0.5, out=dd)
+                out.append((i, g - nt, d))
+            self.tail[i] = v[-3:].copy() if v.size >= 3 else np.concatenate((tail, v))[-3:]
+            if i + 1 == self.n_levels:
+                break
+            odd = self.odd[i]
+            if odd.size:  # odd[0] (an even index) pairs with v[0]
+                pre, s, g = 0.5 * (odd[0] + v[0]), 1, (g - 1) // 2
+            else:  # an odd first index: its pair lies before the first block pushed
+                pre, s, g = None, g % 2, (g + g % 2) // 2
+            rest = v[s:]
+            m = rest.size // 2
+            nv = np.empty(m + (pre is not None))
+            body = nv[1:] if pre is not None else nv
+            if pre is not None:
+                nv[0] = pre
+            np.add(rest[: 2 * m: 2], rest[1: 2 * m: 2], out=body)
+            np.multiply(body, 0.5, out=body)
+            self.odd[i] = rest[2 * m:].copy()
+            v = nv
+        return out
+
+
+class _Series:
+    """The ``count`` values (statistics) of one test of one channel pushed in order. Kept whole
+    when ``keep`` is None or not below ``count``; else every r-th (r = ceil(count / keep), for the
+    median and robust scale) and the largest and smallest of blocks of ``g`` (a power of two)
+    consecutive values, at most min(:data:`_EXTREME_BLOCKS`, ``keep``) blocks (which ones can
+    hold a flagged statistic)."""
+
+    def __init__(self, count: int, keep: int | None) -> None:
+        self.count = max(count, 0)
+        self.r = 1 if keep is None or self.count <= keep else -(-self.count // keep)
+        self.vals = np.empty(-(-self.count // self.r))
+        self.g = 1
+        while -(-self.count // self.g) > min(_EXTREME_BLOCKS, keep or 1):
+            self.g *= 2
+        nb = -(-self.count // self.g) if self.r > 1 else 0
+        self.hi, self.lo = np.full(nb, -np.inf), np.full(nb, np.inf)
+        self.pushed = 0
+
+    @property
+    def whole(self) -> bool:
+        return self.r == 1
+
+    def push(self, j0: int, v: np.ndarray) -> None:
+        if j0 != self.pushed or j0 + v.size > self.count:
+            raise RuntimeError(f"values {j0}:{j0 + v.size} pushed after {self.pushed} of "
+                               f"{self.count}")  # a bug, not an input error
+        self.pushed += v.size
+        if self.r == 1:
+            self.vals[j0: j0 + v.size] = v
+            return
+        s = (-j0) % self.r
+        sub = v[s:: self.r]
+        p = (j0 + s) // self.r
+        self.vals[p: p + sub.size] = sub
+        g = self.g
+        starts = np.arange(-(j0 % g), v.size, g)
+        starts[0] = 0
+        b = j0 // g
+        sl = slice(b, b + starts.size)
+        np.maximum(self.hi[sl], np.maximum.reduceat(v, starts), out=self.hi[sl])
+        np.minimum(self.lo[sl], np.minimum.reduceat(v, starts), out=self.lo[sl])
+
+    def blocks(self, sc: _Scale) -> tuple[float, list[tuple[int, int]]]:
+        """The largest statistic and the value ranges (j0, j1) of the blocks that can hold one
+        beyond the threshold (none when kept whole: they are read from the values)."""
+        if self.whole:
+            return float(np.max(sc.z(self.vals))), []
+        z = sc.z(self.hi) if sc.test == "noise" else np.maximum(sc.z(self.hi), sc.z(self.lo))
+        hit = np.flatnonzero(z > sc.thr)
+        return float(np.max(z)), [(int(b) * self.g, min(self.count, (int(b) + 1) * self.g))
+                                  for b in hit]
 
 
 class _Timeline:
@@ -579,29 +771,43 @@ class _Timeline:
     def __init__(self, n: int, bins: int) -> None:
         self.w = 0 if n <= bins else -(-n // bins)
         self.parts: list[tuple[np.ndarray, ...]] = []
-        self.rest = (np.empty(0), np.empty(0))
+        self.out = tuple(np.empty(-(-n // self.w) if self.w else 0) for _ in range(4))
+        self.k = 0  # bins done
+        self.rest = (_NONE, _NONE)
 
     def push(self, x: np.ndarray, t: np.ndarray) -> None:
         if not self.w:
             self.parts.append((t.copy(), x.copy(), x.copy(), x.copy()))
             return
-        if self.rest[0].size:
-            x, t = np.concatenate((self.rest[0], x)), np.concatenate((self.rest[1], t))
+        if self.rest[0].size:  # complete the open bin (without copying the whole piece)
+            k = min(x.size, self.w - self.rest[0].size)
+            rx, rt = np.concatenate((self.rest[0], x[:k])), np.concatenate((self.rest[1], t[:k]))
+            x, t = x[k:], t[k:]
+            if rx.size < self.w:
+                self.rest = (rx, rt)
+                return
+            self._bins(rx, rt)
         m = x.size // self.w * self.w
         if m:
-            self.parts.append(self._bins(x[:m], t[:m]))
+            self._bins(x[:m], t[:m])
         self.rest = (x[m:].copy(), t[m:].copy())
 
-    def _bins(self, x: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, ...]:
+    def _bins(self, x: np.ndarray, t: np.ndarray) -> None:
         edges = np.arange(0, x.size, self.w)
         cnt = np.diff(np.append(edges, x.size))
-        return (np.add.reduceat(t, edges) / cnt, np.add.reduceat(x, edges) / cnt,
-                np.minimum.reduceat(x, edges), np.maximum.reduceat(x, edges))
+        sl = slice(self.k, self.k + edges.size)
+        np.divide(np.add.reduceat(t, edges), cnt, out=self.out[0][sl])
+        np.divide(np.add.reduceat(x, edges), cnt, out=self.out[1][sl])
+        np.minimum.reduceat(x, edges, out=self.out[2][sl])
+        np.maximum.reduceat(x, edges, out=self.out[3][sl])
+        self.k += edges.size
 
     def finish(self) -> tuple[np.ndarray, ...]:
-        if self.w and self.rest[0].size:
-            self.parts.append(self._bins(*self.rest))
-            self.rest = (np.empty(0), np.empty(0))
+        if self.w:
+            if self.rest[0].size:
+                self._bins(*self.rest)
+                self.rest = (_NONE, _NONE)
+            return tuple(v[: self.k] for v in self.out)
         if not self.parts:
             return tuple(np.empty(0) for _ in range(4))
         if len(self.parts) == 1:
@@ -613,24 +819,30 @@ class _Timeline:
 class _Summary:
     """What the tests need of one channel of ``n`` samples: the ``offset`` (median of the first
     4096 samples), the ``quantum`` (smallest non-zero step in the first 65536, 0: continuous),
-    the block ``means`` of the offset-free signal over h0 samples (the base half-window of the
-    window-mean test; empty when untested), the block means ``noise`` of diff(x)^2 / 2 over
-    w_noise / 2 samples, ``temp_means`` of the offset-free signal over n // 64 samples (the
-    temperature check; empty without temperature) and the plotting ``timeline``."""
+    per window length the window-mean differences of the offset-free signal (``levels``; empty
+    when untested), the log noise levels (``noise``, None when untested), the block means over h0
+    samples (``means``, for the median |a|; None for other channels), ``temp_means`` of the
+    offset-free signal over n // 64 samples (the temperature check; empty without temperature)
+    and the plotting ``timeline``."""
 
     n: int
     offset: float
     quantum: float
-    means: np.ndarray
-    noise: np.ndarray
+    levels: list[_Series]
+    noise: _Series | None
+    means: _Series | None
     temp_means: np.ndarray
     timeline: tuple[np.ndarray, ...]
 
 
 class _ChannelAcc:
-    """Builds the :class:`_Summary` of one channel from its samples pushed in order."""
+    """Builds the :class:`_Summary` of one channel from its samples pushed in order: half-windows
+    ``hs`` (empty: untested), noise blocks of ``h_noise`` differences (0: untested), temperature
+    windows of ``w_temp`` samples (0: none), statistics kept whole or bounded by ``keep``
+    (:class:`_Series`), the block means kept (``means``) for the median |a|."""
 
-    def __init__(self, n: int, h0: int, h_noise: int, w_temp: int) -> None:
+    def __init__(self, n: int, hs: Sequence[int], h_noise: int, w_temp: int, keep: int | None,
+                 means: bool = False) -> None:
         self.n = n
         self.head: list[np.ndarray] = []  # the first samples, until the offset is known
         self.n_head = 0
@@ -638,9 +850,16 @@ class _ChannelAcc:
         self.pos = 0  # offset-free samples processed
         self.prev: np.ndarray | None = None  # the last offset-free sample (for differences)
         self.qmin = math.inf
-        self.means = _Blocks(h0, n // h0 if h0 else 0)
-        self.noise = _Blocks(h_noise or 1, (n - 1) // h_noise if h_noise else 0)
-        self.temp = _Blocks(w_temp or 1, n // w_temp if w_temp else 0)
+        h0 = hs[0] if hs else 0
+        self.blocks = _Blocks(h0 or 1, n // h0 if h0 else 0)
+        self.cascade = _Cascade(len(hs), 0)
+        self.levels = [_Series(n // h - 3, keep) for h in hs]
+        self.means = _Series(n // h0, keep) if means and h0 else None
+        self.noise_blocks = _Blocks(h_noise or 1, (n - 1) // h_noise if h_noise else 0)
+        self.noise = _Series((n - 1) // h_noise - 1, keep) if h_noise else None
+        self.b_wait: list[np.ndarray] = []  # noise blocks before the quantum is known
+        self.b_last = _NONE  # the last noise block (levels pair adjacent blocks)
+        self.temp = _Blocks(w_temp or 1, n // w_temp if w_temp else 0, keep=True)
         self.timeline = _Timeline(n, _TIMELINE_BINS)
 
     def push(self, x: np.ndarray, t: np.ndarray) -> None:
@@ -655,6 +874,10 @@ class _ChannelAcc:
             self.offset = np.median(x[:_OFFSET_SAMPLES])
         self._centred(x - self.offset)
 
+    @property
+    def quantum(self) -> float:
+        return 0.0 if self.qmin == math.inf else self.qmin
+
     def _centred(self, xo: np.ndarray) -> None:
         if xo.size == 0:
             return
@@ -665,12 +888,27 @@ class _ChannelAcc:
             d = d[d > 0]
             if d.size:
                 self.qmin = min(self.qmin, float(d.min()))
-        self.means.push(xo)
-        if self.noise.out.size:
-            self.noise.push(np.diff(np.concatenate((prev, xo)) if prev else xo) ** 2 * 0.5)
+        B = self.blocks.push(xo)
+        if self.means is not None and B.size:
+            self.means.push(self.blocks.next - B.size, B)
+        for i, j0, d in self.cascade.push(B):
+            self.levels[i].push(j0, d)
+        if self.noise is not None:
+            b = self.noise_blocks.push(_half_sq_diff(xo, self.prev))
+            self.b_wait.append(b)
+            if self.pos + xo.size >= min(_QUANTUM_SAMPLES, self.n):  # the quantum is known
+                self._noise()
         self.temp.push(xo)
         self.prev = xo[-1]
         self.pos += xo.size
+
+    def _noise(self) -> None:
+        c = np.concatenate((self.b_last, *self.b_wait))
+        self.b_wait = []
+        if c.size >= 2:
+            assert self.noise is not None
+            self.noise.push(self.noise.pushed, _noise_levels(c, self.quantum))
+        self.b_last = c[-1:]
 
     def finish(self) -> _Summary:
         if self.offset is None:  # fewer samples than the offset needs were announced
@@ -680,8 +918,54 @@ class _ChannelAcc:
             self._centred(x - self.offset)
         if self.pos != self.n:
             raise InputError(f"{self.pos} samples pushed, {self.n} announced")
-        return _Summary(self.n, float(self.offset), 0.0 if self.qmin == math.inf else self.qmin,
-                        self.means.out, self.noise.out, self.temp.out, self.timeline.finish())
+        if self.noise is not None and self.b_wait:
+            self._noise()
+        return _Summary(self.n, float(self.offset), self.quantum, self.levels, self.noise,
+                        self.means, self.temp.out, self.timeline.finish())
+
+
+class _Rescan:
+    """The flagged statistics of one channel in the samples ``[a, ...)`` re-read from the source:
+    the window-mean differences of the window lengths ``scales`` (level -> :class:`_Scale`) and
+    the noise levels (``noise``), recomputed with the bits of the first read."""
+
+    def __init__(self, a: int, n: int, offset: float, quantum: float, hs: Sequence[int],
+                 h_noise: int, scales: Mapping[int, _Scale], noise: _Scale | None) -> None:
+        self.offset, self.quantum, self.scales, self.noise = offset, quantum, scales, noise
+        self.spans: list[_Span] = []
+        h0 = hs[0] if hs else 1
+        s0 = -(-a // h0)  # the first whole block
+        self.skip = s0 * h0 - a
+        self.blocks = _Blocks(h0, n // h0 if scales else 0, first=s0)
+        self.cascade = _Cascade(max(scales) + 1 if scales else 0, s0)
+        hn = h_noise or 1
+        t0 = -(-a // hn)
+        self.skip_n = t0 * hn - a
+        self.noise_blocks = _Blocks(hn, (n - 1) // hn if noise is not None else 0, first=t0)
+        self.prev: Any = None
+        self.b_last = _NONE
+
+    def push(self, x: np.ndarray) -> None:
+        xo = x - self.offset
+        xm = xo[self.skip:]
+        self.skip = max(0, self.skip - xo.size)
+        for i, j0, d in self.cascade.push(self.blocks.push(xm)):
+            if i in self.scales:
+                self.spans += _spans(self.scales[i], j0, d)
+        if self.noise is None:
+            return
+        xn = xo[self.skip_n:]
+        self.skip_n = max(0, self.skip_n - xo.size)
+        if not xn.size:
+            return
+        b = self.noise_blocks.push(_half_sq_diff(xn, self.prev))
+        self.prev = xn[-1]
+        c = np.concatenate((self.b_last, b)) if self.b_last.size else b
+        if c.size >= 2:
+            self.spans += _spans(self.noise, self.noise_blocks.next - c.size,
+                                 _noise_levels(c, self.quantum))
+        if c.size:
+            self.b_last = c[-1:]
 
 
 class _TemperatureAcc:
@@ -692,7 +976,7 @@ class _TemperatureAcc:
 
     def __init__(self, n: int, w: int) -> None:
         self.count, self.lo, self.hi = 0, math.inf, -math.inf
-        self.blocks = _Blocks(w or 1, n // w if w else 0)
+        self.blocks = _Blocks(w or 1, n // w if w else 0, keep=True)
         self.timeline = _Timeline(n, _TIMELINE_BINS)
         self.pos = 0
         self.gap = 0  # non-finite values pending before self.pos
@@ -791,8 +1075,8 @@ def _temperature_check(axes: Mapping[str, np.ndarray], temp: _TemperatureAcc, n:
 
 
 class StationarityStream:
-    """The stationarity check (``docs/METHODS.md`` §16) of a recording read in consecutive pieces,
-    in bounded memory: :meth:`push` its rows in order, then :meth:`finish`.
+    """The stationarity check (``docs/METHODS.md`` §16) of a recording read in consecutive pieces:
+    :meth:`push` its rows in order, then :meth:`finish`.
 
     ``names`` the channels of the rows, ``n`` their total number; ``freq``, ``units``, ``alpha``,
     ``norm`` as in :func:`check_stationarity`; ``temperature`` the name of a column of the rows
@@ -800,19 +1084,37 @@ class StationarityStream:
     ``temperature_source`` naming it in messages; ``where`` names the recording in messages.
     Times are ``i / freq``.
 
-    Each channel is reduced to its summary as it goes: the block means of the offset-free signal
-    over the base half-window h0 = max(8 samples, 0.1 s) / 2, of diff(x)^2 / 2 over half the
-    noise window, of the signal over n / 64 samples when there is a temperature, a 1500-bin
-    timeline, the offset and the quantum from the first samples: O(n / h0) values per channel
-    (8 / h0 bytes per sample), plus one piece. The report is that of :func:`check_stationarity`
-    on the whole recording, bit for bit, except the median |a| of the accelerometer-norm alert,
-    which is taken from the window means instead of the samples."""
+    Each channel is reduced as it goes to the statistics of its tests (the window-mean differences
+    per window length, from the block means over the base half-window h0 = max(8 samples, 0.1 s)
+    / 2; the log noise levels; the block means over n / 64 samples when there is a temperature;
+    a 1500-bin timeline; the offset and quantum from the first samples).
+
+    Without a ``source`` every statistic is kept: O(n / h0) values per channel (about 16 / h0
+    bytes per sample), and the report is that of :func:`check_stationarity` on the whole
+    recording, bit for bit, except the median |a| of the accelerometer-norm alert, which is taken
+    from the block means instead of the samples.
+
+    With a ``source`` (a :class:`gmwm.stream.Source` holding these rows, see :meth:`for_source`)
+    memory is independent of ``n``: a test with at most ``robust_sample`` statistics keeps them
+    all, as above; a longer one keeps every r-th (r = ceil(count / robust_sample)) for its median
+    and robust scale, and the extremes of at most 2048 blocks of consecutive statistics (at most
+    ``robust_sample`` blocks). After the
+    read, the blocks whose extremes pass the threshold are re-read from the source and their
+    statistics recomputed with the same bits (flagged ranges come out exactly, a static recording
+    is read once; one flagged everywhere is read twice). Per channel that is at most
+    ``robust_sample`` + 2 x 2048 values per test and window length (log2(n / (131 h0)) window
+    lengths: 19 for 2e8 samples at h0 = 4 samples, under 12 MB with the default), plus the pieces
+    being processed (:data:`_PIECE` rows) and the flagged ranges found. Thresholds and
+    counts are those of the in-memory check; the median and scale of a long test are those of its
+    subsample, so a statistic within about 1 / sqrt(robust_sample) (relative) of the threshold may
+    be flagged by one and not the other."""
 
     def __init__(self, names: Sequence[str], n: int, *, freq: float | None = None,
                  units: Mapping[str, str | None] | None = None, alpha: float = ALPHA,
                  norm: bool = True, temperature: str | bool | None = None,
                  temperature_source: str = "", time_s: np.ndarray | None = None,
-                 where: str = "signal") -> None:
+                 where: str = "signal", source: Any = None,
+                 robust_sample: int = ROBUST_SAMPLE) -> None:
         names = [str(c) for c in names]
         self.temp_col = None
         if isinstance(temperature, str):
@@ -825,10 +1127,14 @@ class StationarityStream:
             raise InputError("the stationarity check needs at least one channel")
         if not 0 < alpha < 1:
             raise InputError(f"alpha must lie in (0, 1), got {alpha}")
+        if robust_sample < MIN_DIFFS:
+            raise InputError(f"robust_sample must be at least {MIN_DIFFS}, got {robust_sample}")
         self.n, self.freq, self.alpha, self.where = int(n), freq, alpha, where
         self.n_src = len(names) + (self.temp_col is not None)
         self.time_s = time_s
         self.temperature_source = temperature_source
+        self.source = source
+        keep = None if source is None else int(robust_sample)
         units = dict(units or {})
         notes: list[str] = []
         sensors = {c: _si_factor(units.get(c)) for c in names}  # unknown/missing unit: no ceiling
@@ -858,10 +1164,10 @@ class StationarityStream:
         self.notes = notes
         half = self.w_noise // 2
         self.noise_tests = (n // half - 1) if n // half - 1 >= MIN_DIFFS else 0
+        self.h_noise = half if self.noise_tests and self.hs else 0
         w_temp = n // _TEMP_WINDOWS if temperature is not None and temperature is not False else 0
-        h0 = self.hs[0] if self.hs else 0
-        self.accs = [_ChannelAcc(n, h0, half if self.noise_tests else 0,
-                                 w_temp if c != NORM else 0) for c in chans]
+        self.accs = [_ChannelAcc(n, self.hs, self.h_noise, w_temp if c != NORM else 0, keep,
+                                 means=c == NORM) for c in chans]
         self.temp = None if temperature is None or temperature is False else \
             _TemperatureAcc(n, w_temp)
         self.pos = 0
@@ -869,56 +1175,112 @@ class StationarityStream:
     @classmethod
     def for_source(cls, source: Any, **kwargs: Any) -> StationarityStream:
         """The check of a :class:`gmwm.stream.Source` (its names, length, rate unless ``freq``
-        is given, and its name in messages); ``kwargs`` as the constructor."""
+        is given, and its name in messages) in memory independent of its length (flagged blocks
+        are re-read from it by :meth:`finish`, which must come before it is closed); ``kwargs``
+        as the constructor."""
         kwargs.setdefault("freq", source.freq)
         kwargs.setdefault("where", source.where)
-        return cls(source.names, source.n_samples, **kwargs)
+        return cls(source.names, source.n_samples, source=source, **kwargs)
 
-    def push(self, rows: Any) -> None:
-        """The next rows, shape ``(m, C)`` (1-D for one column), any numeric dtype, in order. A
-        NaN or inf in a tested channel is an :class:`InputError` naming the channel and
-        sample."""
+    def _columns(self, rows: Any, at: int, check: bool = True
+                 ) -> tuple[list[np.ndarray], np.ndarray | None]:
+        """The float64 columns of ``rows`` (first row ``at``) in the order of ``names`` and the
+        temperature column; ``check``: a NaN or inf in a tested channel is an error."""
         rows = np.asarray(rows)
         if rows.ndim == 1 and self.n_src == 1:
             rows = rows[:, None]
         if rows.ndim != 2 or rows.shape[1] != self.n_src:
             raise InputError(f"{self.where}: rows must be (m, {self.n_src}) arrays, got shape "
                              f"{rows.shape}")
-        if self.pos + rows.shape[0] > self.n:
-            raise InputError(f"{self.where}: more than the {self.n} samples announced")
         cols, temp = [], None
         for k in range(self.n_src):
             col = np.ascontiguousarray(rows[:, k], dtype=np.float64)
             if k == self.temp_col:
                 temp = col
                 continue
-            bad = ~np.isfinite(col)
-            if bad.any():
-                i = int(np.argmax(bad))
-                what = "NaN" if np.isnan(col[i]) else "infinite"
-                name = self.names[len(cols)]
-                raise InputError(f"channel '{name}' of {self.where} contains a {what} value at "
-                                 f"sample {self.pos + i}; clean or interpolate it first")
+            if check and not np.isfinite(col.sum()):  # one pass; the sum is finite iff all are
+                bad = ~np.isfinite(col)               # (or overflows: then look)
+                if bad.any():
+                    i = int(np.argmax(bad))
+                    what = "NaN" if np.isnan(col[i]) else "infinite"
+                    name = self.names[len(cols)]
+                    raise InputError(f"channel '{name}' of {self.where} contains a {what} value "
+                                     f"at sample {at + i}; clean or interpolate it first")
             cols.append(col)
+        return cols, temp
+
+    def push(self, rows: Any) -> None:
+        """The next rows, shape ``(m, C)`` (1-D for one column), any numeric dtype, in order. A
+        NaN or inf in a tested channel is an :class:`InputError` naming the channel and
+        sample."""
+        m = np.shape(rows)[0] if np.ndim(rows) else 0
+        if self.pos + m > self.n:
+            raise InputError(f"{self.where}: more than the {self.n} samples announced")
+        cols, temp = self._columns(rows, self.pos)
         self._push(cols, None, temp)
+
+    def _norm(self, cols: Sequence[np.ndarray]) -> np.ndarray:
+        assert self.norm_idx is not None
+        return np.sqrt(sum(cols[i] ** 2 for i in self.norm_idx))
 
     def _push(self, cols: list[np.ndarray], t: np.ndarray | None,
               temp: np.ndarray | None) -> None:
         """Float64 columns in the order of ``names`` (and the temperature), times ``t`` (s since
-        the first sample; None: ``i / freq``)."""
+        the first sample; None: ``i / freq``), in pieces of at most :data:`_PIECE` rows."""
         m = cols[0].size
-        if t is None:
-            t = np.arange(self.pos, self.pos + m) / (self.freq or 1.0)
-        if self.norm_idx is not None:
-            a = np.sqrt(sum(cols[i] ** 2 for i in self.norm_idx))
-            if self.pos == 0 and m == self.n:  # the whole recording: the median of its samples
-                self.norm_g = float(np.median(a))
-            cols = [*cols, a]
-        for acc, x in zip(self.accs, cols, strict=True):
-            acc.push(x, t)
-        if self.temp is not None and temp is not None:
-            self.temp.push(temp, t)
-        self.pos += m
+        a_all = None
+        if self.norm_idx is not None and self.pos == 0 and m == self.n:
+            a_all = self._norm(cols)  # the whole recording: the median of its samples
+            self.norm_g = float(np.median(a_all))
+        for i in range(0, m, _PIECE):
+            e = min(m, i + _PIECE)
+            piece = [c[i:e] for c in cols]
+            if self.norm_idx is not None:
+                piece.append(a_all[i:e] if a_all is not None else self._norm(piece))
+            if t is None:
+                tp = np.arange(self.pos, self.pos + e - i, dtype=np.float64)
+                tp /= self.freq or 1.0  # the bits of np.arange(n) / freq
+            else:
+                tp = t[i:e]
+            for acc, x in zip(self.accs, piece, strict=True):
+                acc.push(x, tp)
+            if self.temp is not None and temp is not None:
+                self.temp.push(temp[i:e], tp)
+            self.pos += e - i
+
+    def _rescan(self, sums: Mapping[str, _Summary],
+                todo: Mapping[str, tuple[dict[int, _Scale], _Scale | None, list[tuple[int, int]]]]
+                ) -> dict[str, list[_Span]]:
+        """The flagged spans of the blocks listed in ``todo`` (channel -> (scales of the levels
+        kept bounded, the noise scale, sample ranges to re-read)), re-read from the source: the
+        union of the ranges, in order, each read once for all channels."""
+        from gmwm.stream import iter_rows
+
+        ranges = sorted(r for _, _, rs in todo.values() for r in rs)
+        runs: list[list[int]] = []
+        for a, b in ranges:
+            if runs and a <= runs[-1][1]:
+                runs[-1][1] = max(runs[-1][1], b)
+            else:
+                runs.append([a, b])
+        chunk = _chunk_rows(self.source)
+        out: dict[str, list[_Span]] = {c: [] for c in todo}
+        for a, b in runs:
+            scans = {c: _Rescan(a, self.n, sums[c].offset, sums[c].quantum, self.hs,
+                                self.h_noise, sc, nz)
+                     for c, (sc, nz, rs) in todo.items() if any(r0 < b and r1 > a for r0, r1 in rs)}
+            for t_a, rows in iter_rows(self.source, chunk, a, b):
+                cols, _ = self._columns(rows, t_a, check=False)
+                for i in range(0, cols[0].size, _PIECE):
+                    piece = [c[i:i + _PIECE] for c in cols]
+                    if self.norm_idx is not None:
+                        piece.append(self._norm(piece))
+                    for c, x in zip(self.chans, piece, strict=True):
+                        if c in scans:
+                            scans[c].push(x)
+            for c, s in scans.items():
+                out[c] += s.spans
+        return out
 
     def finish(self) -> StationarityReport:
         """The report of the recording pushed (all ``n`` samples)."""
@@ -931,9 +1293,10 @@ class StationarityStream:
         notes, alerts = list(self.notes), []
         if self.norm_idx is not None:
             g = self.norm_g
-            if g is None:  # pieces: the median of the window means (the samples when few)
+            if g is None:  # pieces: the median of the block means (the samples when few)
                 sm = sums[NORM]
-                g = float(np.median(sm.means + sm.offset if sm.means.size else sm.timeline[1]))
+                bm = sm.means.vals if sm.means is not None else _NONE
+                g = float(np.median(bm + sm.offset if bm.size else sm.timeline[1]))
             g *= self.sensors[NORM][1]
             if not 8.8 <= g <= 10.8:
                 alerts.append(f"the median accelerometer norm is {g:.4g} m/s^2, not 1 g (9.81 "
@@ -942,27 +1305,42 @@ class StationarityStream:
         per_channel = sum(n // h - 3 for h in hs)
         n_tests = len(self.chans) * (per_channel + self.noise_tests)
         z0 = _z_quantile(alpha / (2.0 * n_tests)) if n_tests else float("inf")
-        flags: list[Flag] = []
+        spans: dict[str, dict[str, list[_Span]]] = {}
         peaks: list[tuple] = []
+        todo = {}
         if hs:
             for c, sm in sums.items():
                 sensor, si = self.sensors[c]
-                hits, pk = _channel_hits(sm, hs, self.w_noise if self.noise_tests else 0, z0,
-                                         freq, sensor, si)
-                peaks += [(c, *p) for p in pk]
-                for test, hh in hits.items():
-                    if not hh.i0:
-                        continue
-                    i0 = np.minimum(np.asarray(hh.i0), n)
-                    i1 = np.minimum(np.asarray(hh.i1), n)
-                    for a, b, members in _merge(i0, i1):
-                        ratio = np.asarray(hh.stat)[members] / np.asarray(hh.thr)[members]
-                        j = int(members[int(np.argmax(ratio))])
-                        size = float(np.max(np.asarray(hh.size)[members]))
-                        flags.append(Flag(c, test, a, b, float(t[a]), _end_time(t, b, freq),
-                                          float(t[min(hh.peak[j], n - 1)]),
-                                          hh.window[j] / (freq or 1.0), float(hh.stat[j]),
-                                          float(hh.thr[j]), size))
+                spans[c] = {"mean": [], "ceiling": [], "noise": []}
+                bounded: dict[int, _Scale] = {}
+                noise_sc, ranges = None, []
+                for i, sc, series in _scales(sm, hs, self.w_noise, z0, freq, sensor, si):
+                    zmax, blocks = series.blocks(sc)
+                    peaks.append((c, sc.test, sc.window, sc.count, zmax, sc.thr))
+                    if series.whole:
+                        spans[c][sc.test] += _spans(sc, 0, series.vals)
+                    elif blocks:
+                        if sc.test == "noise":
+                            noise_sc = sc
+                        else:
+                            bounded[i] = sc
+                        ranges += [sc.region(j0, j1, n) for j0, j1 in blocks]
+                if ranges:
+                    todo[c] = (bounded, noise_sc, ranges)
+        if todo:
+            if self.source is None:
+                raise RuntimeError("bounded summaries without a source")  # a bug
+            for c, found in self._rescan(sums, todo).items():
+                for s in found:
+                    spans[c][s.test].append(s)
+        flags: list[Flag] = []
+        for c, by_test in spans.items():
+            for test, ss in by_test.items():
+                for a, b, best, size in _merge(ss):
+                    a, b = min(a, n), min(b, n)
+                    flags.append(Flag(c, test, a, b, float(t[a]), _end_time(t, b, freq),
+                                      float(t[min(best.peak, n - 1)]),
+                                      best.window / (freq or 1.0), best.stat, best.thr, size))
         flags.sort(key=lambda f: (f.i0, f.channel, f.test))
         segments = _segments(flags, t, freq, self.chans)
         temp_check = None
@@ -986,6 +1364,7 @@ class StationarityStream:
             alpha=alpha, n_tests=n_tests, threshold=z0, flags=tuple(flags), segments=segments,
             peaks=tuple(peaks), temperature=temp_check, notes=tuple(notes), alerts=tuple(alerts),
             timeline=timeline, temperature_timeline=temp_line, time_s=self.time_s)
+
 
 
 def check_stationarity(data: Any, *, freq: float | None = None, time_s: Any = None,
@@ -1044,27 +1423,36 @@ def check_stationarity_stream(source: Any, *, freq: float | None = None,
                               units: Mapping[str, str | None] | None = None,
                               alpha: float = ALPHA, norm: bool = True,
                               temperature: str | None = None, temperature_source: str = "",
-                              memory: int | None = None, chunk: int | None = None
-                              ) -> StationarityReport:
+                              memory: int | None = None, chunk: int | None = None,
+                              robust_sample: int = ROBUST_SAMPLE) -> StationarityReport:
     """:func:`check_stationarity` of a :class:`gmwm.stream.Source` (a file larger than memory)
-    read once in chunks: the same report (see :class:`StationarityStream`). ``freq`` defaults
-    to the source's rate (None: windows in samples); ``temperature`` names a column of deg C;
-    ``chunk`` rows per read (default: from ``memory``, bytes, default
-    :data:`gmwm.stream.DEFAULT_MEMORY`). To check while the WV is computed, in the same read:
-    ``check = StationarityStream.for_source(src, units=...)``,
+    read in chunks, in memory independent of its length (:class:`StationarityStream` with a
+    source: read once, plus the blocks that hold flagged statistics). ``freq`` defaults to the
+    source's rate (None: windows in samples); ``temperature`` names a column of deg C; ``chunk``
+    rows per read (default: from ``memory``, bytes, default :data:`gmwm.stream.DEFAULT_MEMORY`);
+    ``robust_sample`` as :class:`StationarityStream`. To check while the WV is computed, in the
+    same read: ``check = StationarityStream.for_source(src, units=...)``,
     ``wvar_stream(src, observe=check.push)``, ``check.finish()``."""
-    from gmwm.stream import DEFAULT_MEMORY, iter_rows
+    from gmwm.stream import iter_rows
 
     check = StationarityStream.for_source(
         source, **({} if freq is None else {"freq": freq}), units=units, alpha=alpha, norm=norm,
-        temperature=temperature, temperature_source=temperature_source)
-    if chunk is None:
-        C = len(source.names)
-        per_row = 2 * C * max(int(getattr(source, "itemsize", 8)), 1) + 32 * (C + 1)
-        chunk = max(_OFFSET_SAMPLES, int(memory or DEFAULT_MEMORY) // per_row)
-    for _, rows in iter_rows(source, int(chunk)):
+        temperature=temperature, temperature_source=temperature_source,
+        robust_sample=robust_sample)
+    for _, rows in iter_rows(source, int(chunk or _chunk_rows(source, memory))):
         check.push(rows)
     return check.finish()
+
+
+def _chunk_rows(source: Any, memory: int | None = None) -> int:
+    """Rows per read of ``source``: a quarter of ``memory`` (default
+    :data:`gmwm.stream.DEFAULT_MEMORY`) over the chunk read, the one read ahead and its float64
+    columns; rows are then processed in pieces of :data:`_PIECE`."""
+    from gmwm.stream import DEFAULT_MEMORY
+
+    C = len(source.names)
+    per_row = 2 * C * max(int(getattr(source, "itemsize", 8)), 1) + 8 * C
+    return max(_PIECE, int(memory or DEFAULT_MEMORY) // (4 * per_row))
 
 
 def _end_time(t: Any, i1: int, freq: float | None) -> float:
@@ -1078,7 +1466,7 @@ def _segments(flags: Sequence[Flag], t: Any, freq: float | None, order: Sequence
     i0 = np.array([f.i0 for f in flags])
     i1 = np.array([f.i1 for f in flags])
     out = []
-    for a, b, members in _merge(i0, i1):
+    for a, b, members in _union(i0, i1):
         fl = [flags[int(j)] for j in members]
         chans = tuple(c for c in order if any(f.channel == c for f in fl))
         tests = tuple(sorted({f.test for f in fl}))
