@@ -186,8 +186,8 @@ def test_ulog_streams_have_no_rostopic(tmp_path):
     assert (tmp_path / "r" / "sensor_gyro_1" / "imu.yaml").is_file()
 
 
-def test_prepare_imu_longest_static_avoids_the_flagged_range(tmp_path):
-    from gmwm.calibrate import prepare_imu
+def test_prepare_longest_static_avoids_the_flagged_range(tmp_path):
+    from gmwm.calibrate import prepare
     from gmwm.stationarity import NonStationaryError
 
     g, _ = _simulate(200.0, 1e-3, 2e-2, 7)
@@ -195,13 +195,13 @@ def test_prepare_imu_longest_static_avoids_the_flagged_range(tmp_path):
     x[int(0.7 * N):int(0.72 * N)] += 0.5  # a short bump at 70 %: the static start is longest
     np.savez(tmp_path / "b.npz", t_s=np.arange(N) / 200.0, gx=x)
     rec = read_recording(tmp_path / "b.npz", units="rad/s")
-    prep = prepare_imu(rec, segment="longest-static")
-    st = prep["stationarity"]
+    prep = prepare(rec, segment="longest-static")
+    st = prep.stationarity
     a, b = st.used
     assert st.segments and all(s.i1 <= a or s.i0 >= b for s in st.segments)
-    assert a == 0 and b - a > N // 2 and prep["recording"].n == b - a
+    assert a == 0 and b - a > N // 2 and prep.recording.n == b - a
     with pytest.raises(NonStationaryError, match="not static in the part used"):
-        prepare_imu(rec, strict=True)
+        prepare(rec, strict=True)
 
 
 def test_cli_report_topic_all_and_repeated_topics(two_imu_bags, tmp_path, capsys):

@@ -40,7 +40,7 @@ def test_warm_server_forks_warm_workers_and_is_reaped(two_cores):
     assert calibrate.start_warm_server()
     pid = forkserver._forkserver._forkserver_pid
     try:
-        with calibrate._executor("process", 2, warm=True) as pool:
+        with calibrate.executor("process", 2, warm=True) as pool:
             got = list(pool.map(_probe, range(4)))
     finally:
         calibrate.stop_warm_server()
