@@ -714,6 +714,7 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
     for topic, item in inputs.items():
         if isinstance(item, BaseException):
             failed[topic] = item
+            tell(topic, f"warning: not calibrated: {_reason(item)}")
             continue
         if isinstance(item, Prepared):
             prepared[topic] = item
