@@ -631,7 +631,8 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
               end_s: float | None = None, segment: str = "all", strict: bool = False,
               fit: Mapping[str, Any] | None = None, sheet: Any = None, check: bool = False,
               readings: bool = False, draw: Callable[..., Sequence[Any]] | None = None,
-              workers: int | None = None, require_time: str | None = "a calibration report",
+              workers: int | None = None, worker_kind: str = "process",
+              require_time: str | None = "a calibration report",
               name: str | None = None, progress: Callable[[str], None] | None = None,
               while_waiting: Callable[[Mapping[str, Prepared]], None] | None = None
               ) -> CalibrationResult:
@@ -652,7 +653,8 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
     ``readings``: the IEEE 952 readings computed beside each fit (a report needs them).
 
     Work: the automatic choices run in worker processes (:func:`executor`, at most ``workers``,
-    default :func:`available_cores`), the given models too when there are several topics; a
+    default :func:`available_cores`; ``worker_kind="thread"``: threads instead, for a
+    comparison), the given models too when there are several topics; a
     worker also computes its axis's datasheet and, with ``draw`` (a picklable
     ``draw(topic, axis, result, unit) -> files``, e.g. :class:`gmwm.report.FigureDrawer`), its
     figure. ``while_waiting(prepared)`` runs in this process while the workers fit.
@@ -759,7 +761,8 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
     if sheet is not None:
         _check_sheet(sheet, prepared, tell)
     # -- the fits: automatic choices in worker processes, given models too for several topics
-    results = _run_jobs(jobs, several=len(prepared) > 1, workers=workers, progress=say,
+    results = _run_jobs(jobs, several=len(prepared) > 1, workers=workers, kind=worker_kind,
+                        progress=say,
                         prepared=prepared, while_waiting=while_waiting)
     # -- per topic: the axes, their datasheets, verdicts and checks
     out: dict[str, TopicCalibration] = {}
@@ -820,7 +823,7 @@ def _check_sheet(sheet: Any, prepared: Mapping[str, Prepared],
                          f"describes ({', '.join(sheet.sensors)})")
 
 
-def _run_jobs(jobs: Sequence[_Job], *, several: bool, workers: int | None,
+def _run_jobs(jobs: Sequence[_Job], *, several: bool, workers: int | None, kind: str,
               progress: Callable[[str], None], prepared: Mapping[str, Prepared],
               while_waiting: Callable[[Mapping[str, Prepared]], None] | None
               ) -> dict[tuple[str, str], Any]:
@@ -834,8 +837,9 @@ def _run_jobs(jobs: Sequence[_Job], *, several: bool, workers: int | None,
         pooled = []
     out: dict[tuple[str, str], Any] = {}
     if pooled:
-        progress(f"fitting {len(pooled)} axes in {n} parallel processes")
-        with executor("process", n, warm=True) as pool:
+        progress(f"fitting {len(pooled)} axes in {n} parallel "
+                 + ("processes" if kind == "process" else "threads"))
+        with executor(kind, n, warm=True) as pool:
             futures: dict[tuple[str, str], Any] = {}
 
             def submit() -> None:
@@ -909,7 +913,7 @@ def calibrate_imus(recordings: Mapping[str, Any], model: str | Mapping[str, str]
                    fit_options: Mapping[str, Any] | None = None, **kw: Any
                    ) -> dict[str, TopicCalibration]:
     """The calibrated topics of :func:`calibrate` for ``recordings`` (topic -> Recording), for
-    :func:`gmwm.report.write_multi_report` (kept for existing scripts; ``executor`` is ignored:
-    the fits run in processes)."""
-    kw.pop("executor", None)
-    return calibrate(dict(recordings), model, fit=fit_options, **kw).calibrated
+    :func:`gmwm.report.write_multi_report` (kept for existing scripts; ``executor``:
+    ``"process"`` or ``"thread"``)."""
+    kind = kw.pop("executor", "process")
+    return calibrate(dict(recordings), model, fit=fit_options, worker_kind=kind, **kw).calibrated
