@@ -33,8 +33,8 @@ from gmwm.errors import GMWMError, InputError
 
 __all__ = ["AUTO", "MIN_STATIC_SAMPLES", "AxisCalibration", "CalibrationResult", "Prepared",
            "TopicCalibration", "available_cores", "calibrate", "calibrate_imus", "choose_part",
-           "executor", "models_for", "prepare", "start_warm_server", "stop_warm_server",
-           "units_for", "warm_server_running"]
+           "executor", "models_for", "part_messages", "preload", "prepare", "start_warm_server",
+           "stop_warm_server", "units_for", "warm_server_running"]
 
 #: the model string asking for the automatic choice (:func:`gmwm.automodel.choose_model`)
 AUTO = "auto"
@@ -656,8 +656,8 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
     default :func:`available_cores`; ``worker_kind="thread"``: threads instead, for a
     comparison), the given models too when there are several topics; a
     worker also computes its axis's datasheet and, with ``draw`` (a picklable
-    ``draw(topic, axis, result, unit) -> files``, e.g. :class:`gmwm.report.FigureDrawer`), its
-    figure. ``while_waiting(prepared)`` runs in this process while the workers fit.
+    ``draw(topic, axis, result, unit) -> files``, e.g. :class:`gmwm.report.FigureDrawer`; one
+    with a ``bind(topics)`` method is bound to the topics read first), its figure. ``while_waiting(prepared)`` runs in this process while the workers fit.
     ``progress``: called with one line per step; lines starting with ``warning: `` or ``note: ``
     are for the user (prefixed by the topic when there are several).
 
@@ -701,6 +701,8 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
     else:
         raise InputError(f"cannot calibrate a {type(source).__name__}: give a file, a "
                          "Recording, a Prepared input or a mapping topic -> Recording")
+    if draw is not None and hasattr(draw, "bind"):  # e.g. figure names that depend on the topics
+        draw = draw.bind(list(inputs))
     multi_units = isinstance(units, Mapping) and units and all(
         isinstance(v, Mapping) for v in units.values())
 

@@ -628,6 +628,10 @@ class FigureDrawer:
     outdir: str
     prefixes: Mapping[str, str] = dataclasses.field(default_factory=dict)
 
+    def bind(self, topics: Sequence[str]) -> FigureDrawer:
+        """This drawer with the figure-name prefixes of a page over ``topics``."""
+        return dataclasses.replace(self, prefixes=figure_prefixes(topics))
+
     def __call__(self, topic: str, name: str, result: Any, units: str) -> list[Path]:
         path = wv_figure_path(self.outdir, name, self.prefixes.get(topic, ""))
         return draw_wv_figure(path, name, result, units)

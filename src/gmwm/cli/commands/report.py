@@ -22,8 +22,8 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     one = not getattr(args, "topics", None)
     drawn: list[Any] = []  # the stationarity timeline, drawn while the axes are fitted
     # without a datasheet verdict to draw on them, the WV figures (and the datasheet
-    # coefficients) of one IMU come from the workers that choose the models
-    in_workers = one and not getattr(args, "datasheet", None)
+    # coefficients) come from the workers that fit the axes
+    in_workers = not getattr(args, "datasheet", None)
 
     def while_waiting(prepared: Any) -> None:
         if one:
