@@ -65,13 +65,6 @@ def fit_options(args: argparse.Namespace) -> dict[str, Any]:
     return options
 
 
-def fit_settings(args: argparse.Namespace) -> Any:
-    """The :class:`gmwm.settings.FitSettings` of the command line."""
-    from gmwm.settings import FitSettings
-
-    return FitSettings.of(**fit_options(args))
-
-
 def calibrate_input(args: argparse.Namespace, err: TextIO, *, require_time: str | None,
                     readings: bool = False, draw: Any = None,
                     while_waiting: Callable[[Any], None] | None = None) -> Any:
