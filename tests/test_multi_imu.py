@@ -186,8 +186,8 @@ def test_ulog_streams_have_no_rostopic(tmp_path):
     assert (tmp_path / "r" / "sensor_gyro_1" / "imu.yaml").is_file()
 
 
-def test_prepare_imu_longest_static_avoids_the_flagged_range(tmp_path):
-    from gmwm.calibrate import prepare_imu
+def test_prepare_longest_static_avoids_the_flagged_range(tmp_path):
+    from gmwm.calibrate import prepare
     from gmwm.stationarity import NonStationaryError
 
     g, _ = _simulate(200.0, 1e-3, 2e-2, 7)
@@ -195,13 +195,13 @@ def test_prepare_imu_longest_static_avoids_the_flagged_range(tmp_path):
     x[int(0.7 * N):int(0.72 * N)] += 0.5  # a short bump at 70 %: the static start is longest
     np.savez(tmp_path / "b.npz", t_s=np.arange(N) / 200.0, gx=x)
     rec = read_recording(tmp_path / "b.npz", units="rad/s")
-    prep = prepare_imu(rec, segment="longest-static")
-    st = prep["stationarity"]
+    prep = prepare(rec, segment="longest-static")
+    st = prep.stationarity
     a, b = st.used
     assert st.segments and all(s.i1 <= a or s.i0 >= b for s in st.segments)
-    assert a == 0 and b - a > N // 2 and prep["recording"].n == b - a
+    assert a == 0 and b - a > N // 2 and prep.recording.n == b - a
     with pytest.raises(NonStationaryError, match="not static in the part used"):
-        prepare_imu(rec, strict=True)
+        prepare(rec, strict=True)
 
 
 def test_cli_report_topic_all_and_repeated_topics(two_imu_bags, tmp_path, capsys):
@@ -241,3 +241,99 @@ def test_cli_report_topic_all_and_repeated_topics(two_imu_bags, tmp_path, capsys
                  str(tmp_path / "r3")]) == 2
     err = capsys.readouterr().err
     assert "gmwm report" in err and "give it alone" in err
+
+
+# -- one calibration path: one topic alone or among all, and topics that fail ----------------------
+def _values(path: Path) -> dict:
+    """The configuration values of an imu.yaml (its comment header names the source)."""
+    return yaml.safe_load(path.read_text())
+
+
+def test_one_topic_alone_or_in_topic_all_gives_identical_results(two_imu_bags, tmp_path, capsys):
+    from gmwm.calibrate import calibrate
+    from gmwm.cli import main
+
+    bag = two_imu_bags["ros1"]
+    cols = ["gx", "ax"]  # one gyroscope and one accelerometer axis keep it short
+    alone = calibrate(bag, "WN+RW", topics="/imu1/data", columns=cols, fit={"seed": 1},
+                      workers=1)
+    every = calibrate(bag, "WN+RW", topics="all", columns=cols, fit={"seed": 1}, workers=2)
+    assert not alone.several and every.several and list(every.topics) == list(TRUTH)
+    one, same = alone.only(), every.topics["/imu1/data"]
+    assert one.ok and same.ok and one.freq == same.freq == 100.0
+    assert one.rostopic == same.rostopic == "/imu1/data"
+    for c, a in one.axes.items():
+        np.testing.assert_array_equal(a.result.params, same.axes[c].result.params)
+        assert a.datasheet == same.axes[c].datasheet
+    # the command line: the same configuration values through gmwm report, one topic or all
+    for args, out in ((["--topic", "/imu1/data"], "c1"), (["--topic", "all"], "c2")):
+        assert main(["report", str(bag), "WN+RW", *args, "--columns", "gx,ax", "-o",
+                     str(tmp_path / out), "-q"]) == 0
+    capsys.readouterr()
+    vals = _values(tmp_path / "c1" / "imu.yaml")
+    assert vals == _values(tmp_path / "c2" / "imu1_data" / "imu.yaml")
+    assert vals["update_rate"] == 100.0 and vals["rostopic"] == "/imu1/data"
+    assert vals["accelerometer_noise_density"] == pytest.approx(TRUTH["/imu1/data"][2], rel=0.1)
+
+
+@pytest.fixture(scope="module")
+def broken_bag(tmp_path_factory):
+    """Three IMU topics: /imu0/data fine, /imu1/data with a repeated stamp (different values),
+    /imu2/data too short for a fit."""
+    g, a = _simulate(200.0, 1e-3, 2e-2, 8)
+    st = T0 + np.arange(N, dtype=np.int64) * 5_000_000
+    bad = st.copy()
+    bad[100] = bad[99]
+    return write_bag(tmp_path_factory.mktemp("broken") / "broken.bag", "ros1", {
+        "/imu0/data": (st, g, a, "imu0"), "/imu1/data": (bad, g, a, "imu1"),
+        "/imu2/data": (st[:3], g[:3], a[:3], "imu2")})
+
+
+def test_a_broken_topic_does_not_stop_the_others(broken_bag):
+    from gmwm.calibrate import calibrate
+
+    res = calibrate(broken_bag, "WN+RW", topics="all", fit={"seed": 1}, workers=2)
+    assert list(res.topics) == ["/imu0/data", "/imu1/data", "/imu2/data"]
+    assert list(res.calibrated) == ["/imu0/data"]
+    assert set(res.failed) == {"/imu1/data", "/imu2/data"}
+    assert "not strictly increasing" in res.failed["/imu1/data"]
+    assert all("\n" not in r for r in res.failed.values())
+    assert res.to_json_dict()["topics"]["/imu1/data"]["status"] == "failed"
+    alone = calibrate(broken_bag, "WN+RW", topics="/imu0/data", fit={"seed": 1}, workers=1)
+    for c, a in alone.only().axes.items():
+        np.testing.assert_array_equal(a.result.params,
+                                      res.topics["/imu0/data"].axes[c].result.params)
+    with pytest.raises(InputError, match="not strictly increasing"):  # alone: its own error
+        calibrate(broken_bag, "WN+RW", topics="/imu1/data")
+
+
+def test_cli_topic_all_lists_failed_topics_with_exit_status_4(broken_bag, tmp_path, capsys):
+    import json
+
+    from gmwm.cli import main
+
+    out = tmp_path / "rep"
+    code = main(["report", str(broken_bag), "WN+RW", "--topic", "all", "--columns", "gx,az",
+                 "-o", str(out), "-q", "--json"])
+    cap = capsys.readouterr()
+    assert code == 4, cap.err
+    obj = json.loads(cap.out)
+    assert list(obj["imus"]) == ["/imu0/data"]
+    assert set(obj["failed"]) == {"/imu1/data", "/imu2/data"}
+    assert "gmwm: warning: /imu1/data: not calibrated: header.stamp" in cap.err
+    assert "2 of 3 topics not calibrated (/imu1/data, /imu2/data)" in cap.err
+    assert "Traceback" not in cap.err
+    md = (out / "report.md").read_text()
+    assert "## IMU /imu1/data" in md and "Not calibrated: header.stamp" in md
+    assert "| /imu2/data | FAILED: " in md
+    assert (out / "imu0_data" / "imu.yaml").is_file()
+    assert not (out / "imu1_data").exists() and not (out / "imu2_data").exists()
+    # one broken topic asked for alone: the one-line error, exit status 1
+    assert main(["report", str(broken_bag), "--topic", "/imu1/data", "-o",
+                 str(tmp_path / "r1")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("gmwm: error: header.stamp") and err.count("\n") == 1
+    # the exit status is documented
+    assert main(["report", "--help"]) == 0
+    assert "4  (report, several topics) some topics could not be calibrated" in \
+        capsys.readouterr().out

@@ -40,7 +40,7 @@ def test_warm_server_forks_warm_workers_and_is_reaped(two_cores):
     assert calibrate.start_warm_server()
     pid = forkserver._forkserver._forkserver_pid
     try:
-        with calibrate._executor("process", 2, warm=True) as pool:
+        with calibrate.executor("process", 2, warm=True) as pool:
             got = list(pool.map(_probe, range(4)))
     finally:
         calibrate.stop_warm_server()
@@ -163,3 +163,24 @@ def test_bad_input_stops_the_warm_server(two_cores, tmp_path, capsys):
     capsys.readouterr()
     assert not calibrate.warm_server_running()
     assert getattr(forkserver._forkserver, "_forkserver_pid", None) is None
+
+
+def test_calibrate_and_report_import_no_cycle_and_no_private_names():
+    # report renders what calibrate returns: calibrate must not import report, not even inside a
+    # function, and neither (nor the CLI) imports another module's _private name
+    import ast
+    from pathlib import Path
+
+    import gmwm
+
+    src = Path(gmwm.__file__).parent
+    files = [src / "calibrate.py", src / "report.py", *sorted((src / "cli").rglob("*.py"))]
+    for f in files:
+        for node in ast.walk(ast.parse(f.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("gmwm"):
+                assert not (f.name == "calibrate.py" and node.module == "gmwm.report"), f
+                assert all(not a.name.startswith("_") or a.name.startswith("__")
+                           for a in node.names), (f, node.lineno)
+            if isinstance(node, ast.Import):
+                assert not (f.name == "calibrate.py"
+                            and any(a.name == "gmwm.report" for a in node.names)), f

@@ -1,32 +1,45 @@
-"""Calibrate the IMUs of a recording: for each stream the stationarity check, the gap policy, a
-GMWM fit per axis and the datasheet coefficients, ready for :func:`gmwm.report.write_report` or
-:func:`gmwm.report.write_multi_report`.
+"""One path from a recording to its calibration: :func:`calibrate` reads the recordings (one
+topic or many), checks each one's stationarity, applies the part and the gap policy, fits every
+axis (a given model or the automatic choice) and returns a :class:`CalibrationResult`: per topic
+the fits, the datasheet coefficients, the warnings and what the report and the configuration
+files need (:func:`gmwm.report.write_calibration` writes them). A topic that fails (unreadable,
+broken stamps, too short) is kept with its one-line reason while the others are calibrated.
 
-The fits of several IMUs are independent, so :func:`calibrate_imus` runs the (IMU, axis) fits
-concurrently, at most one per core this process may use (``os.sched_getaffinity``). Threads by
-default: a fit spends most of its time in code that releases the GIL (numba ``nogil`` kernels,
-LAPACK, the C WV kernel), so threads overlap about as well as worker processes without their
-start-up and the copying of each signal (``benchmarks/bench_multi_imu.py`` measures serial,
-threads and processes). Each fit is deterministic for a given ``seed``, so the results do not
-depend on the number of workers or their kind.
+The fits are independent, so they run concurrently, at most one per core this process may use
+(``os.sched_getaffinity``): worker processes for the automatic choices (mostly Python, which
+threads would serialise), forked warm from a server that loads the fitting stack while this
+process reads the input (:func:`start_warm_server`). Each fit is deterministic for a given
+``seed``, so the results do not depend on the number of workers or their kind, nor on whether a
+topic was calibrated alone or with others.
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import multiprocessing
 import os
 import signal
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from gmwm.errors import InputError
+from gmwm.errors import GMWMError, InputError
 
-__all__ = ["available_cores", "calibrate_imus", "prepare_imu"]
+__all__ = ["AUTO", "MIN_STATIC_SAMPLES", "AxisCalibration", "CalibrationResult", "Prepared",
+           "TopicCalibration", "available_cores", "calibrate", "calibrate_imus", "choose_part",
+           "executor", "models_for", "part_messages", "preload", "prepare", "start_warm_server",
+           "stop_warm_server", "units_for", "warm_server_running"]
+
+#: the model string asking for the automatic choice (:func:`gmwm.automodel.choose_model`)
+AUTO = "auto"
+#: the shortest static stretch ``segment="longest-static"`` accepts [samples]
+MIN_STATIC_SAMPLES = 64
 
 
 def available_cores() -> int:
@@ -37,120 +50,332 @@ def available_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _rostopic(rec: Any) -> str | None:
-    """The ROS topic a filter subscribes to, for a bag recording (a ULog stream has none)."""
-    return rec.topic if rec.topic and rec.format.startswith("ros") else None
+def _is_auto(spec: str) -> bool:
+    return spec.strip().lower() == AUTO
 
 
-def prepare_imu(rec: Any, *, units: Mapping[str, str | None] | None = None,
-                levels: int | None = None, gaps: str = "auto", start_s: float | None = None,
-                end_s: float | None = None, segment: str = "all", strict: bool = False
-                ) -> dict[str, Any]:
-    """The stationarity check, the part used and the fit inputs of one recording.
+# -- per-channel settings -------------------------------------------------------------------------
+def models_for(spec: str | Mapping[str, str], columns: Sequence[str]) -> dict[str, str]:
+    """Channel -> model string: one model for every channel (``"WN+RW"``, ``"auto"``), a mapping,
+    or ``"gx=WN+RW,ax=QN+WN+RW[,DEFAULT]"`` pairs (a bare item is the default of the others)."""
+    if not isinstance(spec, str):
+        missing = [c for c in columns if c not in spec]
+        if missing:
+            raise InputError(f"no model for column(s) {', '.join(missing)}")
+        return {c: spec[c] for c in columns}
+    if "=" not in spec:
+        return dict.fromkeys(columns, spec)
+    default = None
+    pairs = {}
+    for item in (t.strip() for t in spec.split(",")):
+        if not item:
+            continue
+        if "=" in item:
+            col, model = (t.strip() for t in item.split("=", 1))
+            pairs[col] = model
+        else:
+            default = item
+    unknown = [c for c in pairs if c not in columns]
+    if unknown:
+        raise InputError(f"model given for column(s) {', '.join(unknown)}, not among the columns "
+                         f"used ({', '.join(columns)}); select them with --columns")
+    missing = [c for c in columns if c not in pairs and default is None]
+    if missing:
+        raise InputError(f"no model for column(s) {', '.join(missing)}: add COL=MODEL pairs or a "
+                         "bare default model")
+    return {c: pairs.get(c, default) for c in columns}
 
-    ``units``: channel -> signal unit replacing the recording's (e.g. for a Vector3Stamped
-    topic); ``levels``: number of WV scales (None: all); ``gaps``: the gap policy
-    (:meth:`gmwm.readers.recording.Recording.gaps`); ``start_s``/``end_s``: the part to use,
-    seconds since the first sample; ``segment``: ``"all"`` or ``"longest-static"`` (the longest
-    stretch of that part no flagged range touches); ``strict``: a used part that moved is a
-    :class:`gmwm.stationarity.NonStationaryError`. Returns ``recording`` (the part used),
-    ``stationarity``, ``gaps`` (the decision), ``data`` channel -> fit input (signal or pooled
-    WV), ``units``, ``freq``, ``timing`` (report lines) and ``notes`` (warnings to show)."""
-    from gmwm.readers.recording import sample_range, select_samples
-    from gmwm.readers.timebase import signal_for_wv
-    from gmwm.stationarity import NonStationaryError, check_stationarity
 
-    where = rec.path + (f" topic {rec.topic}" if rec.topic else "")
-    tb = rec.require_time(f"a calibration report of {where}")
-    u = {c: (units or {}).get(c, rec.units.get(c)) for c in rec.channels}
-    st = check_stationarity(rec, units=u)
-    i0, i1 = (0, rec.n) if start_s is None and end_s is None else \
-        sample_range(rec, start_s, end_s)
-    how = "the whole recording" if (i0, i1) == (0, rec.n) else "--start/--end"
+def units_for(given: str | Sequence[str] | Mapping[str, str | None] | None,
+              columns: Sequence[str], file_units: Mapping[str, str | None], where: str = "the file"
+              ) -> dict[str, str]:
+    """Channel -> signal unit ('' unknown): the unit ``given`` (one unit for every channel, a
+    mapping, or ``"UNIT"`` / ``"C1,C2=UNIT"`` items), else the unit the file defines (bags, ULog,
+    EuRoC headers). An unknown unit is an error listing the known ones; one contradicting the
+    file's is an error naming ``where``."""
+    from gmwm.units import parse_unit
+
+    if given is None:
+        chosen: dict[str, str | None] = {}
+    elif isinstance(given, Mapping):
+        chosen = dict(given)
+    else:
+        chosen = _by_column([given] if isinstance(given, str) else list(given), columns,
+                            "--units")
+    out = {}
+    for c in columns:
+        file_unit = file_units.get(c)
+        u = chosen.get(c)
+        if u:
+            pu = parse_unit(u)
+            if file_unit and pu != parse_unit(file_unit):
+                raise InputError(f"--units {u} for {c} contradicts {where}, which says "
+                                 f"{file_unit}")
+        out[c] = u or file_unit or ""
+    return out
+
+
+def _by_column(items: Sequence[str], columns: Sequence[str], what: str
+               ) -> dict[str, str | None]:
+    """Per-column values from 'VALUE' (every other column) and 'C1,C2=VALUE' items."""
+    explicit: dict[str, str] = {}
+    fallback = None
+    for item in items:
+        if "=" in item:
+            cols, value = item.rsplit("=", 1)
+            for c in (t.strip() for t in cols.split(",")):
+                if c not in columns:
+                    raise InputError(f"{what} for column '{c}', which is not among the columns "
+                                     f"used ({', '.join(columns)})")
+                explicit[c] = value.strip()
+        else:
+            fallback = item.strip()
+    return {c: explicit.get(c, fallback) for c in columns}
+
+
+# -- the part of a recording used -------------------------------------------------------------------
+def choose_part(st: Any, i0: int, i1: int, *, segment: str = "all", strict: bool = False,
+                where: str = "the recording") -> tuple[Any, int, int]:
+    """The part of a checked recording to use: samples ``[i0, i1)`` (the whole recording, or
+    the ``start_s``/``end_s`` range), narrowed by ``segment="longest-static"`` (the longest
+    stretch no flagged range touches, at least :data:`MIN_STATIC_SAMPLES`). Returns the
+    stationarity report (its ``used`` range set) and the range; ``strict``: a part used that
+    moved is a :class:`gmwm.stationarity.NonStationaryError`. Shared by recordings read whole
+    and streamed ones."""
+    from gmwm.formatting import spans
+    from gmwm.stationarity import NonStationaryError
+
+    def flagged(s: Any) -> str:  # the flagged ranges in the part used (all when none is)
+        a, b = s.used or (0, s.n)
+        return spans(s, s.segments_in(a, b) or list(s.segments))
+
+    how = "the whole recording" if (i0, i1) == (0, st.n) else "--start/--end"
     if segment == "longest-static":
-        free, at = [], i0
-        for s in st.segments:  # the stretches of the requested range no flagged segment touches
-            if s.i0 > at:
-                free.append((at, min(s.i0, i1)))
-            at = max(at, s.i1)
-        if at < i1:
-            free.append((at, i1))
-        free = [(a, b) for a, b in free if b > a]
-        if not free or max(b - a for a, b in free) < 64:
-            raise NonStationaryError(f"--segment longest-static: {where} has no static stretch "
-                                     "of 64 samples or more")
-        i0, i1 = max(free, key=lambda e: e[1] - e[0])
+        a, b = st.clean_segment(i0, i1)
+        if b <= a:
+            raise NonStationaryError(f"--segment longest-static: every part of {where} "
+                                     f"is flagged as moving ({flagged(st)})")
+        if b - a < MIN_STATIC_SAMPLES:
+            raise NonStationaryError(f"--segment longest-static: the longest static stretch of "
+                                     f"{where} has only {b - a} samples")
+        i0, i1 = a, b
         how = "longest static segment" + ("" if how.startswith("the whole") else
                                           " within --start/--end")
     elif segment != "all":
         raise InputError(f"unknown segment choice {segment!r}; use all or longest-static")
     st = st.using(i0, i1, how)
     if strict and st.moving_in_used:
-        raise NonStationaryError(f"{where} is not static in the part used and --strict is set")
-    notes = [*rec.notes, *st.warnings()]
-    used = select_samples(rec, i0, i1)
+        raise NonStationaryError(f"{where} is not static in the part used ({flagged(st)}) "
+                                 "and --strict is set: calibrate a static part with --segment "
+                                 "longest-static or --start/--end")
+    return st, i0, i1
+
+
+def part_messages(st: Any) -> list[str]:
+    """What a user is told about the part used: the stationarity warnings (``"warning: ..."``)
+    and, for a part of a static recording, which part (``"note: ..."``)."""
+    out = [f"warning: {w}" for w in st.warnings()]
+    if st.used not in (None, (0, st.n)) and not st.segments:
+        out.append(f"note: the estimate uses {st.used_text()}")
+    return out
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """One topic ready to fit. ``data``: channel -> 1-D signal or :class:`gmwm.wv.WaveletVariance`
+    (a table, a streamed channel, a recording's pooled clean segments); ``freq`` [Hz] (1 for a
+    signal without time stamps or unit); ``units`` channel -> unit ('' unknown); ``recording``
+    (the part used), ``stationarity`` (its ``used`` range set) and ``gaps`` (the gap decision)
+    for a recording read whole; ``streamed`` channel -> :class:`gmwm.stream.ChannelWV` for a
+    streamed input; ``timing``: report lines on the time base; ``messages``: what the user was
+    told, in order (``"warning: ..."``, ``"note: ..."``)."""
+
+    data: dict[str, Any]
+    freq: float
+    units: dict[str, str]
+    recording: Any = None
+    stationarity: Any = None
+    gaps: Any = None
+    streamed: dict[str, Any] = field(default_factory=dict)
+    timing: tuple[str, ...] | None = None
+    messages: tuple[str, ...] = ()
+    topic: str | None = None
+
+    @property
+    def rostopic(self) -> str | None:
+        """The ROS topic a filter subscribes to, for a bag recording (a ULog stream has none)."""
+        rec = self.recording
+        return rec.topic if rec is not None and rec.topic and rec.format.startswith("ros") \
+            else None
+
+    @property
+    def label(self) -> str:
+        rec = self.recording
+        return "" if rec is None else f"{rec.format}, {rec.n} samples"
+
+
+def prepare(rec: Any, *, units: str | Sequence[str] | Mapping[str, str | None] | None = None,
+            levels: int | None = None, gaps: str = "auto", start_s: float | None = None,
+            end_s: float | None = None, segment: str = "all", strict: bool = False,
+            require_time: str | None = None, where: str | None = None) -> Prepared:
+    """The stationarity check, the part used and the fit inputs of one recording
+    (:class:`gmwm.readers.Recording`).
+
+    ``units``: as :func:`units_for` (replacing or completing the recording's); ``levels``: number
+    of WV scales (None: all); ``gaps``: the gap policy
+    (:meth:`gmwm.readers.recording.Recording.gaps`); ``start_s``/``end_s``: the part to use,
+    seconds since the first sample; ``segment``, ``strict``: as :func:`choose_part`;
+    ``require_time``: what needs the rate (a recording without stamps or rate is then an error;
+    so it is when a channel has a unit, never 1 Hz); ``where``: the input's name in messages."""
+    from gmwm.readers.recording import sample_range, select_samples
+    from gmwm.readers.timebase import signal_for_wv
+    from gmwm.stationarity import check_stationarity
+
+    where = where or (rec.path + (f" topic {rec.topic}" if rec.topic else ""))
+    u = units_for(units, list(rec.channels), rec.units, where)
+    if rec.time is None:
+        with_unit = [c for c, v in u.items() if v]
+        if require_time or with_unit:
+            rec.require_time(require_time or f"coefficients in {u[with_unit[0]]}")
+        freq = 1.0  # per-sample scales of a signal without a unit
+    else:
+        freq = rec.time.freq
+    messages = [f"warning: {n}" for n in rec.notes]
+    st = check_stationarity(rec, units={c: (v or None) for c, v in u.items()})
+    i0, i1 = (0, rec.n) if start_s is None and end_s is None else \
+        sample_range(rec, start_s, end_s)
+    st, i0, i1 = choose_part(st, i0, i1, segment=segment, strict=strict, where=where)
+    messages += part_messages(st)
+    used = rec if (i0, i1) == (0, rec.n) else select_samples(rec, i0, i1)
     decision = used.gaps(gaps)
     if decision.message:
-        notes.append(decision.message)
-    timing = [f"Recording ({rec.format}{', topic ' + rec.topic if rec.topic else ''}): "
-              + tb.summary()]
-    timing += [n for n in rec.notes if n not in timing]
-    if decision.message:
-        timing.append(decision.message)
-    data = {c: signal_for_wv(x, decision, levels, tb.freq) for c, x in used.channels.items()}
-    return {"recording": used, "stationarity": st, "gaps": decision, "data": data, "units": u,
-            "freq": tb.freq, "timing": timing, "notes": notes}
+        messages.append(f"warning: {decision.message}")
+    timing = None
+    if used.time is not None:
+        timing = [f"Recording ({used.format}{', topic ' + used.topic if used.topic else ''}): "
+                  + used.time.summary()]
+        timing += [n for n in used.notes if n not in timing]  # the reader's caveats
+        if decision.message:
+            timing.append(decision.message)
+    data = {c: signal_for_wv(x, decision, levels, freq) for c, x in used.channels.items()}
+    return Prepared(data, freq, u, used, st, decision, timing=None if timing is None
+                    else tuple(timing), messages=tuple(messages), topic=rec.topic)
 
 
-#: the model string asking for the automatic choice (:func:`gmwm.automodel.choose_model`)
-AUTO = "auto"
+# -- results --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class AxisCalibration:
+    """One axis's calibration: the fit ``result`` (:class:`gmwm.results.FitResult`), the signal
+    ``units`` ('' unknown), its ``datasheet`` coefficients (:func:`gmwm.datasheet.datasheet`),
+    ``warnings`` (the fit's, less the non-convergence one, and where the part used moved in this
+    axis), the automatic ``choice`` (:class:`gmwm.automodel.Choice`, None for a given model),
+    the IEEE 952 ``readings`` (when computed beside the fit), the sensor-datasheet ``verdict``
+    (:func:`gmwm.sensor_datasheet.judge`) and the identifiability ``check``, when asked for;
+    ``figures``: the report figure files its worker drew (:func:`calibrate`'s ``draw``)."""
+
+    result: Any
+    units: str
+    datasheet: dict[str, Any]
+    warnings: tuple[str, ...] = ()
+    choice: Any = None
+    readings: dict[str, Any] | None = None
+    verdict: dict[str, Any] | None = None
+    check: Any = None
+    figures: tuple[Any, ...] = ()  # report figure files drawn beside the fit (``draw``)
+
+    def __getitem__(self, key: str) -> Any:  # the report's axis mapping (axes[name]["result"])
+        return getattr(self, key)
+
+    def get(self, key: str, default: Any = None) -> Any:
+        return getattr(self, key, default)
+
+    @property
+    def converged(self) -> bool:
+        return bool(self.result.converged)
 
 
-def _fit_one(data: Any, spec: str, freq: float, levels: int | None,
-             options: Mapping[str, Any], unit: str | None = None) -> Any:
-    """One axis's GMWM fit (runs in a worker); with ``spec`` "auto" the
-    :class:`gmwm.automodel.Choice` of the axis (the sensor kind from ``unit``)."""
-    import gmwm
-    from gmwm.model import Model
+@dataclass(frozen=True)
+class TopicCalibration:
+    """One topic (IMU stream) of a calibration. ``status``: ``"calibrated"`` or ``"failed"``
+    (then ``reason`` is the one-line cause and ``axes`` is empty); ``axes`` channel ->
+    :class:`AxisCalibration`; ``timing`` report lines on the time base; ``stationarity`` (its
+    ``used`` range set); ``gaps`` the gap decision; ``rostopic`` the ROS topic its configuration
+    files name (None: not a ROS topic, e.g. a ULog stream or a CSV; the files hold a
+    placeholder); ``label`` the recording's format and length; ``messages`` what the user was
+    told while it was prepared (``"warning: ..."``, ``"note: ..."``); ``freq`` [Hz]."""
 
-    lv = levels if isinstance(data, np.ndarray) else None  # a pooled WV is already subset
-    if spec.strip().lower() == AUTO:
-        from gmwm.automodel import choose_model
-        from gmwm.units import unit_system
+    topic: str
+    status: str
+    axes: dict[str, AxisCalibration] = field(default_factory=dict)
+    reason: str | None = None
+    freq: float | None = None
+    timing: tuple[str, ...] | None = None
+    stationarity: Any = None
+    gaps: Any = None
+    rostopic: str | None = None
+    label: str = ""
+    messages: tuple[str, ...] = ()
+    error: BaseException | None = field(default=None, repr=False, compare=False)
 
-        kind = unit_system(unit).sensor if unit else None
-        opts = {k: v for k, v in options.items() if k in ("seed", "n_starts", "robust", "eff")}
-        if options.get("method", "gmwm") != "gmwm":
-            raise InputError("the automatic model choice fits GMWM candidates; give a model")
-        return choose_model(data, freq=freq, kind=kind, levels=lv, **opts)
-    return gmwm.fit(data, Model(spec, freq=freq), levels=lv, freq=freq, **dict(options))
+    @property
+    def ok(self) -> bool:
+        return self.status == "calibrated"
 
-
-def _choose_and_draw(data: Any, freq: float, levels: int | None, options: Mapping[str, Any],
-                     unit: str | None, figure: tuple[str, str] | None
-                     ) -> tuple[Any, list[Any], dict[str, Any] | None]:
-    """One axis's automatic model choice (:func:`_fit_one`) and, with ``figure`` = (file,
-    axis name), what a report page needs of it computed in the same worker: the WV figure
-    (:func:`gmwm.report.draw_wv_figure`), the datasheet coefficients
-    (:func:`gmwm.datasheet.datasheet`) and the IEEE 952 readings
-    (:func:`gmwm.datasheet.fit_readings`), so that they overlap the other workers' choices and
-    the calling process needs no fitting kernels. Returns (choice, files drawn, None or
-    ``{"datasheet": ..., "readings": ...}``); a figure that fails is left to the report."""
-    choice = _fit_one(data, AUTO, freq, levels, options, unit)
-    if figure is None:
-        return choice, [], None
-    from gmwm.datasheet import datasheet, fit_readings
-    from gmwm.report import draw_wv_figure
-
-    page = {"datasheet": datasheet(choice.result, unit or None),
-            "readings": fit_readings(choice.result, unit or None)}
-    try:
-        drawn = draw_wv_figure(figure[0], figure[1], choice.result, unit or "")
-    except Exception:  # noqa: BLE001 - the report draws it again and reports a failure then
-        drawn = []
-    return choice, drawn, page
+    @property
+    def caveats(self) -> list[str]:
+        """Every warning of this topic: its preparation's, then each axis's (``axis: ...``)."""
+        out = [m.removeprefix("warning: ") for m in self.messages if m.startswith("warning: ")]
+        for c, a in self.axes.items():
+            if a.choice is not None and not a.choice.passed:
+                out.append(f"{c}: {a.choice.warnings[0]}")
+            out += [f"{c}: {w}" for w in a.warnings]
+            if not a.converged:
+                out.append(f"{c}: the optimizer did not converge")
+        return out
 
 
+@dataclass(frozen=True)
+class CalibrationResult:
+    """What :func:`calibrate` found: ``source`` (the input's name), ``topics`` topic ->
+    :class:`TopicCalibration` in the order asked for (the file's order for ``"all"``; a file
+    without topics has one entry, keyed by its topic or ``""``); ``several``: several topics
+    were asked for (the report then has a section and a configuration folder per topic, failed
+    ones listed)."""
+
+    source: str
+    topics: dict[str, TopicCalibration]
+    several: bool = False
+
+    @property
+    def calibrated(self) -> dict[str, TopicCalibration]:
+        return {t: s for t, s in self.topics.items() if s.ok}
+
+    @property
+    def failed(self) -> dict[str, str]:
+        """Topic -> one-line reason, for every topic that failed."""
+        return {t: s.reason or "failed" for t, s in self.topics.items() if not s.ok}
+
+    @property
+    def converged(self) -> bool:
+        """Whether every fit of every calibrated topic converged."""
+        return all(a.converged for s in self.calibrated.values() for a in s.axes.values())
+
+    def only(self) -> TopicCalibration:
+        """The one topic of a single-topic calibration."""
+        if len(self.topics) != 1:
+            raise InputError(f"{len(self.topics)} topics, not one")
+        return next(iter(self.topics.values()))
+
+    def to_json_dict(self) -> dict[str, Any]:
+        """Per topic: status, reason, rate, warnings (for scripts; the fits are
+        :meth:`gmwm.results.FitResult.to_json_dict`)."""
+        return {"source": self.source,
+                "topics": {t: {"status": s.status, "reason": s.reason, "freq": s.freq,
+                               "rostopic": s.rostopic, "axes": list(s.axes),
+                               "warnings": s.caveats} for t, s in self.topics.items()}}
+
+
+# -- worker processes -------------------------------------------------------------------------------
 def _warm() -> None:
     """Load the compiled kernels in a new worker before the first fit (numba's on-disk cache)."""
     import gmwm  # noqa: F401
@@ -173,13 +398,13 @@ def preload() -> None:
 
 
 #: module the warm server imports before it forks workers (importing it runs :func:`preload`)
-_WARM_MODULE = "gmwm._warmserver"
+WARM_MODULE = "gmwm._warmserver"
 _warm_server = False
 
 
 def start_warm_server() -> bool:
     """Start a process that loads the fitting stack (:func:`preload`) now, beside this one, and
-    later forks the workers of ``_executor(..., warm=True)`` warm (multiprocessing's forkserver
+    later forks the workers of ``executor(..., warm=True)`` warm (multiprocessing's forkserver
     with a preload). A command that will choose several axes' models calls it first, so that the
     ~2 s of imports and kernel loading run while this process reads the input and checks its
     stationarity, instead of before the workers can start. False (nothing started) on one core
@@ -192,7 +417,7 @@ def start_warm_server() -> bool:
         return False
     from multiprocessing import forkserver
 
-    multiprocessing.get_context("forkserver").set_forkserver_preload([_WARM_MODULE])
+    multiprocessing.get_context("forkserver").set_forkserver_preload([WARM_MODULE])
     try:
         forkserver.ensure_running()
     except OSError:  # no server: the workers fork from this process as before
@@ -226,7 +451,7 @@ def stop_warm_server() -> None:
     _warm_server = False
 
 
-def _executor(kind: str, workers: int, warm: bool = False) -> Executor:
+def executor(kind: str, workers: int, warm: bool = False) -> Executor:
     """A pool of ``workers`` threads or processes; ``warm``: worker processes start with the
     fitting stack loaded (forked by the warm server when :func:`start_warm_server` started one,
     else forked from this process after :func:`preload` ran here). Creating a pool of the warm
@@ -251,90 +476,447 @@ def _executor(kind: str, workers: int, warm: bool = False) -> Executor:
                                initializer=None if method == "fork" else _warm)
 
 
+def _thread(fn: Callable[[], None]) -> tuple[threading.Thread, list[BaseException]]:
+    """``fn`` started in a thread; the list receives its exception, if any."""
+    failed: list[BaseException] = []
+
+    def body() -> None:
+        try:
+            fn()
+        except BaseException as exc:  # noqa: BLE001 - re-raised by the caller after join
+            failed.append(exc)
+
+    thread = threading.Thread(target=body, daemon=True)
+    thread.start()
+    return thread, failed
+
+
+# -- one axis ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _Job:
+    """One axis to fit (picklable: it travels to a worker)."""
+
+    topic: str
+    name: str
+    data: Any
+    spec: str
+    freq: float
+    unit: str
+    settings: Any  # FitSettings, levels already None for a WV
+    explicit_starts: bool
+    page: bool  # compute the datasheet (and with readings the IEEE 952 readings) beside the fit
+    readings: bool
+    draw: Any = None  # callable(topic, name, result, unit) -> files drawn, or None
+
+
+def _kind(unit: str) -> str | None:
+    from gmwm.units import unit_system
+
+    return unit_system(unit or None).sensor if unit else None
+
+
+def _fit_job(job: _Job, progress: Callable[[str], None] | None = None
+             ) -> tuple[Any, Any, list[Any], dict[str, Any] | None]:
+    """One axis's fit (in a worker or not): (result, automatic choice or None, figure files
+    drawn, None or ``{"datasheet": ..., "readings": ...}`` computed beside the fit so that they
+    overlap the other workers' fits and the calling process needs no fitting kernels)."""
+    s = job.settings
+    choice = None
+    if _is_auto(job.spec):
+        from gmwm.automodel import choose_model
+
+        kind = _kind(job.unit)
+        say = progress or (lambda _m: None)
+        say(f"choosing the model of {job.name}"
+            + (f" ({kind})" if kind else " (no sensor unit: every candidate sum)"))
+        choice = choose_model(
+            job.data, freq=job.freq, kind=kind, levels=s.levels, robust=s.robust, eff=s.eff,
+            seed=s.seed, n_starts=s.n_starts if job.explicit_starts else None,
+            progress=None if progress is None else
+            (lambda i, n, m: progress(f"{job.name}: candidate {i}/{n}: {m}")))
+        res = choice.result
+    else:
+        import gmwm
+        from gmwm.model import Model
+
+        if progress is not None:
+            progress(f"fitting {job.spec} to {job.name}")
+        res = gmwm.fit(job.data, Model(job.spec, freq=job.freq), settings=s, freq=job.freq)
+    if not job.page:
+        return res, choice, [], None
+    from gmwm.datasheet import datasheet, fit_readings
+
+    page = {"datasheet": datasheet(res, job.unit or None),
+            "readings": fit_readings(res, job.unit or None) if job.readings else None}
+    drawn: list[Any] = []
+    if job.draw is not None:
+        try:
+            drawn = list(job.draw(job.topic, job.name, res, job.unit or ""))
+        except Exception:  # noqa: BLE001 - the report draws it again and reports a failure then
+            drawn = []
+    return res, choice, drawn, page
+
+
 def _axis_warnings(res: Any, st: Any, channel: str) -> list[str]:
-    """The fit's diagnostics warnings and, when the part used moved in this channel, where."""
-    found = [str(w) for w in (getattr(res, "diagnostics", None) or {}).get("warnings", [])]
+    """The fit's warnings (less the non-convergence one) and, when the part used moved in this
+    channel, where."""
+    from gmwm.formatting import fit_warnings, spans
+
+    found = fit_warnings(res)
     if st is not None:
         a, b = st.used or (0, st.n)
         segs = [s for s in st.segments_in(a, b) if channel in s.channels]
         if segs:
-            where = ", ".join(st.span(s.start_s, s.end_s) for s in segs[:4])
-            found.append(f"not static in {where}"
-                         + (f" and {len(segs) - 4} more ranges" if len(segs) > 4 else "")
-                         + " (see Stationarity): the coefficients include that motion")
+            found.append(f"not static in {spans(st, segs, more='more ranges')} (see "
+                         "Stationarity): the coefficients include that motion")
     return found
 
 
-def calibrate_imus(recordings: Mapping[str, Any], model: str | Mapping[str, str] = "WN+RW", *,
-                   units: Mapping[str, Mapping[str, str | None]] | None = None,
-                   levels: int | None = None, gaps: str = "auto", start_s: float | None = None,
-                   end_s: float | None = None, segment: str = "all", strict: bool = False,
-                   fit_options: Mapping[str, Any] | None = None, workers: int | None = None,
-                   executor: str = "thread", progress: Any = None) -> dict[str, Any]:
-    """Calibrate every IMU of ``recordings`` (topic -> :class:`gmwm.readers.Recording`, e.g.
-    from :func:`gmwm.readers.read_recordings`); return topic -> :class:`gmwm.report.ImuSection`
-    in the same order, for :func:`gmwm.report.write_multi_report`.
+def _streamed(res: Any, channel: Any) -> Any:
+    """A fit of a streamed channel's WV with what the WV does not hold: the sign of a drift (from
+    the signal's first and last samples, as :func:`gmwm.fit` takes it from a signal) and the
+    seconds the streamed WV took."""
+    if res.settings.method != "avsm":
+        res = res.with_drift_sign(channel.drift_sign)
+    return dataclasses.replace(res, seconds_wv=channel.seconds)
 
-    ``model``: one model string for every axis, or channel -> model string; ``units``: topic ->
-    (channel -> unit) replacing the file's; ``levels``, ``gaps``, ``start_s``, ``end_s``,
-    ``segment``, ``strict``: as :func:`prepare_imu`, for every IMU; ``fit_options``: passed to
-    :func:`gmwm.fit` (``method``, ``weights``, ``seed``, ``n_starts``, ...). ``workers``: fits run
-    at once (None: :func:`available_cores`; 1: one after the other); ``executor``: ``"thread"``
-    (default) or ``"process"``. ``progress``: called with a one-line message per step.
 
-    Each ``ImuSection.axes[channel]`` holds ``result``, ``units``, ``warnings`` and
-    ``datasheet`` (what :func:`gmwm.report.write_report` needs; a caller may add ``verdict``);
-    ``timing`` lists the time base, the gap decision and the recording's notes. Those notes, the
-    stationarity warnings and the gap decision also go to ``progress`` as ``warning: ...``."""
-    from gmwm.datasheet import datasheet
-    from gmwm.model import Model
-    from gmwm.report import ImuSection
+def _reason(exc: BaseException) -> str:
+    """The one-line reason of a failure."""
+    text = str(exc).strip()
+    if isinstance(exc, OSError) and exc.filename is not None:
+        text = f"{exc.strerror or text}: {exc.filename}"
+    return text.splitlines()[0] if text else type(exc).__name__
 
-    if not recordings:
-        raise InputError("no IMU to calibrate")
-    say = progress or (lambda _msg: None)
-    prepared: dict[str, dict[str, Any]] = {}
-    jobs: list[tuple[str, str, Any, str, float, str | None]] = []
-    for topic, rec in recordings.items():
-        say(f"checking stationarity of {topic}")
-        prep = prepare_imu(rec, units=(units or {}).get(topic), levels=levels, gaps=gaps,
-                           start_s=start_s, end_s=end_s, segment=segment, strict=strict)
-        for note in prep["notes"]:
-            say(f"warning: {topic}: {note}")
-        prepared[topic] = prep
-        for c, d in prep["data"].items():
-            spec = model if isinstance(model, str) else model.get(c)
-            if spec is None:
-                raise InputError(f"no model given for channel {c} of {topic}")
-            if spec.strip().lower() != AUTO:
-                Model(spec, freq=prep["freq"])  # a wrong model string fails before any fit
-            jobs.append((topic, c, d, spec, prep["freq"], prep["units"].get(c)))
-    n = min(len(jobs), available_cores() if workers is None else max(1, int(workers)))
-    opts = dict(fit_options or {})
-    results: dict[tuple[str, str], Any] = {}
-    if n <= 1:
-        for topic, c, d, spec, freq, unit in jobs:
-            say(f"fitting {spec} to {c} of {topic}")
-            results[(topic, c)] = _fit_one(d, spec, freq, levels, opts, unit)
+
+#: what makes one topic fail without stopping the others
+_TOPIC_ERRORS = (GMWMError, OSError)
+
+
+# -- reading ------------------------------------------------------------------------------------------
+def _read(path: str | os.PathLike, topics: str | Sequence[str], *, columns: Any,
+          freq: float | None) -> dict[str, Any]:
+    """Topic -> Recording, or the exception that topic's reading raised. The file is read once
+    (:func:`gmwm.readers.read_recordings`); only when that fails is each topic read alone, so
+    that one topic with broken stamps does not stop the others."""
+    from gmwm.readers import imu_topics, read_recording, read_recordings
+
+    try:
+        return dict(read_recordings(path, topics, columns=columns, freq=freq))
+    except _TOPIC_ERRORS as exc:
+        first = exc
+    if isinstance(topics, str) and topics.strip().lower() == "all":
+        names = imu_topics(path)  # a file without any IMU topic: its own error
     else:
-        say(f"fitting {len(jobs)} axes in {n} parallel {executor}s")
-        with _executor(executor, n, warm=True) as pool:
-            futures = {(t, c): pool.submit(_fit_one, d, spec, freq, levels, opts, unit)
-                       for t, c, d, spec, freq, unit in jobs}
-            results = {k: f.result() for k, f in futures.items()}
+        names = [topics] if isinstance(topics, str) else list(topics)
+        if len({n.lstrip("/") for n in names}) < len(names):
+            raise first  # a topic requested twice: the request is wrong, not a topic
     out: dict[str, Any] = {}
-    for topic, prep in prepared.items():
-        rec, st = prep["recording"], prep["stationarity"]
-        axes = {}
-        for c in prep["data"]:
-            res = results[(topic, c)]
-            choice = None
-            if hasattr(res, "ranking"):  # an automatic choice: its fit, its ranking
-                choice, res = res, res.result
-            unit = prep["units"].get(c)
-            axes[c] = {"result": res, "units": unit or "",
-                       "warnings": _axis_warnings(res, st, c),
-                       "datasheet": datasheet(res, unit or None), "choice": choice}
-        label = f"{rec.format}, {rec.n} samples"
-        out[topic] = ImuSection(axes, tuple(prep["timing"]), st, _rostopic(rec), label)
+    for name in names:
+        try:
+            rec = read_recording(path, topic=name, columns=columns, freq=freq)
+            out[rec.topic or name] = rec
+        except _TOPIC_ERRORS as exc:
+            out[name] = exc
     return out
+
+
+# -- the calibration -------------------------------------------------------------------------------
+def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
+              topics: str | Sequence[str] | None = None, columns: Any = None,
+              dataset: str | None = None, freq: float | None = None,
+              time_unit: str | None = None,
+              units: str | Sequence[str] | Mapping[str, Any] | None = None,
+              levels: int | None = None, gaps: str = "auto", start_s: float | None = None,
+              end_s: float | None = None, segment: str = "all", strict: bool = False,
+              fit: Mapping[str, Any] | None = None, sheet: Any = None, check: bool = False,
+              readings: bool = False, draw: Callable[..., Sequence[Any]] | None = None,
+              workers: int | None = None, worker_kind: str = "process",
+              require_time: str | None = "a calibration report",
+              name: str | None = None, progress: Callable[[str], None] | None = None,
+              while_waiting: Callable[[Mapping[str, Prepared]], None] | None = None
+              ) -> CalibrationResult:
+    """Calibrate the IMU(s) of ``source``: a file path, a :class:`gmwm.readers.Recording`, a
+    :class:`Prepared` input, or a mapping topic -> either (several IMUs).
+
+    Reading a path: ``topics`` None (the file's only IMU, or its columns), one topic name, a
+    list of names or ``"all"`` (every IMU stream of a bag or ULog,
+    :func:`gmwm.readers.imu_topics`); ``columns``, ``dataset``, ``freq``, ``time_unit`` as
+    :func:`gmwm.readers.read_recording`. Then per topic: ``units`` (as :func:`units_for`; topic
+    -> units for several topics given as a mapping of mappings), ``levels``, ``gaps``,
+    ``start_s``/``end_s``, ``segment``, ``strict``, ``require_time`` as :func:`prepare`; per
+    axis the ``model`` (as :func:`models_for`; ``"auto"``: :func:`gmwm.automodel.choose_model`
+    with the sensor kind of the unit) fitted with ``fit`` (options of
+    :meth:`gmwm.settings.FitSettings.of`: ``method``, ``weights``, ``seed``, ``n_starts``, ...);
+    ``sheet`` a :class:`gmwm.sensor_datasheet.SensorDatasheet` to judge the axes against;
+    ``check``: the identifiability check (:func:`gmwm.identify.check`) of every fit;
+    ``readings``: the IEEE 952 readings computed beside each fit (a report needs them).
+
+    Work: the automatic choices run in worker processes (:func:`executor`, at most ``workers``,
+    default :func:`available_cores`; ``worker_kind="thread"``: threads instead, for a
+    comparison), the given models too when there are several topics; a
+    worker also computes its axis's datasheet and, with ``draw`` (a picklable
+    ``draw(topic, axis, result, unit) -> files``, e.g. :class:`gmwm.report.FigureDrawer`; one
+    with a ``bind(topics)`` method is bound to the topics read first), its figure. ``while_waiting(prepared)`` runs in this process while the workers fit.
+    ``progress``: called with one line per step; lines starting with ``warning: `` or ``note: ``
+    are for the user (prefixed by the topic when there are several).
+
+    A topic that fails (unreadable, broken stamps, too short, not static under ``strict``) is
+    kept as ``status="failed"`` with its one-line ``reason`` while the others are calibrated; the
+    error itself is raised when there is only one topic, and an :class:`InputError` listing the
+    reasons when every topic failed. Wrong settings (a model string, a unit, ``fit`` options) are
+    errors before any fit."""
+    from gmwm.readers.recording import Recording
+    from gmwm.settings import FitSettings
+
+    say = progress or (lambda _m: None)
+    options = dict(fit or {})
+    settings = FitSettings.of(**options)  # bad options before the input is read
+    explicit_starts = "n_starts" in options
+    label = name or (str(source) if isinstance(source, str | os.PathLike) else "the recording")
+    # -- the inputs, topic -> Recording | Prepared | exception
+    several = False
+    if isinstance(source, str | os.PathLike):
+        if not Path(source).exists():
+            raise InputError(f"file not found: {source}")
+        several = topics is not None and not (isinstance(topics, str)
+                                              and topics.strip().lower() != "all")
+        if several:
+            say(f"reading {label} ("
+                + ("every IMU topic" if isinstance(topics, str) else ", ".join(topics)) + ")")
+            inputs: dict[str, Any] = _read(source, topics, columns=columns, freq=freq)
+        else:
+            from gmwm.readers import read_recording
+
+            say(f"reading {label}")
+            rec = read_recording(source, topic=topics, columns=columns, dataset=dataset,
+                                 freq=freq, time_unit=time_unit)
+            inputs = {rec.topic or "": rec}
+    elif isinstance(source, Recording | Prepared):
+        inputs = {source.topic or "": source}
+    elif isinstance(source, Mapping):
+        if not source:
+            raise InputError("no IMU to calibrate")
+        inputs, several = dict(source), True
+    else:
+        raise InputError(f"cannot calibrate a {type(source).__name__}: give a file, a "
+                         "Recording, a Prepared input or a mapping topic -> Recording")
+    if draw is not None and hasattr(draw, "bind"):  # e.g. figure names that depend on the topics
+        draw = draw.bind(list(inputs))
+    multi_units = isinstance(units, Mapping) and units and all(
+        isinstance(v, Mapping) for v in units.values())
+
+    def tell(topic: str, msg: str) -> None:
+        if several and msg.startswith(("warning: ", "note: ")):
+            kind, text = msg.split(": ", 1)
+            msg = f"{kind}: {topic}: {text}"
+        say(msg)
+
+    # -- preparation, per topic (a failure stays with its topic)
+    prepared: dict[str, Prepared] = {}
+    failed: dict[str, BaseException] = {}
+    for topic, item in inputs.items():
+        if isinstance(item, BaseException):
+            failed[topic] = item
+            tell(topic, f"warning: not calibrated: {_reason(item)}")
+            continue
+        if isinstance(item, Prepared):
+            prepared[topic] = item
+            continue
+        say(f"checking stationarity of {topic}" if several else "checking stationarity")
+        try:
+            prep = prepare(item, units=units.get(topic) if multi_units else units,
+                           levels=levels, gaps=gaps, start_s=start_s, end_s=end_s,
+                           segment=segment, strict=strict, require_time=require_time,
+                           where=f"{label} topic {topic}" if several else label)
+        except _TOPIC_ERRORS as exc:
+            if not several:
+                raise
+            failed[topic] = exc
+            tell(topic, f"warning: not calibrated: {_reason(exc)}")
+            continue
+        for m in prep.messages:
+            tell(topic, m)
+        prepared[topic] = prep
+    # -- settings checked against every topic before any fit
+    specs = {t: models_for(model, list(p.data)) for t, p in prepared.items()}
+    jobs: list[_Job] = []
+    for t, p in prepared.items():
+        for c, d in p.data.items():
+            spec = specs[t][c]
+            if _is_auto(spec):
+                if settings.method != "gmwm":
+                    raise InputError(f"the automatic model choice fits GMWM candidates; with "
+                                     f"--method {settings.method} give a model")
+            else:
+                from gmwm.model import Model
+
+                Model(spec, freq=p.freq)  # a wrong model string fails before any fit
+            if settings.robust and not isinstance(d, np.ndarray):
+                raise InputError("--robust needs one contiguous signal, but the gaps of the "
+                                 "recording leave the pooled WV of its segments: use --gaps "
+                                 "longest")
+            s = settings if isinstance(d, np.ndarray) else settings.replace(levels=None)
+            jobs.append(_Job(t, c, d, spec, p.freq, p.units.get(c, ""), s, explicit_starts,
+                             page=c not in p.streamed, readings=readings,
+                             draw=draw if c not in p.streamed else None))
+    if sheet is not None:
+        _check_sheet(sheet, prepared, tell)
+    # -- the fits: automatic choices in worker processes, given models too for several topics
+    results = _run_jobs(jobs, several=len(prepared) > 1, workers=workers, kind=worker_kind,
+                        progress=say,
+                        prepared=prepared, while_waiting=while_waiting)
+    # -- per topic: the axes, their datasheets, verdicts and checks
+    out: dict[str, TopicCalibration] = {}
+    for topic in inputs:
+        if topic in failed:
+            exc = failed[topic]
+            out[topic] = TopicCalibration(topic, "failed", reason=_reason(exc), error=exc)
+            continue
+        p = prepared[topic]
+        got = {j.name: results[(topic, j.name)] for j in jobs if j.topic == topic}
+        bad = next((r for r in got.values() if isinstance(r, BaseException)), None)
+        if bad is not None:
+            if not several:
+                raise bad
+            out[topic] = TopicCalibration(topic, "failed", reason=_reason(bad), error=bad,
+                                          freq=p.freq, timing=p.timing,
+                                          stationarity=p.stationarity, gaps=p.gaps,
+                                          rostopic=p.rostopic, label=p.label,
+                                          messages=p.messages)
+            tell(topic, f"warning: not calibrated: {_reason(bad)}")
+            continue
+        out[topic] = TopicCalibration(topic, "calibrated",
+                                      _axes(p, got, sheet, check, say), freq=p.freq,
+                                      timing=p.timing, stationarity=p.stationarity,
+                                      gaps=p.gaps, rostopic=p.rostopic, label=p.label,
+                                      messages=p.messages)
+    result = CalibrationResult(label, out, several)
+    if not result.calibrated:
+        fails = result.failed
+        if len(fails) == 1:
+            raise next(iter(out.values())).error  # type: ignore[misc]
+        raise InputError(f"no topic of {label} could be calibrated: "
+                         + "; ".join(f"{t}: {r}" for t, r in fails.items()))
+    return result
+
+
+def _check_sheet(sheet: Any, prepared: Mapping[str, Prepared],
+                 tell: Callable[[str, str], None]) -> None:
+    """A sensor datasheet against the axes' units, before any fit: an axis without a known unit
+    is an error; one of a sensor type the datasheet has no section for gets a warning; none of
+    a type it describes is an error."""
+    from gmwm.units import parse_unit
+
+    covered = False
+    for t, p in prepared.items():
+        for c, u in p.units.items():
+            parsed = parse_unit(u) if u else None
+            if parsed is None:
+                raise InputError(f"--datasheet: give the unit of {c} with --units (e.g. deg/s "
+                                 "or m/s^2) to tell a gyroscope from an accelerometer")
+            if parsed[2] not in sheet.sensors:
+                tell(t, f"warning: {c}: the datasheet {sheet.where} has no {parsed[2]} section: "
+                        "no verdict")
+            else:
+                covered = True
+    if not covered:
+        raise InputError(f"--datasheet {sheet.where}: no fitted column is of a sensor type it "
+                         f"describes ({', '.join(sheet.sensors)})")
+
+
+def _run_jobs(jobs: Sequence[_Job], *, several: bool, workers: int | None, kind: str,
+              progress: Callable[[str], None], prepared: Mapping[str, Prepared],
+              while_waiting: Callable[[Mapping[str, Prepared]], None] | None
+              ) -> dict[tuple[str, str], Any]:
+    """(topic, axis) -> (result, choice, files, page) of :func:`_fit_job`, or the exception its
+    fit raised. The automatic choices (and, with ``several`` topics, every fit) go to worker
+    processes when at least two can run at once; the rest run here one after the other."""
+    cores = available_cores() if workers is None else max(1, int(workers))
+    pooled = [j for j in jobs if several or _is_auto(j.spec)]
+    n = min(len(pooled), cores)
+    if n < 2:
+        pooled = []
+    out: dict[tuple[str, str], Any] = {}
+    if pooled:
+        progress(f"fitting {len(pooled)} axes in {n} parallel "
+                 + ("processes" if kind == "process" else "threads"))
+        with executor(kind, n, warm=True) as pool:
+            futures: dict[tuple[str, str], Any] = {}
+
+            def submit() -> None:
+                for j in pooled:
+                    futures[(j.topic, j.name)] = pool.submit(_fit_job, j)
+
+            if warm_server_running() and while_waiting is not None:
+                # the warm server answers the first submission once it has loaded the fitting
+                # stack: submit from a thread and do this process's own work meanwhile (no fork
+                # from this process, so its threads are safe)
+                thread, failed = _thread(submit)
+                while_waiting(prepared)
+                thread.join()
+                if failed:
+                    raise failed[0]
+            else:
+                submit()
+                if while_waiting is not None:
+                    while_waiting(prepared)
+            for key, f in futures.items():
+                try:
+                    out[key] = f.result()
+                except _TOPIC_ERRORS as exc:
+                    out[key] = exc
+                    continue
+                if out[key][1] is not None:
+                    progress(f"{key[1]}: {out[key][1].headline()}")
+    for j in jobs:
+        if (j.topic, j.name) in out:
+            continue
+        try:
+            # here the datasheet comes after the streamed corrections (:func:`_axes`)
+            out[(j.topic, j.name)] = _fit_job(dataclasses.replace(j, page=False, draw=None),
+                                              progress)
+        except _TOPIC_ERRORS as exc:
+            out[(j.topic, j.name)] = exc
+    return out
+
+
+def _axes(p: Prepared, got: Mapping[str, Any], sheet: Any, check: bool,
+          progress: Callable[[str], None]) -> dict[str, AxisCalibration]:
+    """The axes of one prepared topic from its fits."""
+    from gmwm.datasheet import datasheet
+    from gmwm.units import parse_unit
+
+    axes = {}
+    for c, (res, choice, files, page) in got.items():
+        if c in p.streamed:
+            res = _streamed(res, p.streamed[c])
+        page = page or {}
+        unit = p.units.get(c, "")
+        chk = None
+        if check:
+            from gmwm import identify
+
+            progress(f"identifiability check of {c}")
+            chk = identify.check(res)
+        verdict = None
+        if sheet is not None:
+            parsed = parse_unit(unit) if unit else None
+            if parsed is not None and parsed[2] in sheet.sensors:
+                from gmwm.sensor_datasheet import judge
+
+                verdict = judge(res, sheet, unit)
+        axes[c] = AxisCalibration(res, unit, page.get("datasheet") or datasheet(res, unit or None),
+                                  tuple(_axis_warnings(res, p.stationarity, c)), choice,
+                                  page.get("readings"), verdict, chk, tuple(files))
+    return axes
+
+
+def calibrate_imus(recordings: Mapping[str, Any], model: str | Mapping[str, str] = "WN+RW", *,
+                   fit_options: Mapping[str, Any] | None = None, **kw: Any
+                   ) -> dict[str, TopicCalibration]:
+    """The calibrated topics of :func:`calibrate` for ``recordings`` (topic -> Recording), for
+    :func:`gmwm.report.write_multi_report` (kept for existing scripts; ``executor``:
+    ``"process"`` or ``"thread"``)."""
+    kind = kw.pop("executor", "process")
+    return calibrate(dict(recordings), model, fit=fit_options, worker_kind=kind, **kw).calibrated

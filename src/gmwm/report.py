@@ -17,6 +17,7 @@ other filter configuration files asked for. Every file is written atomically.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import html
 import math
 import os
@@ -39,7 +40,8 @@ from gmwm.formatting import (
     verdict_rows,
 )
 
-__all__ = ["ImuSection", "choice_section", "imu_folders", "write_multi_report", "write_report"]
+__all__ = ["FigureDrawer", "ImuSection", "choice_section", "imu_folders", "report_dir",
+           "write_calibration", "write_multi_report", "write_report"]
 
 
 def _slug(name: str) -> str:
@@ -209,14 +211,14 @@ def _render(figures: Sequence[_Figure], drawn: Sequence[Path] = ()) -> list[Path
     """Draw the figures of a page, in worker processes when there are several and more than one
     core (a figure costs ~0.5 s of matplotlib layout and rasterising, all of it in Python);
     ``drawn``: files already drawn (:func:`warm_up`), not drawn again."""
-    from gmwm.calibrate import _executor, available_cores
+    from gmwm.calibrate import available_cores, executor
 
     todo = [fig for fig in figures if fig.path not in drawn]
     n = min(len(todo), available_cores())
     if n < 2:
         paths = [_draw(fig) for fig in todo]
     else:
-        with _executor("process", n) as pool:
+        with executor("process", n) as pool:
             paths = list(pool.map(_draw, todo))
     done = dict(zip([fig.path for fig in todo], paths, strict=True))
     return [f for fig in figures for f in done.get(fig.path, [fig.path])]
@@ -293,7 +295,8 @@ class ImuSection:
     label: str = ""
 
 
-def _outdir(outdir: str | os.PathLike) -> Path:
+def report_dir(outdir: str | os.PathLike) -> Path:
+    """The report directory ``outdir`` (an existing file there is an error)."""
     out = Path(outdir)
     if out.exists() and not out.is_dir():
         raise InputError(f"report directory {out} exists and is not a directory")
@@ -478,7 +481,7 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     from gmwm.atomic import write_text_atomic
     from gmwm.exports import parse_targets, write_exports
 
-    out = _outdir(outdir)
+    out = report_dir(outdir)
     out.mkdir(parents=True, exist_ok=True)
     freq = _freq(axes)
     # the configuration files' inputs are checked before any file is written
@@ -517,56 +520,76 @@ def imu_folders(topics: Sequence[str]) -> dict[str, str]:
     return out
 
 
-def write_multi_report(outdir: str | os.PathLike, imus: Mapping[str, ImuSection], *,
+def write_multi_report(outdir: str | os.PathLike, imus: Mapping[str, Any], *,
                        source: str, title: str, targets: str | Sequence[str] = ("kalibr",),
-                       inflation: Any = None) -> list[Path]:
+                       inflation: Any = None, drawn: Sequence[str | os.PathLike] = ()
+                       ) -> list[Path]:
     """One page (``report.md``, ``report.html``) over several IMUs of one recording, and one set
     of filter configuration files per IMU; return the paths.
 
-    ``imus[topic]``: an :class:`ImuSection`. The page has an overview table, then a section per
-    IMU (its warning, time base, stationarity, summary, axes and Kalibr block, as
-    :func:`write_report` writes them one heading level down); figure names start with the IMU's
-    folder name (``imu0_data_gx_wv.png``, ``imu0_data_stationarity.png``). The configuration files
-    of ``targets`` go to ``<outdir>/<folder>/`` (:func:`imu_folders`), each carrying its
-    ``rostopic``. A single IMU gives exactly :func:`write_report`'s layout (files beside the page).
-    Every IMU's export is checked before any file is written."""
+    ``imus[topic]``: a :class:`gmwm.calibrate.TopicCalibration` (or an :class:`ImuSection`).
+    The page has an overview table, then a section per IMU (its warning, time base,
+    stationarity, summary, axes and Kalibr block, as :func:`write_report` writes them one
+    heading level down); figure names start with the IMU's folder name
+    (``imu0_data_gx_wv.png``, ``imu0_data_stationarity.png``). The configuration files of
+    ``targets`` go to ``<outdir>/<folder>/`` (:func:`imu_folders`), each carrying its
+    ``rostopic``. A topic that failed (``status="failed"``) is listed in the overview and in its
+    own section with its reason, with no configuration file. A single IMU gives exactly
+    :func:`write_report`'s layout (files beside the page). Every IMU's export is checked before
+    any file is written."""
     from gmwm.atomic import write_text_atomic
     from gmwm.exports import parse_targets, write_exports
 
     if not imus:
         raise InputError("the report needs at least one IMU")
+    done = {t: sec for t, sec in imus.items() if getattr(sec, "ok", True)}
+    if not done:
+        raise InputError("the report needs at least one calibrated IMU")
     if len(imus) == 1:
         sec = next(iter(imus.values()))
         return write_report(outdir, sec.axes, source=source, title=title, timing=sec.timing,
                             stationarity=sec.stationarity, topic=sec.rostopic, targets=targets,
-                            inflation=inflation)
-    out = _outdir(outdir)
+                            inflation=inflation, drawn=drawn)
+    out = report_dir(outdir)
     names = parse_targets(targets)
     folders = imu_folders(list(imus))
-    freqs = {t: _freq(sec.axes, f"IMU {t}") for t, sec in imus.items()}
+    freqs = {t: _freq(sec.axes, f"IMU {t}") for t, sec in done.items()}
     exps = {t: _export(sec.axes, freqs[t], sec.rostopic, inflation, f"{source} ({t})")
-            for t, sec in imus.items()}
+            for t, sec in done.items()}
     out.mkdir(parents=True, exist_ok=True)
     overview = [(t, sec.label or "–", f"{freqs[t]:g}", len(sec.axes),
                  sum(len(_axis_warnings(a)) for a in sec.axes.values()),
                  "not static" if sec.stationarity is not None and sec.stationarity.moving
                  else "static" if sec.stationarity is not None else "not checked",
                  f"{folders[t]}/" if exps[t] is not None and names else "–")
+                if t in done else
+                (t, f"FAILED: {sec.reason}", "–", 0, "–", "–", "–")
                 for t, sec in imus.items()]
     oh = ["IMU", "recording", "rate [Hz]", "axes", "warnings", "stationarity",
           "configuration files"]
+    failed = [t for t in imus if t not in done]
+    fail_line = ("" if not failed else
+                 f" {len(failed)} of them could not be calibrated ({', '.join(failed)}): see "
+                 "their sections.")
     md = [f"# {title}", "",
           (f"Input `{source}`, {len(imus)} IMUs; GMWM fits by gmwm {__version__}. " + _INTRO
-           + " Each IMU has its own section and its own folder of filter configuration files."),
-          "", *md_table(oh, overview), ""]
+           + " Each IMU has its own section and its own folder of filter configuration files."
+           + fail_line), "", *md_table(oh, overview), ""]
     body = [f"<h1>{html.escape(title)}</h1>",
             (f"<p>Input <code>{html.escape(source)}</code>, {len(imus)} IMUs; GMWM fits by gmwm "
              f"{html.escape(__version__)}. Each IMU has its own section and its own folder of "
-             "filter configuration files.</p>"), html_table(oh, overview)]
+             f"filter configuration files.{html.escape(fail_line)}</p>"),
+            html_table(oh, overview)]
     figures: list[_Figure] = []  # every IMU's, drawn by one pool of workers
     for t, sec in imus.items():
         md += [f"## IMU {t}", ""]
         body.append(f"<h2>IMU {html.escape(t)}</h2>")
+        if t not in done:
+            why = (f"Not calibrated: {sec.reason}. No configuration file is written for this "
+                   "IMU.")
+            md += [f"> **{why}**", ""]
+            body.append(f'<p style="color:#D55E00"><strong>{html.escape(why)}</strong></p>')
+            continue
         line = (f"{sec.label + ', ' if sec.label else ''}sampling frequency {freqs[t]:g} Hz, "
                 f"{len(sec.axes)} axes" + (f", ROS topic {sec.rostopic}" if sec.rostopic else "")
                 + ".")
@@ -578,7 +601,7 @@ def write_multi_report(outdir: str | os.PathLike, imus: Mapping[str, ImuSection]
         md += smd
         body += sbody
         figures += files
-    written = _render(figures)
+    written = _render(figures, [Path(p) for p in drawn])
     written.append(write_text_atomic(out / "report.md", "\n".join(md)))
     written.append(write_text_atomic(out / "report.html", _page(title, body)))
     if names:
@@ -586,3 +609,51 @@ def write_multi_report(outdir: str | os.PathLike, imus: Mapping[str, ImuSection]
             if exp is not None:
                 written += write_exports(exp, out / folders[t], names)
     return written
+
+
+def figure_prefixes(topics: Sequence[str]) -> dict[str, str]:
+    """Topic -> the prefix of its figure files on a report page of ``topics`` ('' for one)."""
+    if len(topics) <= 1:
+        return dict.fromkeys(topics, "")
+    return {t: f + "_" for t, f in imu_folders(topics).items()}
+
+
+@dataclass(frozen=True)
+class FigureDrawer:
+    """Draws an axis's WV figure of a page without a datasheet verdict into ``outdir`` as
+    :func:`write_report` names it, in the worker that fitted the axis
+    (:func:`gmwm.calibrate.calibrate`'s ``draw``; picklable). ``prefixes``: topic -> figure-name
+    prefix (:func:`figure_prefixes`; a topic not listed: none)."""
+
+    outdir: str
+    prefixes: Mapping[str, str] = dataclasses.field(default_factory=dict)
+
+    def bind(self, topics: Sequence[str]) -> FigureDrawer:
+        """This drawer with the figure-name prefixes of a page over ``topics``."""
+        return dataclasses.replace(self, prefixes=figure_prefixes(topics))
+
+    def __call__(self, topic: str, name: str, result: Any, units: str) -> list[Path]:
+        path = wv_figure_path(self.outdir, name, self.prefixes.get(topic, ""))
+        return draw_wv_figure(path, name, result, units)
+
+
+def write_calibration(outdir: str | os.PathLike, result: Any, *, title: str | None = None,
+                      targets: str | Sequence[str] = ("kalibr",), inflation: Any = None,
+                      drawn: Sequence[str | os.PathLike] = ()) -> list[Path]:
+    """Write the report and the configuration files of a :class:`gmwm.calibrate.
+    CalibrationResult`: one topic as :func:`write_report` (files beside the page), several as
+    :func:`write_multi_report` (a section and a configuration folder per topic, failed topics
+    listed with their reason). ``title`` defaults to "Calibration report: <file name>";
+    ``drawn``: figure files already written (:func:`warm_up`, :class:`FigureDrawer`)."""
+    title = title or f"Calibration report: {Path(result.source).name}"
+    topics = result.topics
+    drawn = [*drawn, *(f for s in topics.values() for a in s.axes.values()
+                       for f in getattr(a, "figures", ()))]
+    if len(topics) == 1:
+        sec = next(iter(topics.values()))
+        return write_report(outdir, sec.axes, source=result.source, title=title,
+                            timing=sec.timing, stationarity=sec.stationarity,
+                            topic=sec.rostopic, targets=targets, inflation=inflation,
+                            drawn=drawn)
+    return write_multi_report(outdir, topics, source=result.source, title=title,
+                              targets=targets, inflation=inflation, drawn=drawn)

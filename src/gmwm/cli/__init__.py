@@ -2,8 +2,10 @@
 
 Exit status: 0 success; 1 a problem with the input, model or files (one line
 ``gmwm: error: ...`` on stderr, never a traceback); 2 a usage error (bad options, malformed
-``--param``); 3 ``gmwm fit`` ran but the optimizer did not report convergence (the estimate is
-still printed, with a warning on stderr); 130 interrupted.
+``--param``); 3 ``gmwm fit`` or ``gmwm report`` ran but the optimizer did not report convergence
+(the estimate is still printed, with a warning on stderr); 4 ``gmwm report`` over several topics
+calibrated some of them but not all (each failed topic named with its one-line reason on stderr
+and in the report); 130 interrupted.
 
 Every fit's diagnostics (boundary estimates, weak identification, ...) are printed as one
 ``gmwm: warning: ...`` line each on stderr and listed under ``"warnings"`` in ``--json``; Python and
@@ -13,7 +15,7 @@ one ``gmwm: warning:`` line; ``--debug`` shows them all).
 A thin layer over the library. Layout: :mod:`gmwm.cli.parser` (options, help, checks before any
 computation), one module per command in :mod:`gmwm.cli.commands` (``run(args, out, err)``),
 :mod:`gmwm.cli.inputs` (a file and the input options to data: reading, frequency, stationarity,
-gaps, streaming), :mod:`gmwm.formatting` (text, tables and JSON; shared with :mod:`gmwm.report`).
+gaps, streaming; a recording to calibrate is read by :func:`gmwm.calibrate.calibrate`), :mod:`gmwm.formatting` (text, tables and JSON; shared with :mod:`gmwm.report`).
 Start-up: this module and the parser import only the standard library and the error classes;
 :func:`main` imports the one command it runs, so ``gmwm --help`` loads neither NumPy nor SciPy,
 Numba or matplotlib.

@@ -25,10 +25,6 @@ import numpy as np
 
 from gmwm.cli.parser import STREAM_MIN_BYTES, UsageError
 from gmwm.errors import InputError
-from gmwm.formatting import spans
-
-#: the shortest static stretch --segment longest-static accepts [samples]
-MIN_STATIC_SAMPLES = 64
 
 
 @dataclass(frozen=True)
@@ -82,37 +78,37 @@ def check_levels(n: int, levels: int | None) -> None:
 # -- signals ------------------------------------------------------------------------------------
 def read_signals(args: argparse.Namespace, err: TextIO, *, allow_wv: bool = False,
                  require_time: str | None = None) -> Inputs:
-    """The requested channels, read whole: signals, or with ``allow_wv`` the pooled WV of the
-    clean segments where the gap policy combines them. A channel with a unit, or
-    ``require_time`` (what needs the rate), makes a recording without time stamps or ``--freq``
-    an error, never 1 Hz."""
+    """The requested channels, read whole (:func:`gmwm.calibrate.prepare`: stationarity, part
+    used, gaps): signals, or with ``allow_wv`` the pooled WV of the clean segments where the gap
+    policy combines them. A channel with a unit, or ``require_time`` (what needs the rate),
+    makes a recording without time stamps or ``--freq`` an error, never 1 Hz."""
+    from gmwm.calibrate import prepare
     from gmwm.readers.recording import read_recording
-    from gmwm.readers.timebase import signal_for_wv
 
     args.progress(f"reading {args.input}")
     t0 = time.perf_counter()
     if args.dtype is not None:  # raw binary read whole (e.g. for the robust WV)
         return _read_raw(args, require_time, t0)
-    rec = read_recording(args.input, topic=args.topic, columns=wanted_columns(args),
-                         dataset=args.dataset, freq=args.freq, time_unit=args.time_unit)
-    units = units_by_column(args, list(rec.channels), rec.units)
-    if rec.time is None:
-        with_unit = [c for c, u in units.items() if u]
-        if require_time or with_unit:
-            rec.require_time(require_time or f"coefficients in {units[with_unit[0]]}")
-        freq = 1.0  # per-sample scales of a signal without a unit
-    else:
-        freq = rec.time.freq
-    _warn(err, rec.notes)
-    rec, st = _static_part(args, rec, units, err)
     policy = args.gaps
     if policy == "combine" and not allow_wv:
         raise UsageError("--gaps combine applies to fit and report (use longest here)")
-    decision = rec.gaps(policy if allow_wv or policy != "auto" else "longest")
-    if decision.message:
-        _warn(err, [decision.message])
-    data = {c: signal_for_wv(x, decision, args.levels, freq) for c, x in rec.channels.items()}
-    return Inputs(data, freq, units, rec, st, decision, seconds=time.perf_counter() - t0)
+    rec = read_recording(args.input, topic=args.topic, columns=wanted_columns(args),
+                         dataset=args.dataset, freq=args.freq, time_unit=args.time_unit)
+    args.progress("checking stationarity")
+    prep = prepare(rec, units=getattr(args, "units", None) or None, levels=args.levels,
+                   gaps=policy if allow_wv or policy != "auto" else "longest",
+                   start_s=getattr(args, "start", None), end_s=getattr(args, "end", None),
+                   segment=getattr(args, "segment", "all"),
+                   strict=getattr(args, "strict", False), require_time=require_time,
+                   where=args.input)
+    tell(err, prep.messages)
+    return Inputs(prep.data, prep.freq, prep.units, prep.recording, prep.stationarity,
+                  prep.gaps, seconds=time.perf_counter() - t0)
+
+
+def tell(err: TextIO, messages: Sequence[str]) -> None:
+    """Library messages (``warning: ...``, ``note: ...``) as ``gmwm: ...`` lines on stderr."""
+    err.writelines(f"gmwm: {m}\n" for m in messages)
 
 
 def _read_raw(args: argparse.Namespace, require_time: str | None, t0: float) -> Inputs:
@@ -255,10 +251,11 @@ def _stream_checked(args: argparse.Namespace, src: Any, units: Mapping[str, str]
 
 # -- what fit and report fit --------------------------------------------------------------------
 def read_fit_data(args: argparse.Namespace, err: TextIO, require_time: str | None = None
-                  ) -> Inputs:
-    """What ``gmwm fit`` and ``gmwm report`` fit: the channels of a WV (or AV) table, cut to
-    ``--levels``; of a streamed input, their WVs; else of a recording (:func:`read_signals`,
-    pooled segments allowed)."""
+                  ) -> Inputs | None:
+    """What ``gmwm fit`` and ``gmwm report`` fit when it is not a recording read whole: the
+    channels of a WV (or AV) table, cut to ``--levels``; of a streamed input, their WVs; of raw
+    binary (``--dtype``) read whole, its signals. None for a recording, which
+    :func:`gmwm.calibrate.calibrate` reads."""
     from gmwm.readers.tables import is_wv_table, read_wv_table, table_channels
 
     p = Path(args.input)
@@ -269,12 +266,8 @@ def read_fit_data(args: argparse.Namespace, err: TextIO, require_time: str | Non
             raise UsageError("--n-samples applies to a WV table (a CSV with 'scale' and "
                              "'variance' columns)")
         got = stream_wvs(args, err, require_time)  # a WV is all a fit needs
-        if got is None:
+        if got is None and args.dtype is not None:
             got = read_signals(args, err, allow_wv=True, require_time=require_time)
-        if getattr(args, "robust", False) and any(not isinstance(d, np.ndarray)
-                                                  for d in got.data.values()):
-            raise UsageError("--robust needs one contiguous signal, but the gaps of the "
-                             "recording leave the pooled WV of its segments: use --gaps longest")
         return got
     if args.start is not None or args.end is not None or args.segment != "all" or args.strict:
         raise UsageError("--start/--end/--segment/--strict apply to recordings, not to a WV table")
@@ -302,122 +295,32 @@ def read_fit_data(args: argparse.Namespace, err: TextIO, require_time: str | Non
 # -- per-column options -------------------------------------------------------------------------
 def units_by_column(args: argparse.Namespace, columns: Sequence[str],
                     file_units: Mapping[str, str | None]) -> dict[str, str]:
-    """Per column: the ``--units`` given (validated; an unknown unit is an error listing the known
-    ones, one contradicting ``file_units`` too), else the unit the file defines (bags, ULog,
-    EuRoC headers), else ''."""
-    from gmwm.units import parse_unit
+    """Per column: the ``--units`` given, else the unit the file defines, else ''
+    (:func:`gmwm.calibrate.units_for`)."""
+    from gmwm.calibrate import units_for
 
-    given = _by_column(getattr(args, "units", []) or [], columns, "--units", None)
-    out = {}
-    for c in columns:
-        file_unit = file_units.get(c)
-        u = given.get(c)
-        if u:
-            pu = parse_unit(u)
-            if file_unit and pu != parse_unit(file_unit):
-                raise InputError(f"--units {u} for {c} contradicts {args.input}, which says "
-                                 f"{file_unit}")
-        out[c] = u or file_unit or ""
-    return out
+    return units_for(getattr(args, "units", []) or [], columns, file_units, args.input)
 
 
 def models_by_column(spec: str, columns: Sequence[str]) -> dict[str, str]:
-    """'WN+RW' for every column, or 'gx=WN+RW,ax=QN+WN+RW[,DEFAULT]' pairs."""
-    if "=" not in spec:
-        return dict.fromkeys(columns, spec)
-    default = None
-    pairs = {}
-    for item in (t.strip() for t in spec.split(",")):
-        if not item:
-            continue
-        if "=" in item:
-            col, model = (t.strip() for t in item.split("=", 1))
-            pairs[col] = model
-        else:
-            default = item
-    unknown = [c for c in pairs if c not in columns]
-    if unknown:
-        raise InputError(f"model given for column(s) {', '.join(unknown)}, not among the columns "
-                         f"used ({', '.join(columns)}); select them with --columns")
-    missing = [c for c in columns if c not in pairs and default is None]
-    if missing:
-        raise InputError(f"no model for column(s) {', '.join(missing)}: add COL=MODEL pairs or a "
-                         "bare default model")
-    return {c: pairs.get(c, default) for c in columns}
+    """'WN+RW' for every column, or 'gx=WN+RW,ax=QN+WN+RW[,DEFAULT]' pairs
+    (:func:`gmwm.calibrate.models_for`)."""
+    from gmwm.calibrate import models_for
 
-
-def _by_column(items: Sequence[str], columns: Sequence[str], what: str, default: str | None
-               ) -> dict[str, str | None]:
-    """Per-column values from 'VALUE' (every other column) and 'C1,C2=VALUE' items."""
-    explicit: dict[str, str] = {}
-    fallback = default
-    for item in items:
-        if "=" in item:
-            cols, value = item.rsplit("=", 1)
-            for c in (t.strip() for t in cols.split(",")):
-                if c not in columns:
-                    raise InputError(f"{what} for column '{c}', which is not among the columns "
-                                     f"used ({', '.join(columns)})")
-                explicit[c] = value.strip()
-        else:
-            fallback = item.strip()
-    return {c: explicit.get(c, fallback) for c in columns}
+    return models_for(spec, columns)
 
 
 # -- stationarity -------------------------------------------------------------------------------
-def _static_part(args: argparse.Namespace, rec: Any, units: Mapping[str, str], err: TextIO
-                 ) -> tuple[Any, Any]:
-    """Check the recording for motion (docs/METHODS.md §16), choose the part to use
-    (``--start/--end``, ``--segment longest-static``), print the warnings, and with ``--strict``
-    refuse a used part that moved. Returns that part and the report (its ``used`` range set)."""
-    from gmwm.readers.recording import sample_range, select_samples
-    from gmwm.stationarity import check_stationarity
-
-    args.progress("checking stationarity")
-    st = check_stationarity(rec, units={c: (u or None) for c, u in units.items()})
-    start, end = getattr(args, "start", None), getattr(args, "end", None)
-    i0, i1 = (0, rec.n) if start is None and end is None else sample_range(rec, start, end)
-    st, i0, i1 = _choose_part(args, st, i0, i1, err)
-    if (i0, i1) != (0, rec.n):
-        rec = select_samples(rec, i0, i1)
-    return rec, st
-
-
 def _choose_part(args: argparse.Namespace, st: Any, i0: int, i1: int, err: TextIO
                  ) -> tuple[Any, int, int]:
-    """The part of a checked recording to use: samples ``[i0, i1)`` of ``--start/--end`` (the
-    whole recording without them), narrowed by ``--segment longest-static``; prints the
-    warnings, refuses a part that moved under ``--strict``. Returns the report (its ``used``
-    range set) and the range; shared by recordings read whole and streamed ones."""
-    from gmwm.stationarity import NonStationaryError
+    """The part of a checked streamed recording to use (:func:`gmwm.calibrate.choose_part` with
+    ``--start/--end``, ``--segment``, ``--strict``), its warnings printed."""
+    from gmwm.calibrate import choose_part, part_messages
 
-    how = "the whole recording" if (i0, i1) == (0, st.n) else "--start/--end"
-    if getattr(args, "segment", "all") == "longest-static":
-        a, b = st.clean_segment(i0, i1)
-        if b <= a:
-            raise NonStationaryError(f"--segment longest-static: every part of {args.input} "
-                                     f"is flagged as moving ({_flagged(st)})")
-        if b - a < MIN_STATIC_SAMPLES:
-            raise NonStationaryError(f"--segment longest-static: the longest static stretch of "
-                                     f"{args.input} has only {b - a} samples")
-        i0, i1 = a, b
-        how = "longest static segment" + ("" if how.startswith("the whole") else
-                                          " within --start/--end")
-    st = st.using(i0, i1, how)
-    if getattr(args, "strict", False) and st.moving_in_used:
-        raise NonStationaryError(f"{args.input} is not static in the part used ({_flagged(st)}) "
-                                 "and --strict is set: calibrate a static part with --segment "
-                                 "longest-static or --start/--end")
-    _warn(err, st.warnings())
-    if (i0, i1) != (0, st.n) and not st.segments:
-        err.write(f"gmwm: note: the estimate uses {st.used_text()}\n")
+    st, i0, i1 = choose_part(st, i0, i1, segment=getattr(args, "segment", "all"),
+                             strict=getattr(args, "strict", False), where=args.input)
+    tell(err, part_messages(st))
     return st, i0, i1
-
-
-def _flagged(st: Any) -> str:
-    """The flagged ranges in the part used (all of them when none is)."""
-    a, b = st.used or (0, st.n)
-    return spans(st, st.segments_in(a, b) or list(st.segments))
 
 
 def _warn(err: TextIO, messages: Sequence[str]) -> None:

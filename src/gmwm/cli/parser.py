@@ -20,12 +20,17 @@ from gmwm import __version__
 from gmwm.errors import InputError
 
 EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_NOT_CONVERGED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+#: ``gmwm report`` over several topics: some were calibrated, some could not be (their reasons
+#: are on stderr and in the report)
+EXIT_SOME_FAILED = 4
 
 _EXIT_STATUS_HELP = """exit status:
   0  success
   1  bad input, model or file (one line 'gmwm: error: ...' on stderr)
   2  usage error (unknown option, malformed --param, ...)
-  3  (fit only) the optimizer did not converge: the estimate is printed with a warning"""
+  3  (fit, report) the optimizer did not converge: the estimate is printed with a warning
+  4  (report, several topics) some topics could not be calibrated: the others are, and
+     the report lists each failed topic with its one-line reason"""
 
 _PARAM = re.compile(r"^\s*([A-Za-z][A-Za-z0-9]*\[\d+\]\.[A-Za-z][A-Za-z0-9_]*)\s*=\s*(\S+)\s*$")
 #: a model typed with a negative count ('-1*WN') that argparse would take for an option
