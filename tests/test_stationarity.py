@@ -323,7 +323,7 @@ def test_cli_longest_static_segment(capsys, files):
 def test_cli_start_end(capsys, files):
     code, out, err = run(capsys, "fit", files["moving"], "WN+RW", "--column", "gx",
                          "--start", "10", "--end", "100")
-    assert code == 0 and out.startswith("recording part used: 10-100 s (--start/--end")
+    assert code == 0 and out.startswith("recording part used: 10-100 s (the asked start/end range")
     code, out, err = run(capsys, "fit", files["moving"], "WN+RW", "--column", "gx",
                          "--start", "500")
     assert code == 1 and "after the end" in err

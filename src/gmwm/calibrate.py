@@ -78,7 +78,7 @@ def models_for(spec: str | Mapping[str, str], columns: Sequence[str]) -> dict[st
     unknown = [c for c in pairs if c not in columns]
     if unknown:
         raise InputError(f"model given for column(s) {', '.join(unknown)}, not among the columns "
-                         f"used ({', '.join(columns)}); select them with --columns")
+                         f"used ({', '.join(columns)}); select them with `columns`")
     missing = [c for c in columns if c not in pairs and default is None]
     if missing:
         raise InputError(f"no model for column(s) {', '.join(missing)}: add COL=MODEL pairs or a "
@@ -101,7 +101,7 @@ def units_for(given: str | Sequence[str] | Mapping[str, str | None] | None,
         chosen = dict(given)
     else:
         chosen = _by_column([given] if isinstance(given, str) else list(given), columns,
-                            "--units")
+                            "`units`")
     out = {}
     for c in columns:
         file_unit = file_units.get(c)
@@ -109,7 +109,7 @@ def units_for(given: str | Sequence[str] | Mapping[str, str | None] | None,
         if u:
             pu = parse_unit(u)
             if file_unit and pu != parse_unit(file_unit):
-                raise InputError(f"--units {u} for {c} contradicts {where}, which says "
+                raise InputError(f"`units` {u} for {c} contradicts {where}, which says "
                                  f"{file_unit}")
         out[c] = u or file_unit or ""
     return out
@@ -149,25 +149,25 @@ def choose_part(st: Any, i0: int, i1: int, *, segment: str = "all", strict: bool
         a, b = s.used or (0, s.n)
         return spans(s, s.segments_in(a, b) or list(s.segments))
 
-    how = "the whole recording" if (i0, i1) == (0, st.n) else "--start/--end"
+    how = "the whole recording" if (i0, i1) == (0, st.n) else "the asked start/end range"
     if segment == "longest-static":
         a, b = st.clean_segment(i0, i1)
         if b <= a:
-            raise NonStationaryError(f"--segment longest-static: every part of {where} "
+            raise NonStationaryError(f"`segment` longest-static: every part of {where} "
                                      f"is flagged as moving ({flagged(st)})")
         if b - a < MIN_STATIC_SAMPLES:
-            raise NonStationaryError(f"--segment longest-static: the longest static stretch of "
+            raise NonStationaryError(f"`segment` longest-static: the longest static stretch of "
                                      f"{where} has only {b - a} samples")
         i0, i1 = a, b
         how = "longest static segment" + ("" if how.startswith("the whole") else
-                                          " within --start/--end")
+                                          " within the asked start/end range")
     elif segment != "all":
         raise InputError(f"unknown segment choice {segment!r}; use all or longest-static")
     st = st.using(i0, i1, how)
     if strict and st.moving_in_used:
         raise NonStationaryError(f"{where} is not static in the part used ({flagged(st)}) "
-                                 "and --strict is set: calibrate a static part with --segment "
-                                 "longest-static or --start/--end")
+                                 "and `strict` is set: calibrate a static part with `segment` "
+                                 "longest-static or `start_s`/`end_s`")
     return st, i0, i1
 
 
@@ -747,14 +747,14 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
             if _is_auto(spec):
                 if settings.method != "gmwm":
                     raise InputError(f"the automatic model choice fits GMWM candidates; with "
-                                     f"--method {settings.method} give a model")
+                                     f"`method` {settings.method} give a model")
             else:
                 from gmwm.model import Model
 
                 Model(spec, freq=p.freq)  # a wrong model string fails before any fit
             if settings.robust and not isinstance(d, np.ndarray):
-                raise InputError("--robust needs one contiguous signal, but the gaps of the "
-                                 "recording leave the pooled WV of its segments: use --gaps "
+                raise InputError("`robust` needs one contiguous signal, but the gaps of the "
+                                 "recording leave the pooled WV of its segments: use `gaps` "
                                  "longest")
             s = settings if isinstance(d, np.ndarray) else settings.replace(levels=None)
             jobs.append(_Job(t, c, d, spec, p.freq, p.units.get(c, ""), s, explicit_starts,
@@ -813,7 +813,7 @@ def _check_sheet(sheet: Any, prepared: Mapping[str, Prepared],
         for c, u in p.units.items():
             parsed = parse_unit(u) if u else None
             if parsed is None:
-                raise InputError(f"--datasheet: give the unit of {c} with --units (e.g. deg/s "
+                raise InputError(f"`sheet`: give the unit of {c} with `units` (e.g. deg/s "
                                  "or m/s^2) to tell a gyroscope from an accelerometer")
             if parsed[2] not in sheet.sensors:
                 tell(t, f"warning: {c}: the datasheet {sheet.where} has no {parsed[2]} section: "
@@ -821,7 +821,7 @@ def _check_sheet(sheet: Any, prepared: Mapping[str, Prepared],
             else:
                 covered = True
     if not covered:
-        raise InputError(f"--datasheet {sheet.where}: no fitted column is of a sensor type it "
+        raise InputError(f"`sheet` {sheet.where}: no fitted column is of a sensor type it "
                          f"describes ({', '.join(sheet.sensors)})")
 
 

@@ -33,6 +33,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
+from gmwm.cli.errors import as_flags
 from gmwm.cli.parser import (
     EXIT_ERROR,
     EXIT_INTERRUPTED,
@@ -113,10 +114,10 @@ def _run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         command = importlib.import_module(f"gmwm.cli.commands.{args.command.replace('-', '_')}")
         return command.run(args, out, err)
     except UsageError as exc:
-        err.write(f"gmwm: error: {one_line(exc)} (see 'gmwm {args.command} --help')\n")
+        err.write(f"gmwm: error: {as_flags(one_line(exc))} (see 'gmwm {args.command} --help')\n")
         return EXIT_USAGE
     except GMWMError as exc:
-        err.write(f"gmwm: error: {one_line(exc)}\n")
+        err.write(f"gmwm: error: {as_flags(one_line(exc))}\n")
         return EXIT_ERROR
     except OSError as exc:
         if isinstance(exc, BrokenPipeError):  # e.g. 'gmwm wv x.npy | head': not an error

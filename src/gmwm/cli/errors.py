@@ -32,6 +32,8 @@ PARAMETER_FLAGS: Mapping[str, str] = {
     "gaps": "--gaps",
     "sheet": "--datasheet",
     "levels": "--levels",
+    "method": "--method",
+    "robust": "--robust",
     "gmwm.identify.check": "--check",
 }
 

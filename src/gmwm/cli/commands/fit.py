@@ -11,6 +11,7 @@ import argparse
 from collections.abc import Callable, Mapping
 from typing import Any, TextIO
 
+from gmwm.cli.errors import as_flags
 from gmwm.cli.inputs import read_fit_data, wanted_columns
 from gmwm.cli.outputs import plot_channels, save_plot
 from gmwm.cli.parser import EXIT_NOT_CONVERGED, EXIT_OK, EXIT_SOME_FAILED
@@ -80,7 +81,7 @@ def calibrate_input(args: argparse.Namespace, err: TextIO, *, require_time: str 
 
     def say(msg: str) -> None:
         if msg.startswith(("warning: ", "note: ")):
-            err.write(f"gmwm: {msg}\n")
+            err.write(f"gmwm: {as_flags(msg)}\n")
         else:
             args.progress(msg)
 
@@ -145,7 +146,8 @@ def calibration_status(result: Any, err: TextIO, multi: bool) -> int:
             prefix = f"{topic} {name}: " if several else f"{name}: " if multi else ""
             if f.choice is not None and not f.choice.passed:
                 err.write(f"gmwm: warning: {prefix}{f.choice.warnings[0]}\n")
-            err.writelines(f"gmwm: warning: {prefix}{w}\n" for w in fit_warnings(f.result))
+            err.writelines(f"gmwm: warning: {prefix}{as_flags(w)}\n"
+                           for w in fit_warnings(f.result))
             if not f.result.converged:
                 msg = str(f.result.message).strip().splitlines()
                 err.write(f"gmwm: warning: {prefix}the optimizer did not converge"
