@@ -319,7 +319,7 @@ def drop_duplicate_rows(stamps: Any, columns: dict[str, np.ndarray], where: str
         if differ.size:
             i = int(differ[0])
             raise InputError(f"{where} repeats the stamp at row {i + 2} with a different "
-                             f"{name} ({x[i]!r} then {x[i + 1]!r}): two samples at one "
+                             f"{name} ({x[i]:.9g} then {x[i + 1]:.9g}): two samples at one "
                              "instant; fix the file")
     keep = np.ones(t.size, dtype=bool)
     keep[same + 1] = False
