@@ -369,3 +369,30 @@ def test_gaps_beyond_the_limit_make_the_rate_ambiguous():
     tb = time_base(np.concatenate(([0.0], np.cumsum(d))), unit="s")
     assert tb.rate_ambiguity is not None and "gaps take" in tb.rate_ambiguity
     assert tb.freq == pytest.approx(200.0, rel=1e-9)  # the rate between the gaps
+
+
+def test_update_rate_is_the_defined_rate_on_every_surface(tmp_path):
+    """The configuration's update_rate = the report's rate = the mean rate between gaps
+    computed by hand from the stamps; --rostopic names the topic."""
+    import yaml
+
+    from gmwm.cli import main
+
+    rng = np.random.default_rng(8)
+    n = 2 ** 11
+    d = 5e-3 * (1 + 0.03 * rng.standard_normal(n - 1))
+    d[1000] = 0.04  # one gap
+    t = np.concatenate(([0.0], np.cumsum(d)))
+    x = rng.standard_normal(n) * 0.1
+    p = tmp_path / "imu.csv"
+    p.write_text("Time (s),Gyroscope X (deg/s),Magnetometer X (uT)\n"
+                 + "".join(f"{t[k]:.9f},{x[k]:.6f},40\n" for k in range(n)))
+    inside = np.delete(np.diff(np.round(t, 9)), 1000)
+    rate = inside.size / inside.sum()
+    assert main(["report", str(p), "WN", "-o", str(tmp_path / "a"), "-q", "--gaps", "longest",
+                 "--rostopic", "/phone/imu"]) == 0
+    vals = yaml.safe_load((tmp_path / "a" / "imu.yaml").read_text())
+    assert vals["update_rate"] == pytest.approx(rate, rel=1e-8)
+    assert vals["rostopic"] == "/phone/imu"
+    page = (tmp_path / "a" / "report.md").read_text()
+    assert f"{vals['update_rate']:.6g} Hz from time column 'Time'" in page

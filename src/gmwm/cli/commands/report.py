@@ -64,8 +64,9 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                          title=args.title or f"Calibration report: {Path(args.input).name}",
                          timing=timing, stationarity=st, targets=targets, inflation=inflation,
                          # a bag's topic is the filter's rostopic; a ULog topic is not a ROS one
-                         topic=rec.topic if rec is not None and rec.format.startswith("ros")
-                         else None, drawn=drawn)
+                         topic=getattr(args, "rostopic", None) or (
+                             rec.topic if rec is not None and rec.format.startswith("ros")
+                             else None), drawn=drawn)
     if args.json:
         obj = {"command": "report", "input": args.input, "files": [str(p) for p in files],
                "fits": {c: fit_json(f.result, source=args.input, units=f.units,
