@@ -114,7 +114,9 @@ def _several_imus(args: argparse.Namespace, out: TextIO, err: TextIO, targets: A
                  .items()} for t, r in recs.items()}
     models = {t: models_by_column(args.model, list(r.channels)) for t, r in recs.items()}
     first = next(iter(models.values()))
-    model = args.model if all(m == first for m in models.values()) and "=" not in args.model \
+    # one model spec applies to every topic, whatever its channels (a phone's Gyroscope gx..gz,
+    # its Accelerometer ax..az)
+    model = args.model if "=" not in args.model or all(m == first for m in models.values()) \
         else first
     options = {"method": args.method, "seed": args.seed}
     options.update({k: v for k, v in {"weights": args.weights, "n_starts": args.n_starts,
