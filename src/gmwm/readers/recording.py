@@ -6,10 +6,14 @@ format (found by content)  rate from                             units and axis 
 ROS 1 bag, ROS 2 bag       ``header.stamp`` (ns)                 the message type (REP 103)
 (sqlite3, MCAP)
 PX4 ULog                   ``timestamp[_sample]`` (us)           the ULog topic
+ArduPilot DataFlash        ``TimeUS`` (us)                       the IMU message (SI)
+(``.bin``, text ``.log``)
+phone export folder        each sensor file's ``Time (s)``       the headers' units
 EuRoC / TUM-VI CSV         ``#timestamp [ns]``                   the bracketed header units
 ``rostopic echo -p`` CSV   ``field.header.stamp`` (ns)           the message type (REP 103)
 CSV/TSV/text (``;``,       a time column (unit by name, else     a unit after a column name
-decimal comma, ``.gz``)    by magnitude)                         (``gx [deg/s]``), or ``units``
+decimal comma, ``.gz``)    by magnitude)                         (``gx [deg/s]``, ``Gyroscope X
+                                                                 (deg/s)``), or ``units``
 ``.npy``, ``.npz``,        a time column / field / dataset, an   ``units``
 HDF5                       HDF5 ``freq`` attribute, ``freq``
 ========================  ===================================  ==============================
@@ -18,8 +22,12 @@ Without stamps the rate is ``freq``; without either, :attr:`Recording.time` is N
 :meth:`Recording.require_time` raises (a physical unit or a datasheet needs seconds: never
 1 Hz). A ``freq`` that contradicts the stamps by more than 1 % is an error.
 
-Several IMU streams of one bag or ULog: :func:`imu_topics` lists them, :func:`read_recordings`
-reads them with the file opened once.
+Several IMU streams of one bag, ULog, DataFlash log or phone export: :func:`imu_topics` lists
+them, :func:`read_recordings` reads them with the file opened once.
+
+The rate is the mean rate between gaps (:class:`gmwm.readers.timebase.TimeBase`); where jitter or
+gaps make it ambiguous, :attr:`Recording.rate_ambiguity` says why (a configuration needs
+``--freq`` or ``--gaps`` then). Exact duplicate rows are dropped with a note.
 """
 
 from __future__ import annotations
