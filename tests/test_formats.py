@@ -280,7 +280,7 @@ def test_phone_folder_semicolons_and_an_empty_folder(tmp_path):
     assert rec.n == 800
     empty = tmp_path / "empty"
     empty.mkdir()
-    with pytest.raises(InputError, match="neither a ROS 2 bag .* nor a phone sensor export"):
+    with pytest.raises(InputError, match="not a ROS 2 bag .* nor a phone sensor export"):
         read_recording(empty)
 
 
@@ -305,7 +305,7 @@ def test_repeated_stamp_with_other_values_is_an_error(tmp_path):
     rows.insert(30, f"{29 * 0.01:.2f},99")
     p = tmp_path / "clash.csv"
     p.write_text("time,gx [deg/s]\n" + "\n".join(rows) + "\n")
-    with pytest.raises(InputError, match=r"repeats the stamp at row 31 with a different gx "
+    with pytest.raises(InputError, match=r"repeats a stamp at row 31 with a different gx "
                                          r"\(1 then 99\)"):
         read_recording(p)
 

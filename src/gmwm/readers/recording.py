@@ -143,7 +143,7 @@ def _kind(p: Path) -> str:
 
         if is_phone_folder(p):
             return "phone"
-        raise InputError(f"{p} is a folder, neither a ROS 2 bag (no metadata.yaml) nor a phone "
+        raise InputError(f"{p} is a folder, not a ROS 2 bag (no metadata.yaml) nor a phone "
                          "sensor export (no Gyroscope.csv and Accelerometer.csv)")
     with open(p, "rb") as fh:
         head = fh.read(64)
@@ -540,7 +540,8 @@ def _multi_kind(p: Path, what: str) -> str:
         raise InputError(f"file not found: {p}")
     kind = _kind(p)
     if kind not in _MULTI:
-        raise InputError(f"{what} applies to ROS bags, ULog and DataFlash logs, not to {p}")
+        raise InputError(f"{what} applies to ROS bags and ULog files (also DataFlash logs and "
+                         f"phone export folders), not to {p}")
     return kind
 
 
@@ -621,7 +622,8 @@ def read_recording(path: str | os.PathLike, *, topic: str | None = None, columns
         raise InputError(f"file not found: {p}")
     kind = _kind(p)
     if topic is not None and kind not in _MULTI:
-        raise InputError(f"--topic applies to ROS bags, ULog and DataFlash logs, not to {p}")
+        raise InputError(f"--topic applies to ROS bags and ULog files (also DataFlash logs and "
+                         f"phone export folders), not to {p}")
     if time_unit is not None and time_unit not in ("s", "ms", "us", "ns"):
         raise InputError(f"unknown time unit {time_unit!r}; use s, ms, us or ns")
     if kind == "bag":

@@ -318,7 +318,7 @@ def drop_duplicate_rows(stamps: Any, columns: dict[str, np.ndarray], where: str
         differ = same[x[same + 1] != x[same]]
         if differ.size:
             i = int(differ[0])
-            raise InputError(f"{where} repeats the stamp at row {i + 2} with a different "
+            raise InputError(f"{where} repeats a stamp at row {i + 2} with a different "
                              f"{name} ({x[i]:.9g} then {x[i + 1]:.9g}): two samples at one "
                              "instant; fix the file")
     keep = np.ones(t.size, dtype=bool)
