@@ -396,3 +396,19 @@ def test_update_rate_is_the_defined_rate_on_every_surface(tmp_path):
     assert vals["rostopic"] == "/phone/imu"
     page = (tmp_path / "a" / "report.md").read_text()
     assert f"{vals['update_rate']:.6g} Hz from time column 'Time'" in page
+
+
+def test_streamed_time_dataset_gives_the_same_rate(tmp_path):
+    """Large HDF5 files are streamed: their rate is the same mean rate between gaps."""
+    h5py = pytest.importorskip("h5py")
+    from gmwm import stream
+
+    rng = np.random.default_rng(6)
+    d = 4e-3 * (1 + 0.02 * rng.standard_normal(5000))
+    d[[1234, 4321]] = 0.03
+    t = np.concatenate(([0.0], np.cumsum(d)))
+    with h5py.File(tmp_path / "t.h5", "w") as f:
+        f.create_dataset("t", data=t)
+    with h5py.File(tmp_path / "t.h5", "r") as f:
+        freq, _ = stream._stream_time_freq(f["t"], 1.0, "t", chunk=777)
+    assert freq == pytest.approx(time_base(t, unit="s").freq, rel=1e-8)
