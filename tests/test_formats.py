@@ -412,3 +412,14 @@ def test_streamed_time_dataset_gives_the_same_rate(tmp_path):
     with h5py.File(tmp_path / "t.h5", "r") as f:
         freq, _ = stream._stream_time_freq(f["t"], 1.0, "t", chunk=777)
     assert freq == pytest.approx(time_base(t, unit="s").freq, rel=1e-8)
+
+
+def test_dataflash_of_old_firmware_with_timems(tmp_path):
+    g, a = _imu(200, 3)
+    rows = [(5000 + 20 * k, *map(float, g[k]), *map(float, a[k])) for k in range(200)]
+    path = write_dataflash_bin(tmp_path / "old.bin", [
+        Message("IMU", "Iffffff", "TimeMS,GyrX,GyrY,GyrZ,AccX,AccY,AccZ", rows)])
+    rec = read_recording(path)
+    assert rec.time.freq == pytest.approx(50.0, rel=1e-12)
+    assert rec.time.source == "TimeMS of IMU (ms)" and rec.time.start_s == pytest.approx(5.0)
+    np.testing.assert_array_equal(rec.channels["ay"], a[:, 1].astype(np.float64))

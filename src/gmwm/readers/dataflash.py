@@ -7,7 +7,8 @@ firmware's layout:
 * newer firmware logs one ``IMU`` message with an instance column ``I`` (marked ``#`` in its
   FMTU units when logged).
 
-Columns read: ``TimeUS`` (microseconds since boot, the stamps), ``GyrX/Y/Z`` (rad/s),
+Columns read: ``TimeUS`` (microseconds since boot, the stamps; ``TimeMS``, milliseconds, in logs
+of firmware before 2015), ``GyrX/Y/Z`` (rad/s),
 ``AccX/Y/Z`` (m/s^2, logged ``m/s/s``) and ``T`` (deg C, the IMU temperature). When the log
 carries FMTU units, they are checked to be those. A binary log is indexed by pymavlink (message
 formats and the offset of every message) and its IMU messages decoded as NumPy records at those
@@ -162,7 +163,8 @@ def _streams(log: _Log) -> list[tuple[str, str, int | None]]:
     """``(label, message, instance value or None)`` of every IMU stream, in instance order."""
     out = []
     for name, cols in log.columns.items():
-        if not cols or "TimeUS" not in cols or cols["TimeUS"].size == 0:
+        stamp = "TimeUS" if "TimeUS" in cols else "TimeMS"
+        if not cols or stamp not in cols or cols[stamp].size == 0:
             continue
         if "I" in cols:
             for i in np.unique(cols["I"]):
@@ -176,7 +178,7 @@ def _streams(log: _Log) -> list[tuple[str, str, int | None]]:
 def _listing(streams: list[tuple[str, str, int | None]], log: _Log) -> str:
     parts = []
     for label, name, inst in streams:
-        n = log.columns[name]["TimeUS"].size if inst is None else \
+        n = next(iter(log.columns[name].values())).size if inst is None else \
             int(np.count_nonzero(log.columns[name]["I"] == inst))
         alias = f" (message {name})" if inst is None and name != "IMU" else ""
         parts.append(f"{label}{alias}: {n} messages")
@@ -207,7 +209,8 @@ def _resolve(topic: str, streams: list[tuple[str, str, int | None]], log: _Log
 
 def _extract(log: _Log, label: str, name: str, inst: int | None) -> FlashData:
     cols = log.columns[name]
-    missing = [c for c in ("TimeUS", *_AXES.values()) if c not in cols]
+    stamp = "TimeUS" if "TimeUS" in cols else "TimeMS"  # TimeMS: logs of firmware before 2015
+    missing = [c for c in (stamp, *_AXES.values()) if c not in cols]
     if missing:
         raise InputError(f"message {name} of {log.path} lacks the column(s) {', '.join(missing)}")
     for c, u in log.units.get(name, {}).items():  # FMTU units, when logged: the SI ones
@@ -216,7 +219,7 @@ def _extract(log: _Log, label: str, name: str, inst: int | None) -> FlashData:
             raise InputError(f"column {c} of message {name} in {log.path} is logged in {u}, "
                              f"not {want}: gmwm reads IMU messages in SI units")
     rows = slice(None) if inst is None else cols["I"] == inst
-    stamps = np.asarray(cols["TimeUS"][rows]).astype(np.int64)
+    stamps = np.asarray(cols[stamp][rows]).astype(np.int64) * (1000 if stamp == "TimeMS" else 1)
     vectors = {k: np.asarray(cols[c][rows], dtype=np.float64) for k, c in _AXES.items()}
     u = {k: ("rad/s" if k[0] == "g" else "m/s^2") for k in vectors}
     temp, tsrc = None, ""
@@ -225,7 +228,7 @@ def _extract(log: _Log, label: str, name: str, inst: int | None) -> FlashData:
         if t.size and np.all(np.isfinite(t)) and np.any(t != 0):  # all zero: not logged
             temp, tsrc = t, f"column T of {label}"
     where = name if inst is None else f"{name} with I = {inst}"
-    return FlashData(label, stamps, vectors, u, f"TimeUS of {where}", list(log.notes), temp,
+    return FlashData(label, stamps, vectors, u, f"{stamp} of {where}", list(log.notes), temp,
                      tsrc)
 
 

@@ -529,7 +529,8 @@ def _from_dataflash(p: Path, d: Any, columns: Any, freq: float | None, units: An
     where = f"{d.source} in {p.name}"
     notes = list(d.notes)
     stamps, vec, temp = _dedupe(d.stamp_us, d.vectors, d.temperature, where, notes)
-    tb = time_base(stamps, unit="us", where=where, source=f"{d.source} (us)")
+    unit = "ms" if d.source.startswith("TimeMS") else "us"  # either way read as us
+    tb = time_base(stamps, unit="us", where=where, source=f"{d.source} ({unit})")
     return _finish(p, "dataflash", {n: vec[n] for n in names}, d.units, tb, freq, units,
                    notes, d.topic, stamps=stamps,
                    temperature=None if temp is None else (temp, d.temperature_source))
