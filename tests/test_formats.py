@@ -52,6 +52,11 @@ def _three_old(tmp_path: Path, writer=write_dataflash_bin, ext: str = "bin") -> 
     msgs = [Message(name, *IMU_OLD, imu_rows(T_US + 11 * k, *data[k], None, temp=30.0 + k),
                     IMU_OLD_UNITS if k == 0 else None)
             for k, name in enumerate(("IMU", "IMU2", "IMU3"))]
+    msgs += [Message("MSG", "QZ", "TimeUS,Message", [(int(T_US[0]), "ArduCopter V4.0.0")]),
+             Message("PARM", "QNf", "TimeUS,Name,Value", [(int(T_US[1]), "INS_ACCEL_FILTER",
+                                                          20.0)]),
+             Message("GPS", "QBIH", "TimeUS,Status,GMS,GWk", [(int(t), 3, 1000 * i, 2300)
+                                                              for i, t in enumerate(T_US[::40])])]
     return writer(tmp_path / f"old.{ext}", msgs), data
 
 
