@@ -428,3 +428,21 @@ def test_dataflash_of_old_firmware_with_timems(tmp_path):
     assert rec.time.freq == pytest.approx(50.0, rel=1e-12)
     assert rec.time.source == "TimeMS of IMU (ms)" and rec.time.start_s == pytest.approx(5.0)
     np.testing.assert_array_equal(rec.channels["ay"], a[:, 1].astype(np.float64))
+
+
+def test_dataflash_damaged_bytes_are_a_note_not_a_flood(tmp_path, capfd):
+    g, a = _imu(N, 2)
+    path = write_dataflash_bin(tmp_path / "d.bin", [Message("IMU", *IMU_OLD,
+                                                            imu_rows(T_US, g, a, None))])
+    raw = path.read_bytes()
+    import struct
+
+    size = 3 + struct.calcsize("<" + IMU_OLD[0])  # one IMU message
+    cut = 89 + 100 * size  # after the FMT message and 100 IMU messages
+    path.write_bytes(raw[:cut] + b"\x00" * 700 + raw[cut:])
+    rec = read_recording(path)
+    assert rec.n == N
+    np.testing.assert_array_equal(rec.channels["az"], a[:, 2].astype(np.float64))
+    assert any("damaged data skipped by pymavlink" in n for n in rec.notes)
+    out, err = capfd.readouterr()
+    assert "bad header" not in out + err

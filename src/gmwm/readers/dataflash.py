@@ -21,6 +21,8 @@ import contextlib
 import io
 import os
 import re
+import sys
+import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -91,14 +93,45 @@ def _reader(p: Path, text: bool) -> tuple[Any, str]:
             self.clock = None
             self._rewind(keep_messages=True)
 
-    said = io.StringIO()  # pymavlink prints what it skips; it becomes a note
+    said = io.StringIO()  # pymavlink prints what it skips (also from C): it becomes a note
     try:
-        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
+        with _c_output() as c_said, contextlib.redirect_stdout(said), \
+                contextlib.redirect_stderr(said):
             r = Reader(str(p))
     except Exception as exc:  # noqa: BLE001 - pymavlink raises bare exceptions on damaged logs
         msg = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         raise InputError(f"cannot read the DataFlash log {p}: {msg}") from None
-    return r, said.getvalue()
+    return r, said.getvalue() + c_said.getvalue()
+
+
+@contextlib.contextmanager
+def _c_output() -> Any:
+    """Capture what is written to the file descriptors 1 and 2 (pymavlink's compiled indexer
+    prints one line per damaged byte there) into the StringIO it yields, once the block ends."""
+    out = io.StringIO()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    try:
+        saved = [os.dup(1), os.dup(2)]
+    except OSError:  # no such descriptors (an embedded interpreter): nothing to capture
+        yield out
+        return
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 1)
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield out
+        finally:
+            for stream in (sys.stdout, sys.stderr):
+                with contextlib.suppress(Exception):
+                    stream.flush()
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            for fd in saved:
+                os.close(fd)
+            tmp.seek(0)
+            out.write(tmp.read().decode("utf-8", "replace"))
 
 
 def _binary_columns(r: Any, name: str) -> dict[str, np.ndarray]:
@@ -152,8 +185,8 @@ def _open(p: Path) -> _Log:
     notes = []
     skipped = [ln for ln in said.splitlines() if ln.strip()]
     if skipped:
-        notes.append(f"{p}: pymavlink skipped damaged data ({len(skipped)} message(s), first: "
-                     f"{skipped[0].strip()})")
+        notes.append(f"{p}: damaged data skipped by pymavlink ({len(skipped)} report(s), "
+                     f"first: {skipped[0].strip()})")
     units = {n: dict(zip(f.columns, f.units, strict=False)) if f.units else {}
              for n, f in fmts.items()}
     return _Log(p, columns, units, notes)
