@@ -355,7 +355,13 @@ def test_ambiguous_rate_named_and_settled_by_freq(tmp_path):
     assert "jitter" in rec.rate_ambiguity and f"limit {100 * JITTER_LIMIT:g} %" in \
         rec.rate_ambiguity
     assert rec.rate_ambiguity.startswith("the sampling rate of time column 'time'")
+    with pytest.raises(InputError, match=r"ambiguous: .*no configuration files written; give "
+                                         r"--freq with the rate to assume \(the stamps allow "
+                                         r".* Hz\) or a gap policy with --gaps$"):
+        rec.require_rate()
+    rec.require_rate(gaps_given=True)  # the user chose how gaps are handled: accepted
     given = read_recording(p, freq=200.0)
+    given.require_rate()
     assert not given.rate_ambiguous and given.time.freq == 200.0
     assert given.time.source.startswith("--freq")
     with pytest.raises(InputError, match="--freq 150 lies outside the rates the stamps"):

@@ -110,6 +110,20 @@ class Recording:
     def rate_ambiguous(self) -> bool:
         return self.rate_ambiguity is not None
 
+    def require_rate(self, gaps_given: bool = False, what: str = "configuration files") -> None:
+        """Refuse ``what`` when the rate is ambiguous (:attr:`rate_ambiguity`) and the user gave
+        neither ``--freq`` (which settles it when reading) nor a gap policy (``gaps_given``):
+        an :class:`InputError` of one line naming ``--freq``."""
+        why = self.rate_ambiguity
+        if why is None or gaps_given:
+            return
+        tb = self.time
+        rates = sorted({f"{r:.6g}" for r in (tb.freq, tb.median_rate, tb.overall_rate) if r},
+                       key=float)
+        allow = rates[0] if len(rates) == 1 else f"{', '.join(rates[:-1])} or {rates[-1]}"
+        raise InputError(f"{why}: no {what} written; give --freq with the rate to assume (the "
+                         f"stamps allow {allow} Hz) or a gap policy with --gaps")
+
     def require_time(self, why: str = "scales in seconds") -> TimeBase:
         """The time base; an :class:`InputError` asking for ``--freq`` when there is none."""
         if self.time is None:
