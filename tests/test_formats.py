@@ -452,3 +452,24 @@ def test_dataflash_damaged_bytes_are_a_note_not_a_flood(tmp_path, capfd):
     assert any("damaged data skipped by pymavlink" in n for n in rec.notes)
     out, err = capfd.readouterr()
     assert "bad header" not in out + err
+
+
+def test_phone_export_as_a_zip_archive(tmp_path):
+    """phyphox exports a zip of its CSV files (and a meta folder): read as the folder."""
+    import zipfile
+
+    folder = _phyphox(tmp_path / "ph", 100.0, 100.0)
+    z = tmp_path / "Gyro and acc 2026-01-01.zip"
+    with zipfile.ZipFile(z, "w") as f:
+        for q in folder.iterdir():
+            f.write(q, q.name)
+        f.writestr("meta/device.csv", "property,value\nmodel,phone\n")
+    rec = read_recording(z)
+    direct = read_recording(folder)
+    assert rec.format == "phyphox" and rec.path == str(z)
+    for c in direct.channels:
+        np.testing.assert_array_equal(rec.channels[c], direct.channels[c])
+    assert rec.time.freq == direct.time.freq
+    assert imu_topics(z) == ["Gyroscope", "Accelerometer"]
+    assert read_recording(z, topic="Gyroscope").path == str(z / "Gyroscope.csv")
+    assert not any("/tmp" in n and str(tmp_path) not in n for n in rec.notes)

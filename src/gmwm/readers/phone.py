@@ -1,4 +1,5 @@
-"""Phone sensor exports: a folder holding ``Gyroscope.csv`` and ``Accelerometer.csv``.
+"""Phone sensor exports: a folder (or a zip archive, as phyphox exports) holding
+``Gyroscope.csv`` and ``Accelerometer.csv``.
 
 phyphox (and apps like it) export each sensor to its own table, on its own clock: ``Time (s)``
 and ``Gyroscope x (rad/s)`` ... in one file, ``Time (s)`` and ``Acceleration x (m/s^2)`` ... in
@@ -17,6 +18,8 @@ text recording (units and axes from the header, see :mod:`gmwm.readers.text`); t
 from __future__ import annotations
 
 import os
+import tempfile
+import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -37,14 +40,29 @@ SENSOR_FILES = {"Gyroscope": ("gyroscope.csv", "gyroscope"),
 
 
 def _files(p: Path) -> dict[str, Path]:
-    by_name = {q.name.lower(): q for q in p.iterdir() if q.is_file()}
+    """topic -> the sensor's file: in a folder, or a member of a zip archive (phyphox exports
+    zip files) as ``archive/member``."""
+    if p.is_dir():
+        by_name = {q.name.lower(): q for q in p.iterdir() if q.is_file()}
+    else:
+        with zipfile.ZipFile(p) as z:
+            members = [m for m in z.namelist() if not m.endswith("/")]
+        by_name = {}
+        for m in sorted(members, key=lambda m: m.count("/")):  # the shallowest one of a name
+            by_name.setdefault(m.rsplit("/", 1)[-1].lower(), p / m)
     return {t: by_name[f] for t, (f, _) in SENSOR_FILES.items() if f in by_name}
 
 
 def is_phone_folder(p: str | os.PathLike) -> bool:
-    """Whether a folder holds ``Gyroscope.csv`` and ``Accelerometer.csv`` (any case)."""
+    """Whether a folder (or a zip archive) holds ``Gyroscope.csv`` and ``Accelerometer.csv``
+    (any case)."""
     q = Path(p)
-    return q.is_dir() and len(_files(q)) == len(SENSOR_FILES)
+    if not q.is_dir() and not zipfile.is_zipfile(q):
+        return False
+    try:
+        return len(_files(q)) == len(SENSOR_FILES)
+    except (zipfile.BadZipFile, OSError):
+        return False
 
 
 def _sensor(p: Path, topic: str, freq: float | None, units: Any) -> Any:
@@ -52,7 +70,15 @@ def _sensor(p: Path, topic: str, freq: float | None, units: Any) -> Any:
     from gmwm.readers.recording import read_recording
 
     f = _files(p)[topic]
-    rec = read_recording(f, freq=freq, units=units)
+    if p.is_dir():
+        rec = read_recording(f, freq=freq, units=units)
+    else:  # a member of a zip archive: read from a temporary copy, named as the member
+        member = str(f.relative_to(p))
+        with tempfile.TemporaryDirectory() as tmp:
+            copy = Path(tmp) / f.name
+            with zipfile.ZipFile(p) as z:
+                copy.write_bytes(z.read(member))
+            rec = _renamed(read_recording(copy, freq=freq, units=units), str(copy), str(f))
     role = SENSOR_FILES[topic][1]
     wrong = [c for c, r in rec.roles.items() if r != role]
     if wrong:
@@ -60,6 +86,15 @@ def _sensor(p: Path, topic: str, freq: float | None, units: Any) -> Any:
                          f"{' / '.join(sorted({str(rec.roles[c]) for c in wrong}))}")
     rec.require_time(f"the {role} of the phone export {p}")
     return replace(rec, topic=topic, format="phyphox")
+
+
+def _renamed(rec: Any, old: str, new: str) -> Any:
+    """``rec`` with the file name ``old`` replaced by ``new`` in its path, notes and time base."""
+    tb = rec.time
+    if tb is not None:
+        tb = replace(tb, source=tb.source.replace(old, new),
+                     notes=tuple(n.replace(old, new) for n in tb.notes))
+    return replace(rec, path=new, time=tb, notes=tuple(n.replace(old, new) for n in rec.notes))
 
 
 def phone_topics(path: str | os.PathLike) -> list[str]:

@@ -172,7 +172,9 @@ def _kind(p: Path) -> str:
     if head.startswith(b"\x93NUMPY"):
         return "npy"
     if head.startswith(b"PK\x03\x04"):
-        return "npz"
+        from gmwm.readers.phone import is_phone_folder
+
+        return "phone" if is_phone_folder(p) else "npz"
     if head.startswith(b"\x89HDF\r\n\x1a\n"):
         return "hdf5"
     suffix = p.suffix.lower()
