@@ -360,8 +360,10 @@ def test_ambiguous_rate_named_and_settled_by_freq(tmp_path):
                                          r".* Hz\) or a gap policy with --gaps$"):
         rec.require_rate()
     rec.require_rate(gaps_given=True)  # the user chose how gaps are handled: accepted
+    assert any(n.endswith("a configuration file needs --freq or --gaps") for n in rec.notes)
     given = read_recording(p, freq=200.0)
     given.require_rate()
+    assert not any(" is ambiguous: " in n for n in given.notes)
     assert not given.rate_ambiguous and given.time.freq == 200.0
     assert given.time.source.startswith("--freq")
     with pytest.raises(InputError, match="--freq 150 lies outside the rates the stamps"):

@@ -271,7 +271,8 @@ def _finish(p: Path, fmt: str, channels: dict[str, np.ndarray], file_units: dict
                                  f"{tb.source} allow ({min(cands):.6g}-{max(cands):.6g} Hz)")
             tb = replace(tb, freq=float(freq), rate_given=True,
                          source=f"--freq (the stamps of {tb.source} give {tb.freq:.6g} Hz "
-                                "between gaps)")
+                                "between gaps)",
+                         notes=tuple(n for n in tb.notes if " is ambiguous: " not in n))
         elif tb is not None and abs(freq / tb.freq - 1.0) > 0.01:
             raise InputError(f"--freq {freq:g} contradicts the sampling frequency {tb.freq:.6g} "
                              f"Hz measured from {tb.source}; drop --freq or fix the file")

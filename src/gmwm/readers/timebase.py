@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import itertools
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -292,13 +292,17 @@ def time_base(t: Any, *, name: str = "time", unit: str | None = None, where: str
     if n_short:
         notes.append(f"{where}: {n_short} step(s) shorter than half the median step")
     src = source or f"{where} ({unit}, {how})"
-    return TimeBase(freq=freq, source=src, n=int(t.size), unit=unit, start_s=float(t[0]) * k,
+    tb = TimeBase(freq=freq, source=src, n=int(t.size), unit=unit, start_s=float(t[0]) * k,
                     duration_s=span * k, jitter=jitter, n_gaps=int(gaps.size),
                     longest_gap_s=float(d.max()) * k if gaps.size else 0.0,
                     gap_share=float((dg - mean_step).sum() / span) if gaps.size else 0.0,
                     dropped=dropped, n_short=n_short, segments=segments, notes=tuple(notes),
                     median_rate=float(f"{1.0 / (step * k):.9g}"),
                     overall_rate=float(f"{(t.size - 1) / (span * k):.9g}"))
+    why = tb.rate_ambiguity
+    if why is not None:  # said now; a configuration file needs --freq or --gaps
+        tb = replace(tb, notes=(*tb.notes, f"{why}; a configuration file needs --freq or --gaps"))
+    return tb
 
 
 def drop_duplicate_rows(stamps: Any, columns: dict[str, np.ndarray], where: str
