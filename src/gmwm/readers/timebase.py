@@ -7,8 +7,11 @@ and what a gap does to the wavelet variance.
 * :func:`time_base` finds the unit of unlabelled stamps from their magnitude (epoch stamps:
   about 1.7e9 s = 1.7e12 ms = 1.7e15 us = 1.7e18 ns) and the rate each candidate unit implies
   (an IMU samples within :data:`RATE_RANGE` Hz); two candidates is an error naming the column
-  and both rates. It then measures the rate (mean step over the regular steps), the jitter, the
-  gaps (steps longer than 1.5 median steps), the samples they dropped and the clean segments.
+  and both rates. It then measures the rate (the mean rate between gaps), the jitter, the
+  gaps (steps longer than 1.5 median steps), the samples they dropped and the clean segments;
+  :attr:`TimeBase.rate_ambiguity` says when jitter or gaps leave the rate ambiguous, and
+  :func:`drop_duplicate_rows` drops exact duplicate rows (a repeated stamp with other values is
+  an error).
 * :func:`decide_gaps` and :func:`signal_for_wv` apply the gap policy (``docs/recordings.md``):
   the wavelet variance never runs across a gap. ``"auto"`` (default) keeps the longest clean
   segment when it holds at least :data:`LONGEST_SHARE` of the samples (a contiguous signal, so
