@@ -475,3 +475,16 @@ def test_phone_export_as_a_zip_archive(tmp_path):
     assert imu_topics(z) == ["Gyroscope", "Accelerometer"]
     assert read_recording(z, topic="Gyroscope").path == str(z / "Gyroscope.csv")
     assert not any("/tmp" in n and str(tmp_path) not in n for n in rec.notes)
+
+
+def test_dataflash_numpy_layout_matches_pymavlinks_formats():
+    """Every DataFlash format character decodes to as many bytes as pymavlink's struct code."""
+    import struct
+
+    from pymavlink.DFReader import FORMAT_TO_STRUCT
+
+    from gmwm.readers.dataflash import _NP
+
+    assert set(_NP) == set(FORMAT_TO_STRUCT)
+    for c, (code, _, _) in FORMAT_TO_STRUCT.items():
+        assert struct.calcsize("<" + code) == np.dtype("<" + _NP[c]).itemsize, c

@@ -44,7 +44,7 @@ _UNITS_EXPECTED = {"GyrX": "rad/s", "GyrY": "rad/s", "GyrZ": "rad/s", "AccX": "m
                    "AccY": "m/s/s", "AccZ": "m/s/s"}
 #: numpy codes of the DataFlash format characters (pymavlink's FORMAT_TO_STRUCT) and their
 #: multipliers
-_NP = {"a": "V128", "b": "i1", "B": "u1", "g": "f2", "h": "i2", "H": "u2", "i": "i4", "I": "u4",
+_NP = {"a": "V64", "b": "i1", "B": "u1", "g": "f2", "h": "i2", "H": "u2", "i": "i4", "I": "u4",
        "f": "f4", "n": "V4", "N": "V16", "Z": "V64", "c": "i2", "C": "u2", "e": "i4", "E": "u4",
        "L": "i4", "d": "f8", "M": "u1", "q": "i8", "Q": "u8"}
 
