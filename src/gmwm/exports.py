@@ -628,7 +628,8 @@ def _header(exp: NoiseExport, tool: str, what: str, values: str, topic_key: bool
              f"Flagged terms: {_flag_policy_text(exp.flagged_policy)}.",
              f"Update rate: {exp.update_rate:g} Hz" + ("" if not topic_key else "; IMU topic: "
                                                        + (exp.topic or "not known from the input "
-                                                          "(placeholder below: set yours)")) + "."]
+                                                          "(placeholder below: set yours or "
+                                                          "give --rostopic)")) + "."]
     return _wrap_comment(lines)
 
 
@@ -745,7 +746,8 @@ def kalibr_text(exp: NoiseExport) -> str:
     for key in keys:
         lines += [*_key_lines(exp, key), ""]
     if exp.topic is None:
-        lines += _wrap_comment(["rostopic: placeholder, the input had no ROS topic: set yours."])
+        lines += _wrap_comment([("rostopic: placeholder, the input had no ROS topic: set yours "
+                                "or give --rostopic.")])
     lines.append(f"rostopic: {_topic(exp)}")
     lines.append(f"update_rate: {_real(exp.update_rate)}  # Hz")
     lines += ["", *_axis_block(exp, keys)]
@@ -765,7 +767,8 @@ def openvins_text(exp: NoiseExport) -> str:
                             + "]" for i in range(4))]
     for key in keys:
         lines += _key_lines(exp, key, "  ")
-    lines += [*(["  # rostopic: placeholder (the input had no ROS topic): set yours."]
+    lines += [*([("  # rostopic: placeholder (the input had no ROS topic): set yours or give "
+                 "--rostopic.")]
                 if exp.topic is None else []),
               f"  rostopic: {_topic(exp)}", "  time_offset: 0.0",
               f"  update_rate: {_real(exp.update_rate)}", '  model: "kalibr"']
@@ -829,7 +832,8 @@ def vins_fusion_text(exp: NoiseExport, convention: str = "matched") -> str:
     lines = ["%YAML:1.0", *_header(exp, "VINS-Fusion", "keys to merge into its config file",
                                    values), "", "imu: 1"]
     if exp.topic is None:
-        lines.append("# imu_topic: placeholder (the input had no ROS topic): set yours.")
+        lines.append("# imu_topic: placeholder (the input had no ROS topic): set yours or give "
+                     "--rostopic.")
     lines += [f"imu_topic: {_topic(exp)}", ""]
     for key in keys:
         lines += [*_key_lines(exp, key), ""]
@@ -885,7 +889,8 @@ def liosam_text(exp: NoiseExport) -> str:
                     "imuRPYWeight and the extrinsics are not set by this calibration: keep yours.")
     lines += ["", "lio_sam:"]
     if exp.topic is None:
-        lines.append("  # imuTopic: placeholder (the input had no ROS topic): set yours.")
+        lines.append("  # imuTopic: placeholder (the input had no ROS topic): set yours or give "
+                     "--rostopic.")
     lines.append(f"  imuTopic: {_topic(exp)}")
     for key in keys:
         lines += _key_lines(exp, key, "  ")
@@ -917,7 +922,8 @@ def fastlio_text(exp: NoiseExport) -> str:
                     "(listed below); they hold for the update rate below only.")
     lines += ["", "common:"]
     if exp.topic is None:
-        lines.append("  # imu_topic: placeholder (the input had no ROS topic): set yours.")
+        lines.append("  # imu_topic: placeholder (the input had no ROS topic): set yours or "
+                     "give --rostopic.")
     lines += [f"  imu_topic: {_topic(exp)}", "mapping:"]
     for key in keys:
         lines += _key_lines(exp, key, "  ")

@@ -639,12 +639,15 @@ class FigureDrawer:
 
 def write_calibration(outdir: str | os.PathLike, result: Any, *, title: str | None = None,
                       targets: str | Sequence[str] = ("kalibr",), inflation: Any = None,
-                      drawn: Sequence[str | os.PathLike] = ()) -> list[Path]:
+                      drawn: Sequence[str | os.PathLike] = (), rostopic: str | None = None
+                      ) -> list[Path]:
     """Write the report and the configuration files of a :class:`gmwm.calibrate.
     CalibrationResult`: one topic as :func:`write_report` (files beside the page), several as
     :func:`write_multi_report` (a section and a configuration folder per topic, failed topics
     listed with their reason). ``title`` defaults to "Calibration report: <file name>";
-    ``drawn``: figure files already written (:func:`warm_up`, :class:`FigureDrawer`)."""
+    ``drawn``: figure files already written (:func:`warm_up`, :class:`FigureDrawer`);
+    ``rostopic``: the ROS topic the configuration files name, for one topic (default: the
+    recording's, when it is a ROS topic; else a placeholder the files say is one)."""
     title = title or f"Calibration report: {Path(result.source).name}"
     topics = result.topics
     drawn = [*drawn, *(f for s in topics.values() for a in s.axes.values()
@@ -653,7 +656,7 @@ def write_calibration(outdir: str | os.PathLike, result: Any, *, title: str | No
         sec = next(iter(topics.values()))
         return write_report(outdir, sec.axes, source=result.source, title=title,
                             timing=sec.timing, stationarity=sec.stationarity,
-                            topic=sec.rostopic, targets=targets, inflation=inflation,
-                            drawn=drawn)
+                            topic=rostopic or sec.rostopic, targets=targets,
+                            inflation=inflation, drawn=drawn)
     return write_multi_report(outdir, topics, source=result.source, title=title,
                               targets=targets, inflation=inflation, drawn=drawn)

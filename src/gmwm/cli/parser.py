@@ -158,7 +158,8 @@ def _efficiency(text: str) -> float:
 def _add_input(p: argparse.ArgumentParser, what: str = "signal") -> None:
     p.add_argument("input", metavar="FILE",
                    help=f"{what}: ROS 1/2 bag (.bag, .db3, .mcap or a bag folder), PX4 ULog, "
-                        "CSV/TSV/text (EuRoC, rostopic echo -p, ';' and decimal commas, .gz), "
+                        "ArduPilot DataFlash (.bin, .log), a phone export folder (Gyroscope.csv, "
+                        "Accelerometer.csv), CSV/TSV/text (EuRoC, rostopic echo -p, ';' and decimal commas, .gz), "
                         ".npy, .npz, HDF5 (.h5/.hdf5) or raw binary (--dtype); .npy, HDF5 and raw "
                         f"files of {STREAM_MIN_BYTES >> 20} MiB or more are streamed (bounded "
                         "memory, the same numbers)")
@@ -171,8 +172,10 @@ def _add_input(p: argparse.ArgumentParser, what: str = "signal") -> None:
     p.add_argument("--dataset", default=None,
                    help="HDF5 dataset path (default: the only 1-D dataset in the file)")
     p.add_argument("--topic", action="append", default=None, metavar="TOPIC",
-                   help="bag topic (sensor_msgs/Imu or Vector3Stamped) or ULog topic "
-                        "(sensor_combined, sensor_gyro:N, sensor_accel:N); default: the only one. "
+                   help="bag topic (sensor_msgs/Imu or Vector3Stamped), ULog topic "
+                        "(sensor_combined, sensor_gyro:N, sensor_accel:N), DataFlash IMU (IMU[N], "
+                        "also IMU2, IMU3) or phone export sensor (Gyroscope, Accelerometer); "
+                        "default: the only one. "
                         "gmwm report: repeat it, or 'all', to calibrate several IMUs of one file "
                         "in one run (a section per IMU, a configuration folder per topic)")
     p.add_argument("--time-unit", choices=("s", "ms", "us", "ns"), default=None,
@@ -605,6 +608,10 @@ def _add_export(p: argparse.ArgumentParser) -> None:
     p.add_argument("--inflate", default=None, metavar="SPEC",
                    help="inflate the exported noise densities after the axis rule, e.g. "
                         "'noise=2,walk=10' (factors >= 1 on the densities) or one factor for both")
+    p.add_argument("--rostopic", default=None, metavar="TOPIC",
+                   help="ROS topic the configuration files name (rostopic, imu_topic); default: "
+                        "the bag's topic, else a placeholder /imu0 marked as one (ULog, "
+                        "DataFlash, CSV, ...)")
 
 
 _PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".tif", ".tiff")
@@ -622,6 +629,9 @@ def check_args(args: argparse.Namespace) -> None:
     if args.command == "report" and Path(args.output).exists() and not Path(args.output).is_dir():
         raise InputError(f"--output {args.output} exists and is not a directory")
     topics = getattr(args, "topic", None)
+    if getattr(args, "rostopic", None) and topics is not None \
+            and (len(topics) > 1 or topics == ["all"]):
+        raise UsageError("--rostopic names the topic of one IMU: give it with a single --topic")
     if topics is not None:
         several = len(topics) > 1 or topics == ["all"]
         if several and args.command != "report":

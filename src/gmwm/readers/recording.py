@@ -6,10 +6,14 @@ format (found by content)  rate from                             units and axis 
 ROS 1 bag, ROS 2 bag       ``header.stamp`` (ns)                 the message type (REP 103)
 (sqlite3, MCAP)
 PX4 ULog                   ``timestamp[_sample]`` (us)           the ULog topic
+ArduPilot DataFlash        ``TimeUS`` (us)                       the IMU message (SI)
+(``.bin``, text ``.log``)
+phone export folder        each sensor file's ``Time (s)``       the headers' units
 EuRoC / TUM-VI CSV         ``#timestamp [ns]``                   the bracketed header units
 ``rostopic echo -p`` CSV   ``field.header.stamp`` (ns)           the message type (REP 103)
 CSV/TSV/text (``;``,       a time column (unit by name, else     a unit after a column name
-decimal comma, ``.gz``)    by magnitude)                         (``gx [deg/s]``), or ``units``
+decimal comma, ``.gz``)    by magnitude)                         (``gx [deg/s]``, ``Gyroscope X
+                                                                 (deg/s)``), or ``units``
 ``.npy``, ``.npz``,        a time column / field / dataset, an   ``units``
 HDF5                       HDF5 ``freq`` attribute, ``freq``
 ========================  ===================================  ==============================
@@ -18,8 +22,12 @@ Without stamps the rate is ``freq``; without either, :attr:`Recording.time` is N
 :meth:`Recording.require_time` raises (a physical unit or a datasheet needs seconds: never
 1 Hz). A ``freq`` that contradicts the stamps by more than 1 % is an error.
 
-Several IMU streams of one bag or ULog: :func:`imu_topics` lists them, :func:`read_recordings`
-reads them with the file opened once.
+Several IMU streams of one bag, ULog, DataFlash log or phone export: :func:`imu_topics` lists
+them, :func:`read_recordings` reads them with the file opened once.
+
+The rate is the mean rate between gaps (:class:`gmwm.readers.timebase.TimeBase`); where jitter or
+gaps make it ambiguous, :attr:`Recording.rate_ambiguity` says why (a configuration needs
+``--freq`` or ``--gaps`` then). Exact duplicate rows are dropped with a note.
 """
 
 from __future__ import annotations
@@ -48,8 +56,10 @@ from gmwm.units import parse_unit
 __all__ = ["FORMATS", "Recording", "imu_topics", "read_recording", "read_recordings", "sample_range",
            "select_samples"]
 
-FORMATS = ("ros1", "ros2-sqlite3", "ros2-mcap", "ulog", "euroc", "rostopic", "csv", "npy", "npz",
-           "hdf5")
+FORMATS = ("ros1", "ros2-sqlite3", "ros2-mcap", "ulog", "dataflash", "euroc", "rostopic", "csv",
+           "phyphox", "npy", "npz", "hdf5")
+#: formats holding several IMU streams, chosen with ``topic``
+_MULTI = ("bag", "ulog", "dataflash", "phone")
 _TEXT_SUFFIXES = (".csv", ".tsv", ".txt", ".dat", ".gz")
 _FREQ_NAMES = ("freq", "frequency", "fs", "rate", "sampling_rate", "sample_rate",
                "sampling_frequency", "update_rate")
@@ -88,6 +98,32 @@ class Recording:
     def n(self) -> int:
         return next(iter(self.channels.values())).size if self.channels else 0
 
+    @property
+    def rate_ambiguity(self) -> str | None:
+        """Why this recording's rate is ambiguous (:attr:`TimeBase.rate_ambiguity`: jitter or
+        gaps beyond the limits of :mod:`gmwm.readers.timebase`), or None. A configuration file
+        needs one rate: refuse it unless the user gave ``--freq`` (then settled here: None) or
+        a gap policy (``--gaps``)."""
+        return None if self.time is None else self.time.rate_ambiguity
+
+    @property
+    def rate_ambiguous(self) -> bool:
+        return self.rate_ambiguity is not None
+
+    def require_rate(self, gaps_given: bool = False, what: str = "configuration files") -> None:
+        """Refuse ``what`` when the rate is ambiguous (:attr:`rate_ambiguity`) and the user gave
+        neither ``--freq`` (which settles it when reading) nor a gap policy (``gaps_given``):
+        an :class:`InputError` of one line naming ``--freq``."""
+        why = self.rate_ambiguity
+        if why is None or gaps_given:
+            return
+        tb = self.time
+        rates = sorted({f"{r:.6g}" for r in (tb.freq, tb.median_rate, tb.overall_rate) if r},
+                       key=float)
+        allow = rates[0] if len(rates) == 1 else f"{', '.join(rates[:-1])} or {rates[-1]}"
+        raise InputError(f"{why}: no {what} written; give --freq with the rate to assume (the "
+                         f"stamps allow {allow} Hz) or a gap policy with --gaps")
+
     def require_time(self, why: str = "scales in seconds") -> TimeBase:
         """The time base; an :class:`InputError` asking for ``--freq`` when there is none."""
         if self.time is None:
@@ -110,25 +146,35 @@ class Recording:
 
 
 def _kind(p: Path) -> str:
+    from gmwm.readers.dataflash import DATAFLASH_MAGIC, is_text_dataflash
     from gmwm.readers.rosbag import bag_kind
     from gmwm.readers.ulog import ULOG_MAGIC
 
     if p.is_dir():
         if bag_kind(p) == "ros2-dir":
             return "bag"
-        raise InputError(f"{p} is a folder, not a ROS 2 bag (no metadata.yaml)")
+        from gmwm.readers.phone import is_phone_folder
+
+        if is_phone_folder(p):
+            return "phone"
+        raise InputError(f"{p} is a folder, not a ROS 2 bag (no metadata.yaml) nor a phone "
+                         "sensor export (no Gyroscope.csv and Accelerometer.csv)")
     with open(p, "rb") as fh:
-        head = fh.read(16)
+        head = fh.read(64)
     if not head:
         raise InputError(f"{p} is empty")
     if bag_kind(p) is not None:
         return "bag"
     if head.startswith(ULOG_MAGIC):
         return "ulog"
+    if head.startswith(DATAFLASH_MAGIC) or is_text_dataflash(head):
+        return "dataflash"
     if head.startswith(b"\x93NUMPY"):
         return "npy"
     if head.startswith(b"PK\x03\x04"):
-        return "npz"
+        from gmwm.readers.phone import is_phone_folder
+
+        return "phone" if is_phone_folder(p) else "npz"
     if head.startswith(b"\x89HDF\r\n\x1a\n"):
         return "hdf5"
     suffix = p.suffix.lower()
@@ -136,11 +182,12 @@ def _kind(p: Path) -> str:
         return "npy" if suffix == ".npy" else "hdf5"
     if head.startswith(b"\x1f\x8b") or suffix in _TEXT_SUFFIXES:
         return "text"
-    if suffix in (".bag", ".mcap", ".db3", ".ulg", ".npz"):
+    if suffix in (".bag", ".mcap", ".db3", ".ulg", ".npz", ".bin", ".log"):
         raise InputError(f"{p} is not a valid {suffix} file (its first bytes do not match)")
     raise InputError(f"unknown file extension '{p.suffix}' for {p}: gmwm reads ROS 1/2 bags "
-                     "(.bag, .db3, .mcap, bag folders), PX4 ULog (.ulg), text tables (.csv, "
-                     ".tsv, .txt, .dat, also gzip-compressed .gz), .npy, .npz and HDF5 (.h5)")
+                     "(.bag, .db3, .mcap, bag folders), PX4 ULog (.ulg), ArduPilot DataFlash "
+                     "(.bin, .log), text tables (.csv, .tsv, .txt, .dat, also gzip-compressed "
+                     ".gz), phone export folders, .npy, .npz and HDF5 (.h5)")
 
 
 def _check_unit_map(units: str | Mapping[str, str] | None, names: Sequence[str], p: Path
@@ -216,7 +263,17 @@ def _finish(p: Path, fmt: str, channels: dict[str, np.ndarray], file_units: dict
     if freq is not None:
         if not (np.isfinite(freq) and freq > 0):
             raise InputError(f"--freq must be a positive number of Hz, got {freq}")
-        if tb is not None and abs(freq / tb.freq - 1.0) > 0.01:
+        if tb is not None and tb.rate_ambiguity is not None:
+            # the stamps allow several rates: --freq chooses one of them (within 1 %)
+            cands = [r for r in (tb.freq, tb.median_rate, tb.overall_rate) if r]
+            if not min(cands) * 0.99 <= freq <= max(cands) * 1.01:
+                raise InputError(f"--freq {freq:g} lies outside the rates the stamps of "
+                                 f"{tb.source} allow ({min(cands):.6g}-{max(cands):.6g} Hz)")
+            tb = replace(tb, freq=float(freq), rate_given=True,
+                         source=f"--freq (the stamps of {tb.source} give {tb.freq:.6g} Hz "
+                                "between gaps)",
+                         notes=tuple(n for n in tb.notes if " is ambiguous: " not in n))
+        elif tb is not None and abs(freq / tb.freq - 1.0) > 0.01:
             raise InputError(f"--freq {freq:g} contradicts the sampling frequency {tb.freq:.6g} "
                              f"Hz measured from {tb.source}; drop --freq or fix the file")
         if tb is None:
@@ -236,6 +293,21 @@ def _finish(p: Path, fmt: str, channels: dict[str, np.ndarray], file_units: dict
     return Recording(checked, out_units, roles, tb, str(p), fmt, topic,
                      tuple(notes) + (tb.notes if tb is not None else ()), time_s,
                      None if temp is None else np.asarray(temp, dtype=np.float64), temp_src)
+
+
+def _dedupe(stamps: Any, vectors: Mapping[str, np.ndarray], temperature: np.ndarray | None,
+            where: str, notes: list[str]
+            ) -> tuple[Any, dict[str, np.ndarray], np.ndarray | None]:
+    """Drop exact duplicate rows (:func:`gmwm.readers.timebase.drop_duplicate_rows`), the
+    count noted; a repeated stamp with other values is an :class:`InputError`."""
+    from gmwm.readers.timebase import drop_duplicate_rows
+
+    keep, note = drop_duplicate_rows(stamps, dict(vectors), where)
+    if keep is None:
+        return stamps, dict(vectors), temperature
+    notes.append(note)
+    return (np.asarray(stamps)[keep], {k: np.asarray(v)[keep] for k, v in vectors.items()},
+            None if temperature is None else np.asarray(temperature)[keep])
 
 
 def _from_table(p: Path, columns: Any, time_unit: str | None, freq: float | None, units: Any
@@ -270,21 +342,38 @@ def _from_table(p: Path, columns: Any, time_unit: str | None, freq: float | None
             raise InputError(f"{clash[0]} is the time column of {p}, not a signal")
         if t.kind == "rostopic":
             data = [n for n in t.columns if n not in t.time]
+    rename: dict[str, str] = {}
+    if columns is None and t.kind == "csv" and t.header:
+        picked = _imu_columns(t, data, p, notes)
+        if picked is not None:
+            data, rename = picked
     known = bool(data) and all(t.units.get(n) for n in data)
     names = _select(data, columns, p, default_all=known)
-    chans = {n: numeric(t, n, str(p)) for n in names}
+    for n in names:
+        if n in t.unit_text and not t.units.get(n):
+            notes.append(f"column '{n}' of {p}: unit [{t.unit_text[n]}] is not a known signal "
+                         "unit; give it with --units")
+    chans = {rename.get(n, n): numeric(t, n, str(p)) for n in names}
     if t.header:  # a WV/AV table read as a very short signal is almost surely a mistake
         from gmwm.readers.tables import check_not_a_table as _check_not_a_table
 
         _check_not_a_table(list(t.columns), next(iter(chans.values())).size, p)
     tb = None
+    keep = None
     if tnames:
+        from gmwm.readers.timebase import drop_duplicate_rows
+
         name = tnames[0]
         stamps = numeric(t, name, str(p))
         if t.kind == "rostopic" and name == "field.header.stamp" and np.all(stamps == 0):
             notes.append(f"{p}: field.header.stamp is zero; %time (receive time) is used")
             name = "%time"
             stamps = numeric(t, name, str(p))
+        keep, note = drop_duplicate_rows(stamps, chans, str(p))
+        if keep is not None:
+            notes.append(note)
+            stamps = stamps[keep]
+            chans = {n: x[keep] for n, x in chans.items()}
         unit = t.time[name]
         if time_unit is not None:
             if unit is not None and unit != time_unit:
@@ -300,9 +389,66 @@ def _from_table(p: Path, columns: Any, time_unit: str | None, freq: float | None
     if temp is not None:
         v = numeric(t, temp, str(p)).astype(np.float64)
         v = v - 273.15 if scale == "K" else (v - 32.0) / 1.8 if scale == "F" else v
+        v = v if keep is None else v[keep]
         temperature = (v, f"column '{temp}' of {p.name}")
-    return _finish(p, fmt, chans, {n: t.units.get(n) for n in names}, tb, freq, units, notes,
-                   stamps=stamps if tb is not None else None, temperature=temperature)
+    return _finish(p, fmt, chans, {rename.get(n, n): t.units.get(n) for n in names}, tb, freq,
+                   units, notes, stamps=stamps if tb is not None else None,
+                   temperature=temperature)
+
+
+def _imu_columns(t: Any, data: list[str], p: Path, notes: list[str]
+                 ) -> tuple[list[str], dict[str, str]] | None:
+    """The IMU axes of a header with units (``Gyroscope X (deg/s)``, ``acc_x [m/s^2]``): the
+    columns whose unit is a gyroscope or accelerometer unit, renamed ``gx`` .. ``az`` when each
+    has one axis; the other columns (magnetometer, orientation, quaternion, a norm of the axes,
+    or any column whose unit is not a signal unit) are ignored, with a note. None when no column
+    has a signal unit (the caller then asks for ``--columns``). A column named like an IMU axis
+    without a unit, or two columns of one axis, is an :class:`InputError`."""
+    from gmwm.datasheet import SIGNAL_UNITS
+    from gmwm.readers.text import imu_column
+
+    kinds = {n: imu_column(n, t.units.get(n)) for n in data}
+    imu = [n for n in data if t.units.get(n) and kinds[n][0] in ("gyroscope", "accelerometer")]
+    if not imu:
+        return None
+    raw = t.raw_names
+    unclear = [n for n in data if n not in imu and kinds[n][0] in ("gyroscope", "accelerometer")]
+    if unclear:
+        n = unclear[0]
+        what = (f"its unit [{t.unit_text[n]}] is not a known signal unit" if n in t.unit_text
+                else "it has no unit in the header")
+        raise InputError(f"column '{raw.get(n, n)}' of {p} looks like a {kinds[n][0]} axis but "
+                         f"{what}: give --units, or choose the columns with --columns")
+    ignored = [n for n in data if n not in imu]
+    seen: dict[tuple[str, str], str] = {}
+    rename: dict[str, str] = {}
+    for n in imu:
+        role, axis = kinds[n]
+        if axis is None:
+            rename = {}
+            break
+        key = (role, axis)
+        if key in seen:
+            raise InputError(f"columns '{raw.get(seen[key], seen[key])}' and '{raw.get(n, n)}' of "
+                             f"{p} both hold the {role} {axis} axis: choose with --columns")
+        seen[key] = n
+        rename[n] = ("g" if role == "gyroscope" else "a") + axis
+    taken = set(data) - set(imu)
+    if any(v in taken for v in rename.values()):
+        rename = {}
+    mapped = ", ".join(f"'{raw.get(n, n)}' -> {rename.get(n, n)} [{t.units[n]}]" for n in imu)
+    text = f"{p.name}: IMU axes from the header: {mapped}"
+    conv = sorted({u for n in imu if (u := t.units[n]) in SIGNAL_UNITS
+                   and SIGNAL_UNITS[u][1] != 1.0})
+    if conv:
+        text += ("; the configuration files convert " + ", ".join(
+            f"{u} to {'rad/s' if SIGNAL_UNITS[u][0] == 'gyroscope' else 'm/s^2'} "
+            f"(x {SIGNAL_UNITS[u][1]:.6g})" for u in conv) + ", the report states the "
+            "coefficients in the file's units")
+    if ignored:
+        text += "; not IMU axes, ignored: " + ", ".join(f"'{raw.get(n, n)}'" for n in ignored)
+    notes.append(text)
+    return imu, rename
 
 
 def _from_npz(p: Path, columns: Any, time_unit: str | None, freq: float | None, units: Any
@@ -335,14 +481,17 @@ def _from_npz(p: Path, columns: Any, time_unit: str | None, freq: float | None, 
     data = [k for k in arrays if k not in tnames]
     names = _select(data, columns, p, default_all=False)
     tb = None
+    notes: list[str] = []
+    chans = {n: arrays[n] for n in names}
+    stamps = None
     if tnames:
         name = tnames[0]
-        tb = time_base(arrays[name], name=name, unit=time_unit or time_column(name)[1],
+        stamps, chans, _ = _dedupe(arrays[name], chans, None, f"array '{name}' of {p}", notes)
+        tb = time_base(stamps, name=name, unit=time_unit or time_column(name)[1],
                        where=f"array '{name}' of {p}")
     elif rate is not None:
         tb = time_from_freq(rate, arrays[names[0]].size, source=f"the 'freq' array of {p}")
-    return _finish(p, "npz", {n: arrays[n] for n in names}, {}, tb, freq, units, [],
-                   stamps=arrays[tnames[0]] if tnames else None)
+    return _finish(p, "npz", chans, {}, tb, freq, units, notes, stamps=stamps)
 
 
 def _from_io(p: Path, kind: str, columns: Any, dataset: str | None, freq: float | None,
@@ -370,29 +519,47 @@ def _from_bag(p: Path, d: Any, columns: Any, freq: float | None, units: Any,
               fmt: str | None = None) -> Recording:
     """The :class:`Recording` of a decoded bag topic (:class:`gmwm.readers.rosbag.TopicData`)."""
     names = _select(list(d.vectors), columns, p, default_all=True)
-    tb = time_base(d.stamp_ns, unit="ns", where=f"{d.stamp_source} of topic {d.topic}",
-                   source=f"{d.stamp_source} of topic {d.topic} (ns)")
-    return _finish(p, fmt or _bag_format(p), {n: d.vectors[n] for n in names}, d.units, tb, freq,
-                   units, d.notes, d.topic, stamps=d.stamp_ns)
+    where = f"{d.stamp_source} of topic {d.topic}"
+    notes = list(d.notes)
+    stamps, vec, _ = _dedupe(d.stamp_ns, d.vectors, None, where, notes)
+    tb = time_base(stamps, unit="ns", where=where, source=f"{where} (ns)")
+    return _finish(p, fmt or _bag_format(p), {n: vec[n] for n in names}, d.units, tb, freq,
+                   units, notes, d.topic, stamps=stamps)
 
 
 def _from_ulog(p: Path, u: Any, columns: Any, freq: float | None, units: Any) -> Recording:
     """The :class:`Recording` of a ULog topic (:class:`gmwm.readers.ulog.UlogData`)."""
     names = _select(list(u.vectors), columns, p, default_all=True)
-    tb = time_base(u.stamp_us, unit="us", where=f"{u.stamp_field} of {u.topic}",
-                   source=f"{u.stamp_field} of {u.topic} (us)")
-    return _finish(p, "ulog", {n: u.vectors[n] for n in names}, u.units, tb, freq, units,
-                   u.notes, u.topic, stamps=u.stamp_us,
-                   temperature=None if u.temperature is None else
-                   (u.temperature, u.temperature_source))
+    where = f"{u.stamp_field} of {u.topic}"
+    notes = list(u.notes)
+    stamps, vec, temp = _dedupe(u.stamp_us, u.vectors, u.temperature, where, notes)
+    tb = time_base(stamps, unit="us", where=where, source=f"{where} (us)")
+    return _finish(p, "ulog", {n: vec[n] for n in names}, u.units, tb, freq, units,
+                   notes, u.topic, stamps=stamps,
+                   temperature=None if temp is None else (temp, u.temperature_source))
+
+
+def _from_dataflash(p: Path, d: Any, columns: Any, freq: float | None, units: Any
+                    ) -> Recording:
+    """The :class:`Recording` of a DataFlash IMU (:class:`gmwm.readers.dataflash.FlashData`)."""
+    names = _select(list(d.vectors), columns, p, default_all=True)
+    where = f"{d.source} in {p.name}"
+    notes = list(d.notes)
+    stamps, vec, temp = _dedupe(d.stamp_us, d.vectors, d.temperature, where, notes)
+    unit = "ms" if d.source.startswith("TimeMS") else "us"  # either way read as us
+    tb = time_base(stamps, unit="us", where=where, source=f"{d.source} ({unit})")
+    return _finish(p, "dataflash", {n: vec[n] for n in names}, d.units, tb, freq, units,
+                   notes, d.topic, stamps=stamps,
+                   temperature=None if temp is None else (temp, d.temperature_source))
 
 
 def _multi_kind(p: Path, what: str) -> str:
     if not p.exists():
         raise InputError(f"file not found: {p}")
     kind = _kind(p)
-    if kind not in ("bag", "ulog"):
-        raise InputError(f"{what} applies to ROS bags and ULog files, not to {p}")
+    if kind not in _MULTI:
+        raise InputError(f"{what} applies to ROS bags and ULog files (also DataFlash logs and "
+                         f"phone export folders), not to {p}")
     return kind
 
 
@@ -403,10 +570,19 @@ def imu_topics(path: str | os.PathLike) -> list[str]:
     instances, else ``sensor_combined``), in the file's order. Another format, or a file without
     any, is an :class:`InputError`."""
     p = Path(path)
-    if _multi_kind(p, "listing IMU topics") == "bag":
+    kind = _multi_kind(p, "listing IMU topics")
+    if kind == "bag":
         from gmwm.readers.rosbag import imu_bag_topics
 
         return [t.topic for t in imu_bag_topics(p)]
+    if kind == "dataflash":
+        from gmwm.readers.dataflash import dataflash_imu_topics
+
+        return dataflash_imu_topics(p)
+    if kind == "phone":
+        from gmwm.readers.phone import phone_topics
+
+        return phone_topics(p)
     from gmwm.readers.ulog import ulog_imu_topics
 
     return ulog_imu_topics(p)
@@ -431,6 +607,16 @@ def read_recordings(path: str | os.PathLike, topics: str | Sequence[str] = "all"
         fmt = _bag_format(p)
         return {t: _from_bag(p, d, columns, freq, units, fmt)
                 for t, d in read_bag_topics(p, topics).items()}
+    if kind == "dataflash":
+        from gmwm.readers.dataflash import read_dataflash_topics
+
+        return {t: _from_dataflash(p, d, columns, freq, units)
+                for t, d in read_dataflash_topics(p, topics).items()}
+    if kind == "phone":
+        from gmwm.readers.phone import read_phone_topics
+
+        recs = read_phone_topics(p, topics, freq=freq, units=units)
+        return {t: r if columns is None else select_columns(r, columns) for t, r in recs.items()}
     from gmwm.readers.ulog import read_ulog_topics
 
     return {t: _from_ulog(p, u, columns, freq, units)
@@ -453,8 +639,9 @@ def read_recording(path: str | os.PathLike, *, topic: str | None = None, columns
     if not p.exists():
         raise InputError(f"file not found: {p}")
     kind = _kind(p)
-    if topic is not None and kind not in ("bag", "ulog"):
-        raise InputError(f"--topic applies to ROS bags and ULog files, not to {p}")
+    if topic is not None and kind not in _MULTI:
+        raise InputError(f"--topic applies to ROS bags and ULog files (also DataFlash logs and "
+                         f"phone export folders), not to {p}")
     if time_unit is not None and time_unit not in ("s", "ms", "us", "ns"):
         raise InputError(f"unknown time unit {time_unit!r}; use s, ms, us or ns")
     if kind == "bag":
@@ -465,11 +652,31 @@ def read_recording(path: str | os.PathLike, *, topic: str | None = None, columns
         from gmwm.readers.ulog import read_ulog
 
         return _from_ulog(p, read_ulog(p, topic), columns, freq, units)
+    if kind == "dataflash":
+        from gmwm.readers.dataflash import read_dataflash
+
+        return _from_dataflash(p, read_dataflash(p, topic), columns, freq, units)
+    if kind == "phone":
+        from gmwm.readers.phone import read_phone_folder, read_phone_topics
+
+        if topic is not None:
+            rec = read_phone_topics(p, [topic], freq=freq, units=units)
+            return select_columns(next(iter(rec.values())), columns)
+        return read_phone_folder(p, columns=columns, freq=freq, units=units)
     if kind == "text":
         return _from_table(p, columns, time_unit, freq, units)
     if kind == "npz":
         return _from_npz(p, columns, time_unit, freq, units)
     return _from_io(p, kind, columns, dataset, freq, units)
+
+
+def select_columns(rec: Recording, columns: Any) -> Recording:
+    """``rec`` with only ``columns`` (None or 'all': every one; names or 0-based indices)."""
+    if columns is None:
+        return rec
+    names = _select(list(rec.channels), columns, Path(rec.path), default_all=True)
+    return replace(rec, channels={n: rec.channels[n] for n in names},
+                   units={n: rec.units[n] for n in names}, roles={n: rec.roles[n] for n in names})
 
 
 def with_units(rec: Recording, units: Mapping[str, str | None]) -> Recording:
@@ -523,7 +730,7 @@ def select_samples(rec: Recording, i0: int, i1: int) -> Recording:
     if tb is not None and rec.time_s is not None and tb.unit is not None and i1 - i0 >= 2:
         sub = time_base(rec.time_s[i0:i1] - rec.time_s[i0], unit="s",
                         where=f"samples {i0}-{i1 - 1} of {rec.path}")
-        tb = replace(sub, freq=tb.freq, source=tb.source, unit=tb.unit,
+        tb = replace(sub, freq=tb.freq, source=tb.source, unit=tb.unit, rate_given=tb.rate_given,
                      start_s=(tb.start_s or 0.0) + float(rec.time_s[i0]), notes=())
     elif tb is not None:
         tb = replace(time_from_freq(tb.freq, i1 - i0, tb.source), notes=())

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import gzip
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +29,7 @@ from gmwm.errors import InputError
 from gmwm.readers.timebase import time_column
 from gmwm.units import parse_unit
 
-__all__ = ["Table", "read_text_table", "temperature_column"]
+__all__ = ["Table", "imu_column", "read_text_table", "temperature_column"]
 
 _SNIFF_LINES = 64
 _UNIT_SUFFIX = re.compile(r"^(?P<name>.*?)\s*[\[(](?P<unit>[^\])]*)[\])]\s*$")
@@ -48,7 +48,8 @@ class Table:
     ``units`` name -> signal unit from the header (None when it gives none or an unknown one),
     ``time`` name -> time unit ('s', 'ms', 'us', 'ns' or None: unlabelled) of every time column,
     ``kind`` 'euroc', 'rostopic' or 'csv', ``notes`` things the user should know,
-    ``temperature`` name -> 'C'/'K'/'F' of every temperature column."""
+    ``temperature`` name -> 'C'/'K'/'F' of every temperature column, ``unit_text`` name -> the
+    unit written in the header (known or not), ``raw_names`` name -> the header field."""
 
     columns: dict[str, np.ndarray]
     units: dict[str, str | None]
@@ -57,6 +58,8 @@ class Table:
     header: bool
     notes: tuple[str, ...] = ()
     temperature: tuple[tuple[str, str], ...] = ()
+    unit_text: dict[str, str] = field(default_factory=dict)
+    raw_names: dict[str, str] = field(default_factory=dict)
 
 
 def temperature_column(name: str, unit: str | None = None) -> tuple[bool, str]:
@@ -175,6 +178,8 @@ def read_text_table(path: str | Path) -> Table:
     time: dict[str, str | None] = {}
     notes: list[str] = []
     temps: list[tuple[str, str]] = []
+    unit_texts: dict[str, str] = {}
+    raw_names: dict[str, str] = {}
     rostopic = header is not None and any(n in _ROS_IMU for n in names)
     euroc = header is not None and any(ln.lstrip().startswith("#") and ln.lstrip()[1:2] != "#"
                                        for ln in lines[:start] if ln.strip())
@@ -201,12 +206,13 @@ def read_text_table(path: str | Path) -> Table:
         else:
             try:
                 parsed = parse_unit(unit_text) if unit_text else None
-            except InputError:
+            except InputError:  # a magnetometer's uT, an angle's deg: said when it is read
                 parsed = None
-                notes.append(f"column '{name}' of {p}: unit [{unit_text}] is not a known signal "
-                             "unit; give it with --units")
             units[name] = None if parsed is None else (
                 parsed[0] if parsed[1] == 1.0 else unit_text)
+        if unit_text is not None:
+            unit_texts[name] = unit_text
+        raw_names[name] = raw
         if col.dtype.kind in "iu":
             columns[name] = col.to_numpy(dtype=np.int64)
         elif col.dtype.kind == "f":
@@ -214,7 +220,45 @@ def read_text_table(path: str | Path) -> Table:
         else:
             columns[name] = col.to_numpy()
     kind = "rostopic" if rostopic else ("euroc" if euroc and time else "csv")
-    return Table(columns, units, time, kind, header is not None, tuple(notes), tuple(temps))
+    return Table(columns, units, time, kind, header is not None, tuple(notes), tuple(temps),
+                 unit_texts, raw_names)
+
+
+#: words of a column name marking a norm of the axes, or a quantity other than an IMU axis
+#: (ignored when the IMU axes are chosen from the header)
+_NORM = re.compile(r"absolute|norm|magnitude|\babs\b|total", re.IGNORECASE)
+_NOT_IMU = re.compile(r"magnet|\bmag\b|compass|quat|orient|roll|pitch|yaw|euler|heading|attitude"
+                      r"|pressure|baro|light|\blux|proxim|gps|latitude|longitude|altitude|speed"
+                      r"|humid|\bq[wxyz0-3]?\b", re.IGNORECASE)
+_GYRO_WORD = re.compile(r"gyr|angular|rotation|omega", re.IGNORECASE)
+_ACC_WORD = re.compile(r"acc|linear", re.IGNORECASE)
+_AXIS = re.compile(r"(?:^|[^a-z])(?P<pre>gyro|gyr|acc|accel|w|a|g|omega)?_?(?P<axis>[xyz])$",
+                   re.IGNORECASE)
+
+
+def imu_column(name: str, unit: str | None) -> tuple[str | None, str | None]:
+    """What a column named ``name`` (its unit removed) with signal unit ``unit`` (a
+    :func:`gmwm.datasheet.parse_unit` key or None) holds: ``(role, axis)`` with role
+    'gyroscope', 'accelerometer', 'other' (a norm of the axes, a magnetometer, an orientation, a
+    quaternion, ...) or None (unknown), axis 'x'/'y'/'z' or None. A name whose sensor
+    contradicts its unit ('Gyroscope X (g)') is an :class:`InputError`."""
+    n = name.strip()
+    if _NORM.search(n):
+        return "other", None
+    by_name = ("gyroscope" if _GYRO_WORD.search(n) else
+               "accelerometer" if _ACC_WORD.search(n) else None)
+    m = _AXIS.search(n)
+    axis = m.group("axis").lower() if m else None
+    if by_name is None and _NOT_IMU.search(n):
+        return "other", None
+    if by_name is None and m is not None and m.group("pre"):
+        pre = m.group("pre").lower()
+        by_name = "gyroscope" if pre in ("gyro", "gyr", "w", "g", "omega") else "accelerometer"
+    by_unit = None if unit is None else parse_unit(unit)[2]
+    if by_unit is not None and by_name is not None and by_unit != by_name:
+        raise InputError(f"column '{name}' is named like a {by_name} axis but its unit {unit} is "
+                         f"a {by_unit} unit: fix the header or choose columns with --columns")
+    return by_unit or by_name, axis
 
 
 def numeric(table: Table, name: str, where: str) -> np.ndarray:

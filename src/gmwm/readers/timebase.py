@@ -7,8 +7,11 @@ and what a gap does to the wavelet variance.
 * :func:`time_base` finds the unit of unlabelled stamps from their magnitude (epoch stamps:
   about 1.7e9 s = 1.7e12 ms = 1.7e15 us = 1.7e18 ns) and the rate each candidate unit implies
   (an IMU samples within :data:`RATE_RANGE` Hz); two candidates is an error naming the column
-  and both rates. It then measures the rate (mean step over the regular steps), the jitter, the
-  gaps (steps longer than 1.5 median steps), the samples they dropped and the clean segments.
+  and both rates. It then measures the rate (the mean rate between gaps), the jitter, the
+  gaps (steps longer than 1.5 median steps), the samples they dropped and the clean segments;
+  :attr:`TimeBase.rate_ambiguity` says when jitter or gaps leave the rate ambiguous, and
+  :func:`drop_duplicate_rows` drops exact duplicate rows (a repeated stamp with other values is
+  an error).
 * :func:`decide_gaps` and :func:`signal_for_wv` apply the gap policy (``docs/recordings.md``):
   the wavelet variance never runs across a gap. ``"auto"`` (default) keeps the longest clean
   segment when it holds at least :data:`LONGEST_SHARE` of the samples (a contiguous signal, so
@@ -26,15 +29,16 @@ from __future__ import annotations
 
 import itertools
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from gmwm.errors import InputError
 
-__all__ = ["GAP_POLICIES", "LONGEST_SHARE", "RATE_RANGE", "TIME_UNITS", "GapDecision", "TimeBase",
-           "decide_gaps", "segments_wv", "signal_for_wv", "time_base", "time_column",
+__all__ = ["GAP_POLICIES", "GAP_SHARE_LIMIT", "JITTER_LIMIT", "LONGEST_SHARE", "RATE_RANGE",
+           "RATE_SPREAD_LIMIT", "TIME_UNITS", "GapDecision", "TimeBase", "decide_gaps",
+           "drop_duplicate_rows", "segments_wv", "signal_for_wv", "time_base", "time_column",
            "time_from_freq"]
 
 #: Seconds per unit of a time stamp.
@@ -48,6 +52,14 @@ LABELLED_RANGE = (1e-3, 1e6)
 GAP_FACTOR = 1.5
 #: ``"auto"`` keeps the longest clean segment when it holds at least this share of the samples.
 LONGEST_SHARE = 0.9
+#: Limits beyond which the rate of a recording is ambiguous (:attr:`TimeBase.rate_ambiguity`):
+#: the jitter of the regular steps relative to the step (beyond 10 % a jittered step passes the
+#: 1.5-step gap threshold within 5 standard deviations, so the gaps found may be jitter), ...
+JITTER_LIMIT = 0.10
+#: ... the share of the time lost in gaps (dropped samples, or a slower clock?) ...
+GAP_SHARE_LIMIT = 0.05
+#: ... and the relative difference between the rate and the median-step rate.
+RATE_SPREAD_LIMIT = 0.01
 GAP_POLICIES = ("auto", "longest", "combine", "error")
 _EPOCH_S = (9.46e8, 4.1e9)  # 2000-01-01 .. 2099: stamps since 1970 in seconds
 _UNIT_WORDS = {"ns": "ns", "nsec": "ns", "nanoseconds": "ns", "us": "us", "usec": "us", "µs": "us",
@@ -81,8 +93,13 @@ def time_column(name: Any) -> tuple[bool, str | None]:
 
 @dataclass(frozen=True)
 class TimeBase:
-    """Sampling of a recording. ``freq`` [Hz] and where it came from (``source``); ``unit`` of
-    the stamps (None when the rate was given, not measured); ``start_s`` first stamp [s];
+    """Sampling of a recording. ``freq`` [Hz] and where it came from (``source``): measured, the
+    mean rate between gaps = the number of steps that are not gaps / their total time (without
+    gaps (n - 1) / (t_last - t_first)), the rate the wavelet variance's time scale assumes;
+    ``median_rate`` 1 / the median step and ``overall_rate`` (n - 1) / duration (gaps included),
+    shown when they differ; ``rate_given`` True when ``freq`` is the user's ``--freq`` settling an
+    ambiguous rate; ``unit`` of the stamps (None when the rate was given, not measured);
+    ``start_s`` first stamp [s];
     ``duration_s`` last minus first stamp [s]; ``step_s`` nominal step = 1 / ``freq``; ``jitter``
     the standard deviation of the regular steps relative to the step; ``n_gaps`` steps longer than
     1.5 median steps, ``longest_gap_s`` the longest step, ``gap_share`` the share of the duration
@@ -103,10 +120,35 @@ class TimeBase:
     n_short: int = 0
     segments: tuple[tuple[int, int], ...] = ()
     notes: tuple[str, ...] = field(default=())
+    median_rate: float | None = None
+    overall_rate: float | None = None
+    rate_given: bool = False
 
     @property
     def step_s(self) -> float:
         return 1.0 / self.freq
+
+    @property
+    def rate_ambiguity(self) -> str | None:
+        """Why the measured rate is ambiguous (jitter beyond :data:`JITTER_LIMIT`, gaps beyond
+        :data:`GAP_SHARE_LIMIT` of the time, the median-step rate more than
+        :data:`RATE_SPREAD_LIMIT` away), or None: not measured, within the limits, or settled
+        by ``--freq``."""
+        if self.unit is None or self.rate_given:
+            return None
+        why = []
+        if self.jitter > JITTER_LIMIT:
+            why.append(f"step jitter {100 * self.jitter:.2g} % (limit {100 * JITTER_LIMIT:g} %)")
+        if self.gap_share > GAP_SHARE_LIMIT:
+            why.append(f"{self.n_gaps} gaps take {100 * self.gap_share:.2g} % of the time (limit "
+                       f"{100 * GAP_SHARE_LIMIT:g} %)")
+        if self.median_rate and abs(self.median_rate / self.freq - 1.0) > RATE_SPREAD_LIMIT:
+            why.append(f"the median step gives {self.median_rate:.6g} Hz (limit "
+                       f"{100 * RATE_SPREAD_LIMIT:g} % apart)")
+        if not why:
+            return None
+        return (f"the sampling rate of {self.source} is ambiguous: {self.freq:.6g} Hz between "
+                f"gaps, but {'; '.join(why)}")
 
     @property
     def longest_segment(self) -> tuple[int, int]:
@@ -117,6 +159,11 @@ class TimeBase:
         text = f"{self.freq:.6g} Hz from {self.source}, {self.n} samples, {self.duration_s:.6g} s"
         if self.unit is None:
             return text
+        others = [f"{what} {r:.6g} Hz" for what, r in (("median step", self.median_rate),
+                                                      ("with gaps", self.overall_rate))
+                  if r and abs(r / self.freq - 1.0) > 1e-3]
+        if others:
+            text += f" ({', '.join(others)})"
         text += f", jitter {100 * self.jitter:.2g} % of the step"
         if self.n_gaps:
             text += (f", {self.n_gaps} gap(s) (longest {self.longest_gap_s:.4g} s, "
@@ -130,7 +177,9 @@ class TimeBase:
                 "start_s": self.start_s, "duration_s": self.duration_s, "jitter": self.jitter,
                 "n_gaps": self.n_gaps, "longest_gap_s": self.longest_gap_s,
                 "gap_share": self.gap_share, "dropped": self.dropped, "n_short": self.n_short,
-                "n_segments": len(self.segments), "notes": list(self.notes)}
+                "n_segments": len(self.segments), "notes": list(self.notes),
+                "median_rate": self.median_rate, "overall_rate": self.overall_rate,
+                "rate_given": self.rate_given, "rate_ambiguity": self.rate_ambiguity}
 
 
 def time_from_freq(freq: float, n: int, source: str = "--freq") -> TimeBase:
@@ -225,8 +274,11 @@ def time_base(t: Any, *, name: str = "time", unit: str | None = None, where: str
                          f"{int(regular.sum())} of {d.size} steps lie within 0.5-1.5 median steps")
     dr = d[regular].astype(np.float64)
     mean_step = float(dr.mean())
-    freq = float(f"{1.0 / (mean_step * k):.9g}")
     jitter = float(dr.std() / mean_step)
+    # the rate: the mean rate between gaps (steps that are not gaps over their time, short
+    # steps included), the spacing the wavelet variance of every clean segment assumes
+    inside = d[d <= GAP_FACTOR * step]
+    freq = float(f"{inside.size / (float(inside.sum()) * k):.9g}")
     span = float(t[-1] - t[0])
     dg = d[gaps].astype(np.float64)
     dropped = int(np.sum(np.maximum(np.round(dg / mean_step) - 1, 0))) if gaps.size else 0
@@ -243,11 +295,43 @@ def time_base(t: Any, *, name: str = "time", unit: str | None = None, where: str
     if n_short:
         notes.append(f"{where}: {n_short} step(s) shorter than half the median step")
     src = source or f"{where} ({unit}, {how})"
-    return TimeBase(freq=freq, source=src, n=int(t.size), unit=unit, start_s=float(t[0]) * k,
+    tb = TimeBase(freq=freq, source=src, n=int(t.size), unit=unit, start_s=float(t[0]) * k,
                     duration_s=span * k, jitter=jitter, n_gaps=int(gaps.size),
                     longest_gap_s=float(d.max()) * k if gaps.size else 0.0,
                     gap_share=float((dg - mean_step).sum() / span) if gaps.size else 0.0,
-                    dropped=dropped, n_short=n_short, segments=segments, notes=tuple(notes))
+                    dropped=dropped, n_short=n_short, segments=segments, notes=tuple(notes),
+                    median_rate=float(f"{1.0 / (step * k):.9g}"),
+                    overall_rate=float(f"{(t.size - 1) / (span * k):.9g}"))
+    why = tb.rate_ambiguity
+    if why is not None:  # said now; a configuration file needs --freq or --gaps
+        tb = replace(tb, notes=(*tb.notes, f"{why}; a configuration file needs --freq or --gaps"))
+    return tb
+
+
+def drop_duplicate_rows(stamps: Any, columns: dict[str, np.ndarray], where: str
+                        ) -> tuple[np.ndarray | None, str | None]:
+    """Exact duplicate rows: a stamp repeated by the next row with the same value in every one of
+    ``columns`` (vendor exports repeat rows). Returns (the rows to keep, a note giving their
+    count), or (None, None) when there is none. A stamp repeated with a different value is an
+    :class:`InputError` naming the row (two samples claim one instant: which is right?)."""
+    t = np.asarray(stamps).reshape(-1)
+    if t.size < 2:
+        return None, None
+    same = np.flatnonzero(t[1:] == t[:-1])
+    if same.size == 0:
+        return None, None
+    for name, x in columns.items():
+        x = np.asarray(x).reshape(-1)
+        differ = same[x[same + 1] != x[same]]
+        if differ.size:
+            i = int(differ[0])
+            raise InputError(f"{where} repeats a stamp at row {i + 2} with a different "
+                             f"{name} ({x[i]:.9g} then {x[i + 1]:.9g}): two samples at one "
+                             "instant; fix the file")
+    keep = np.ones(t.size, dtype=bool)
+    keep[same + 1] = False
+    return keep, (f"{where}: {same.size} exact duplicate row(s) (same stamp, same values) "
+                  "dropped")
 
 
 # --------------------------------------------------------------------------------------------------

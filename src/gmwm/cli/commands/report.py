@@ -36,7 +36,8 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         while_waiting=while_waiting)
     args.progress(f"writing the report to {args.output}")
     files = write_calibration(args.output, result, title=args.title, targets=targets,
-                              inflation=inflation, drawn=drawn)
+                              inflation=inflation, drawn=drawn,
+                              rostopic=getattr(args, "rostopic", None))
     if args.json:
         out.write(json_text(_json(args, result, files)))
     else:
