@@ -148,16 +148,6 @@ def test_dataflash_not_a_log_and_no_imu(tmp_path):
         read_recording(gps)
 
 
-def test_dataflash_real_logs_if_present():
-    found = [p for p in EXTERNAL.rglob("*") if p.suffix.lower() in (".bin", ".log")] \
-        if EXTERNAL.is_dir() else []
-    if not found:
-        pytest.skip("no DataFlash log in the external data folder")
-    for p in found:
-        for rec in read_recordings(p, "all").values():
-            assert rec.units["gx"] == "rad/s" and rec.time.freq > 1.0
-
-
 # ------------------------------------------------------------------------------------------------
 # vendor CSV headers with units, phone exports
 # ------------------------------------------------------------------------------------------------

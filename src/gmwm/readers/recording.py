@@ -404,8 +404,8 @@ def _imu_columns(t: Any, data: list[str], p: Path, notes: list[str]
     or any column whose unit is not a signal unit) are ignored, with a note. None when no column
     has a signal unit (the caller then asks for ``--columns``). A column named like an IMU axis
     without a unit, or two columns of one axis, is an :class:`InputError`."""
-    from gmwm.datasheet import SIGNAL_UNITS
     from gmwm.readers.text import imu_column
+    from gmwm.units import SIGNAL_UNITS
 
     kinds = {n: imu_column(n, t.units.get(n)) for n in data}
     imu = [n for n in data if t.units.get(n) and kinds[n][0] in ("gyroscope", "accelerometer")]
