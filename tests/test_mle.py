@@ -120,6 +120,7 @@ def test_pure_ar1_recovers_innovation_variance():
     assert res.as_dict()["RW[1].gamma2"] < 1e-3
 
 
+@pytest.mark.slow
 def test_matches_statsmodels_own_fit():
     # Same model via statsmodels' exog interface and its own optimiser, started at the truth:
     # the optimum found here must be at least as good (1e-3 log-likelihood units of slack).

@@ -289,6 +289,7 @@ def test_baseline_merge_rejects_mismatches(whole, baseline):
         run_replicate(MODEL, TRUTH, 1000, 0, "s", 0, GMWM, {"variants": {BASELINE: "moment"}})
 
 
+@pytest.mark.slow
 def test_statsmodels_likelihood_equals_the_project_filter():
     from gmwm.model import Model
 
