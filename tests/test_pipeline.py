@@ -183,7 +183,7 @@ def _group(pgid: int) -> list[int]:
     return members
 
 
-# The killed run is the quick command restricted to three studies (36 jobs instead of 110) to keep
+# The killed run is the quick command restricted to three studies (36 jobs instead of 92) to keep
 # the suite short; the resume machinery does not depend on which studies run. The Allan chapter
 # (13 s of CPU, no estimate compared below) is left out too.
 KILL_OVERLAY = {
