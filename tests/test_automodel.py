@@ -212,6 +212,7 @@ def test_a_wavelet_variance_is_accepted() -> None:
     assert c.model.spec == choose_model(x, freq=F, kind="accelerometer", max_gm=1).model.spec
 
 
+@pytest.mark.slow
 def test_report_renders_the_choice_and_its_warning(tmp_path) -> None:
     """write_report with axes[name]["choice"]: the ranking table and the all-rejected warning
     appear even when the caller's warning list is empty."""

@@ -132,6 +132,7 @@ def _fake_fits(n: int) -> dict[str, xr.Dataset]:
     return out
 
 
+@pytest.mark.slow
 def test_run_chunk_drops_bad_fits_and_ignores_chunking():
     cfg = {**CFG, "models": ["model1", "model2"], "seed": 4, "freq_calibration": 200.0,
            "imu_rate": 100.0, "duration": 20.0, "gnss_rate": 1.0, "outage": [8.0, 15.0],

@@ -309,6 +309,7 @@ def test_statsmodels_likelihood_equals_the_project_filter():
     assert kalman_loglike(x, 0.35, res.as_dict(), b) <= res.loglike + 1e-2
 
 
+@pytest.mark.slow
 def test_mle_standard_errors_match_statsmodels_numerical_hessian():
     # the observed-information SEs of the project's MLE against statsmodels' own numerical
     # Hessian ('approx') at the same estimate: same likelihood, so they must agree closely
