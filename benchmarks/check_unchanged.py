@@ -78,8 +78,8 @@ MAX_VALUES = 20_000
 
 #: README commands not run: (name, regex on the command's first line, reason)
 SKIP_RULES: tuple[tuple[str, str, str], ...] = (
-    ("install", r"^\s*(python\s+-m\s+)?pip\s+install\b",
-     "installs the package (the environment is given)"),
+    ("install", r"^\s*(python3?\s+-m\s+)?(pip\s+install|venv)\b",
+     "makes a virtual environment or installs the package (the environment is given)"),
     ("tests", r"^\s*(python\s+-m\s+)?pytest\b", "the test suite (not an example; run on its own)"),
     ("quick-profile", r"^\s*snakemake\b.*--configfile\s+config/quick\.yaml",
      "the quick profile: run by the quick part, in a git copy of the repository"),

@@ -133,6 +133,7 @@ def test_haar_levels_and_bartlett_lrv():
     assert ac.bartlett_lrv(z, 400) == pytest.approx(4.0, rel=0.1)
 
 
+@pytest.mark.slow
 def test_study_functions_tiny():
     assert "eta3" in ac.interval_kinds()
     res = ac.adev_study("fig42", n_samples=4096, replicates=2, seed=1)

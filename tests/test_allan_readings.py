@@ -82,6 +82,7 @@ def test_random_walk_read_from_the_crossover_is_flagged() -> None:
     assert r["K"]["value"] == pytest.approx(0.01, rel=0.03)   # 2 % high: the run starts at 0.64 s
 
 
+@pytest.mark.slow
 def test_white_noise_reading_covers_at_its_nominal_level() -> None:
     # N from white noise (read at 1 s inside the -1/2 line): the new interval covers 0.95 within
     # 3 MC SE; the old one (the line through the eta_3 bounds) covered ~1.00
@@ -99,6 +100,7 @@ def test_white_noise_reading_covers_at_its_nominal_level() -> None:
     assert abs(np.mean(hits) - 0.95) <= 3 * se
 
 
+@pytest.mark.slow
 def test_random_walk_reading_interval_is_resampled_and_covers() -> None:
     """K's interval is a percentile interval over re-read perturbed curves (the line's own one
     misses the run choice and the read-out far outside the run) unless too few of them show a

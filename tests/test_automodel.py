@@ -48,6 +48,7 @@ def six_axes() -> dict[str, Choice]:
     return out
 
 
+@pytest.mark.slow
 def test_six_axis_gyro_model_has_bias_instability_and_covers_rrw(six_axes) -> None:
     """WN+RW alone (the old default) gives RRW 9-18 deg/h/sqrt(h) on these signals and is
     rejected; the chosen model has the GM and the RW, passes the test, and its RRW and ARW
@@ -66,6 +67,7 @@ def test_six_axis_gyro_model_has_bias_instability_and_covers_rrw(six_axes) -> No
         assert rows["WN+RW"]["rejected"] and not rows["WN+RW"]["chosen"]
 
 
+@pytest.mark.slow
 def test_six_axis_accelerometer(six_axes) -> None:
     for axis in ("ax", "ay", "az"):
         c = six_axes[axis]
@@ -77,6 +79,7 @@ def test_six_axis_accelerometer(six_axes) -> None:
         assert _covers(ds["AccRW"], ACC_K * 3600 * 60), (axis, ds["AccRW"])
 
 
+@pytest.mark.slow
 def test_pure_white_noise_and_random_walk_gets_no_gauss_markov() -> None:
     """The generating WN+RW is chosen; a GM enters only when the test rejects WN+RW itself (by
     design in 5 % of such signals: 1 of 20 seeds of this setting, seed 2 below)."""
@@ -121,6 +124,7 @@ def test_every_candidate_rejected_is_a_visible_warning() -> None:
     assert d["passed"] is False and d["warnings"][0] == c.warnings[0]
 
 
+@pytest.mark.slow
 def test_ranking_is_exposed(six_axes) -> None:
     c = six_axes["gx"]
     rows = c.rows()
@@ -164,6 +168,7 @@ def test_candidates() -> None:
         choose_model(np.ones(100), sin="yes")
 
 
+@pytest.mark.slow
 def test_bump_rule() -> None:
     """A sinusoid of period 400 samples on white noise shows a bump near its period; white
     noise, a GM over white noise and QN over white noise do not."""
@@ -182,6 +187,7 @@ def test_bump_rule() -> None:
     assert c.bump is not None and "SIN" in c.model.spec and c.passed
 
 
+@pytest.mark.slow
 def test_stages_stop_when_a_gauss_markov_term_no_longer_helps(six_axes) -> None:
     c = six_axes["ax"]  # WN+RW truth: the 2- and 3-GM candidates are not fitted
     fitted = [r["model"] for r in c.rows()]
@@ -211,6 +217,7 @@ def test_a_wavelet_variance_is_accepted() -> None:
     assert c.model.spec == choose_model(x, freq=F, kind="accelerometer", max_gm=1).model.spec
 
 
+@pytest.mark.slow
 def test_report_renders_the_choice_and_its_warning(tmp_path) -> None:
     """write_report with axes[name]["choice"]: the ranking table and the all-rejected warning
     appear even when the caller's warning list is empty."""
@@ -266,6 +273,7 @@ def test_the_climb_stops_when_every_candidate_is_rejected_and_a_gm_no_longer_hel
     assert gm == [Model(best0["model"] + "+GM").spec]
 
 
+@pytest.mark.slow
 def test_linear_terms_at_zero_are_not_tried_with_more_gm(six_axes) -> None:
     """Rule 3: from one GM on, an optional linear term (QN, DR) at zero in every candidate of a
     stage that has it is not tried with more GM terms; the notes and the JSON say so."""

@@ -74,6 +74,7 @@ def _wn_wv_cov_exact(T: int, J: int) -> np.ndarray:
     return cov
 
 
+@pytest.mark.slow
 def test_wn_wv_covariance_matches_theory():
     T, J, B = 2**9, 5, 3000
     draws = bs.wv_bootstrap(Model("WN"), np.array([1.0]), T, B, levels=J, seed=1)
@@ -127,6 +128,7 @@ def test_cis_ses_tables_and_efficient_fit(wn_ar1_fit):
     np.testing.assert_allclose(eff.se, ref, rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_percentile_coverage_within_mc_error():
     """40 replicates of WN+RW (T = 4096), 50 draws each: the 95% percentile CI must cover the
     truth in 0.95 +- 3 MCSE (MCSE = sqrt(.95 .05 / 40) = 0.034) of the replicates.

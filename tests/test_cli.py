@@ -449,6 +449,7 @@ def test_av_readings_text_json_and_adev_plot(capsys, imu, tmp_path):
     assert r["B"]["unit"] == "deg/h" and r["B"]["value"] > 0
 
 
+@pytest.mark.slow
 def test_report_writes_markdown_html_yaml(capsys, imu, tmp_path):
     outdir = tmp_path / "rep"
     code, _, err = run(capsys, "report", imu["path"], "--columns", "all", "--units", "gx,gy=deg/s",
@@ -469,6 +470,7 @@ def test_report_writes_markdown_html_yaml(capsys, imu, tmp_path):
     assert html.startswith("<!DOCTYPE html>") and 'src="gx_wv.png"' in html
 
 
+@pytest.mark.slow
 def test_report_export_targets_and_inflation(capsys, imu, tmp_path):
     # --export writes the configuration files asked for, --inflate multiplies the densities
     common = ["report", imu["path"], "--columns", "gx,ax", "--units", "gx=deg/s",
@@ -661,6 +663,7 @@ def test_progress_lines_only_on_a_terminal_and_not_quiet(signal_files, monkeypat
 # ---- the automatic model choice ('auto') ----------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_fit_auto_prints_the_ranking_and_keeps_wn_and_rw(capsys, signal_files):
     code, out, err = run(capsys, "fit", signal_files["npy"], "auto", "--freq", "100",
                          "--units", "deg/s", "-q")

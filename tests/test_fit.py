@@ -30,6 +30,7 @@ def _z(est, theta):
     return (est.mean(0) - theta) / (est.std(0, ddof=1) / np.sqrt(len(est)))
 
 
+@pytest.mark.slow
 def test_simulation1_recovers_truth_without_bias():
     # T = 1.6e5 is Simulation 1's largest size; 20 replicates; |z| < 3.5 for all 6 parameters
     # fails by chance with probability ~ 6 * 5e-4
@@ -44,6 +45,7 @@ def test_simulation1_recovers_truth_without_bias():
     assert rel_sd[model.param_names.index("SIN[1].beta")] < 0.01
 
 
+@pytest.mark.slow
 def test_simulation3_sinusoid_identified_and_unbiased():
     # T = 2^21 instead of the paper's 1e7 to stay fast; the RW (gamma2 = 3e-11) is then weak
     # (relative SD > 1) but still unbiased within Monte Carlo error, which the z-test checks

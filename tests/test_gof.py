@@ -48,6 +48,7 @@ def _pvalues(spec: str, truth: dict, T: int, R: int, seed: int) -> np.ndarray:
     return np.array(out)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("spec,truth,R", [
     ("WN+RW", {"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-5}, 160),
     ("WN+AR1+RW", AR1_RW, 100),

@@ -49,6 +49,7 @@ def test_batch_wv_matches_model_wv():
     np.testing.assert_allclose(idf.batch_wv(model, TH, tau), ref, rtol=1e-11)
 
 
+@pytest.mark.slow
 def test_well_posed_fit_passes_all_checks(sim1):
     rep = idf.check(sim1, posterior=True, seed=0)
     assert rep.status == "pass", rep.summary()

@@ -135,6 +135,7 @@ CASES = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("spec,truth,R", CASES, ids=[c[0] for c in CASES])
 def test_every_end_inside_the_domain(spec, truth, R):
     """Default fits at T = 2^14 (weak RW and near-edge phi on purpose; 235 fits in all): every

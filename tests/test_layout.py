@@ -10,6 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 import gmwm
 
 CORE = Path(gmwm.__file__).parent
@@ -39,6 +41,7 @@ def _imported_modules(path: Path) -> set[str]:
     return names
 
 
+@pytest.mark.slow
 def test_core_files_never_import_the_studies():
     files = sorted(CORE.rglob("*.py"))
     assert len(files) > 20
@@ -68,6 +71,7 @@ def test_bare_import_is_cheap():
     assert _loaded_after("import gmwm") == []
 
 
+@pytest.mark.slow
 def test_every_core_module_imports_without_the_pipeline():
     modules = sorted(_module_name(f, CORE.parent) for f in CORE.rglob("*.py")
                      if f.stem != "__main__")
@@ -102,6 +106,7 @@ def test_readers_import_no_result_class():
         "gmwm.errors", "gmwm.wv", "gmwm.readers.timebase"}
 
 
+@pytest.mark.slow
 def test_svo_modules_load_numba_only_on_first_use():
     assert "numba" not in _loaded_after("import gmwm.virtual, gmwm.wccv")
 
@@ -253,6 +258,7 @@ def _public_api() -> set[tuple[str, str]]:
     return {(f"gmwm.{exports[n]}", n) for n in gmwm.__all__}
 
 
+@pytest.mark.slow
 def test_no_study_code_in_the_core():
     consumers = sorted((REPO / "src" / STUDIES).rglob("*.py")) + sorted(
         (REPO / "workflow").rglob("*.py"))

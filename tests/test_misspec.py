@@ -12,6 +12,8 @@ from gmwm_studies import montecarlo as gs
 SETTINGS = {"method": "gmwm", "weights": "ci", "n_starts": 2, "reweight": 0}
 FITS = {"model1": "AR1+RW", "model2": "AR1+RW+2*SIN"}
 
+pytestmark = pytest.mark.slow  # every test uses `fits`: 8 replicates x 2 models at T = 2**17
+
 
 @pytest.fixture(scope="module")
 def fits():

@@ -76,6 +76,7 @@ def test_recovers_simulation1_parameters():
         assert abs(est["SIN[1].alpha"] - ALPHA) < 0.06
 
 
+@pytest.mark.slow
 def test_likelihood_is_exact_and_ar_variance_is_innovation_variance():
     # The exact-diffuse likelihood of WN + RW + AR1 equals the Gaussian likelihood of the first
     # differences (up to statsmodels' constant 0.5 log 2 pi for the diffuse observation). This pins
@@ -120,6 +121,7 @@ def test_pure_ar1_recovers_innovation_variance():
     assert res.as_dict()["RW[1].gamma2"] < 1e-3
 
 
+@pytest.mark.slow
 def test_matches_statsmodels_own_fit():
     # Same model via statsmodels' exog interface and its own optimiser, started at the truth:
     # the optimum found here must be at least as good (1e-3 log-likelihood units of slack).

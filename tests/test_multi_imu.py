@@ -112,6 +112,7 @@ def test_ulog_streams_are_raw_instances_read_in_one_parse(tmp_path):
     assert list(read_recordings(p, ["sensor_combined"])) == ["sensor_combined"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["ros1", "mcap"])
 def test_multi_imu_report_one_page_and_a_folder_per_imu(two_imu_bags, tmp_path, kind):
     recs = read_recordings(two_imu_bags[kind], "all")
@@ -152,6 +153,7 @@ def test_parallel_fits_equal_serial_fits(two_imu_bags):
                                               a["result"].params)
 
 
+@pytest.mark.slow
 def test_one_imu_with_all_gives_the_single_imu_layout(tmp_path):
     g, a = _simulate(200.0, 1e-3, 2e-2, 5)
     st = T0 + np.arange(N, dtype=np.int64) * 5_000_000
@@ -173,6 +175,7 @@ def test_imu_folders_are_distinct():
         "/": "imu"}
 
 
+@pytest.mark.slow
 def test_ulog_streams_have_no_rostopic(tmp_path):
     # a ULog stream name is not a ROS topic: its configuration files hold the placeholder
     n = 2 ** 11
@@ -204,6 +207,7 @@ def test_prepare_longest_static_avoids_the_flagged_range(tmp_path):
         prepare(rec, strict=True)
 
 
+@pytest.mark.slow
 def test_cli_report_topic_all_and_repeated_topics(two_imu_bags, tmp_path, capsys):
     import json
 

@@ -78,6 +78,7 @@ def consistency_runs():
     return out["time"], sel
 
 
+@pytest.mark.slow
 def test_filter_covariance_matches_monte_carlo_spread(consistency_runs):
     t, r = consistency_runs
     keep = t > 0
@@ -92,6 +93,7 @@ def test_filter_covariance_matches_monte_carlo_spread(consistency_runs):
     assert np.all(np.abs(emp / pred - 1) < 0.35), emp / pred  # chi2(199)/199: SD 0.1
 
 
+@pytest.mark.slow
 def test_understated_gyro_noise_is_detected(consistency_runs):
     t, r = consistency_runs
     k = np.argmin(np.abs(t - 24.0))
@@ -130,6 +132,7 @@ def _fake_fits(n: int) -> dict[str, xr.Dataset]:
     return out
 
 
+@pytest.mark.slow
 def test_run_chunk_drops_bad_fits_and_ignores_chunking():
     cfg = {**CFG, "models": ["model1", "model2"], "seed": 4, "freq_calibration": 200.0,
            "imu_rate": 100.0, "duration": 20.0, "gnss_rate": 1.0, "outage": [8.0, 15.0],

@@ -68,6 +68,7 @@ def test_parse_target():
 
 # ---- the prediction is the fit's sandwich ----------------------------------------------------------
 
+@pytest.mark.slow
 def test_prediction_equals_the_fits_standard_errors_on_the_expected_wv():
     """A fit of the WV a recording has on average, nu(theta) with its default interval, lands on
     theta; the SEs it reports are the prediction (same V, weights and sandwich)."""
@@ -123,6 +124,7 @@ def test_predict_refuses_too_short_recordings():
 
 # ---- lengths ---------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_min_length_and_target_are_where_the_criterion_switches():
     plan = make_plan(GYRO, THETA, [3600.0], unit="deg/s", targets=[("RRW", 0.2)])
     t = plan.min_length["RW[1]"]
@@ -136,6 +138,7 @@ def test_min_length_and_target_are_where_the_criterion_switches():
     assert plan.min_length["WN[1]"] < 1.0
 
 
+@pytest.mark.slow
 def test_unreachable_target_and_unknown_name():
     plan = make_plan(GYRO, THETA, [3600.0], unit="deg/s", targets=[("RRW", 1e-4)],
                      max_search_s=86400.0)
@@ -147,6 +150,7 @@ def test_unreachable_target_and_unknown_name():
 
 # ---- gmwm plan --------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_plan_json_from_a_datasheet(capsys):
     code, out, err = run(capsys, "plan", "--datasheet", "mti-1", "--sensor", "gyroscope", "--freq",
                          100, "--duration", "1h", "--duration", "6h", "--target", "BI=10%",
@@ -168,6 +172,7 @@ def test_plan_json_from_a_datasheet(capsys):
     assert "correlation time" in obj["notes"][0] and "Wald" in obj["identifiable_rule"]
 
 
+@pytest.mark.slow
 def test_plan_text_and_plot_from_a_model(capsys, tmp_path):
     png = tmp_path / "plan.png"
     code, out, err = run(capsys, "plan", "WN+RW", "-p", "WN[1].sigma2=1.25e-3", "-p",

@@ -383,6 +383,7 @@ def test_combined_segments_pool_coefficients_exactly():
 # ---- the user's path: gmwm report FILE -o DIR, no options --------------------------------------
 
 
+@pytest.mark.slow
 def test_report_of_a_bag_needs_no_options_and_recovers_densities(tmp_path, capsys):
     import json
 

@@ -34,6 +34,7 @@ def two_cores():
         pytest.skip("the warm server needs two cores and a forkserver")
 
 
+@pytest.mark.slow
 def test_warm_server_forks_warm_workers_and_is_reaped(two_cores):
     from multiprocessing import forkserver
 
@@ -77,6 +78,7 @@ def imu_csv(tmp_path_factory):
     return p
 
 
+@pytest.mark.slow
 def test_report_from_workers_equals_report_from_one_process(imu_csv, tmp_path, monkeypatch,
                                                            two_cores, capsys):
     args = ["report", str(imu_csv), "--columns", "all", "--units", "gx,gy=deg/s",

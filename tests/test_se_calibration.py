@@ -15,6 +15,7 @@ _bench = load_benchmark("bench_se_calibration")
 CASES, calibration, ratio = _bench.CASES, _bench.calibration, _bench.ratio
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("spec", sorted(CASES))
 def test_standard_errors_are_calibrated(spec):
     out = calibration(spec, CASES[spec], T=2**15, R=60, seed=11)

@@ -335,6 +335,7 @@ def test_fit_with_datasheet_needs_units_and_a_matching_section(capsys, imu_csv, 
     assert code == 1 and "no fitted column is of a sensor type it describes" in err
 
 
+@pytest.mark.slow
 def test_report_with_datasheet(capsys, imu_csv, tmp_path):
     outdir = tmp_path / "rep"
     code, _, err = run(capsys, "report", imu_csv, "WN+GM", "--columns", "gx,ax", "--units",

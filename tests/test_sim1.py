@@ -289,6 +289,7 @@ def test_baseline_merge_rejects_mismatches(whole, baseline):
         run_replicate(MODEL, TRUTH, 1000, 0, "s", 0, GMWM, {"variants": {BASELINE: "moment"}})
 
 
+@pytest.mark.slow
 def test_statsmodels_likelihood_equals_the_project_filter():
     from gmwm.model import Model
 
@@ -308,6 +309,7 @@ def test_statsmodels_likelihood_equals_the_project_filter():
     assert kalman_loglike(x, 0.35, res.as_dict(), b) <= res.loglike + 1e-2
 
 
+@pytest.mark.slow
 def test_mle_standard_errors_match_statsmodels_numerical_hessian():
     # the observed-information SEs of the project's MLE against statsmodels' own numerical
     # Hessian ('approx') at the same estimate: same likelihood, so they must agree closely

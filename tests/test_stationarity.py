@@ -329,6 +329,7 @@ def test_cli_start_end(capsys, files):
     assert code == 1 and "after the end" in err
 
 
+@pytest.mark.slow
 def test_report_has_stationarity_section(capsys, files):
     outdir = files["dir"] / "report"
     code, _out, _err = run(capsys, "report", files["moving"], "WN+RW", "--columns", "all",

@@ -424,6 +424,7 @@ def test_warm_up_commands_are_valid_command_lines() -> None:
         assert args.command == cmd[0]
 
 
+@pytest.mark.slow
 def test_compile_note_does_not_import_numba_itself() -> None:
     # commands that run no Numba kernel must not pay for importing Numba: the note is set up by
     # an import hook when something else imports it

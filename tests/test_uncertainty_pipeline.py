@@ -5,7 +5,6 @@ Table-1 rows, coverage summaries and figure, identifiability summary rows, Navch
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,13 +16,14 @@ from gmwm.errors import InputError
 from gmwm.estimator import fit
 from gmwm.model import Model
 from gmwm_studies import uncertainty as un
+from gmwm_studies.data import local_copy
 from gmwm_studies.montecarlo import estimator_settings, fit_chunk, replicate_fit, simulate_wv_chunk
 
 MODEL = "WN+AR1"
 TRUTH = {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.9, "AR1[1].sigma2": 0.5}
 T = 2**11
 SETTINGS = {"method": "gmwm", "weights": "ci", "n_starts": 2, "reweight": 0}
-NAVCHIP_WV = Path("/work/shared/data/wv/navchip_wv.csv")
+NAVCHIP_WV = local_copy("navchip_wv")  # the registry's local copy (../shared/data), or None
 
 
 @pytest.fixture(scope="module")
@@ -116,7 +116,8 @@ def test_summary_row_pass_and_warn():
     assert row["status"] == "warn" and row["reasons"]
 
 
-@pytest.mark.skipif(not NAVCHIP_WV.is_file(), reason="Navchip WV file not available")
+@pytest.mark.skipif(NAVCHIP_WV is None,
+                    reason="Navchip WV file not in ../shared/data (config/datasets.yaml local_dir)")
 def test_navchip_result_reproduces_the_recorded_fit(tmp_path):
     navchip = pytest.importorskip("gmwm_studies.navchip")
     settings = {"weights": "ci", "n_starts": 2, "seed": 1}

@@ -200,6 +200,7 @@ def test_numba_kernel_gives_the_frozen_bits() -> None:
     _check(_wvkernels, None)
 
 
+@pytest.mark.slow
 @needs_c_kernel
 def test_baseline_build_gives_the_frozen_bits(tmp_path: Path) -> None:
     # the installed kernel runs the AVX2 clone on a CPU that has it; this build has only the

@@ -158,6 +158,7 @@ def _coverage(spec: str, theta: list, T: int, R: int, seed: int) -> tuple[dict, 
     return out, (T - scales + 1) / scales
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("spec,theta,seed", [("WN", [1.0], 1), ("RW", [1.0], 2),
                                              ("WN+AR1", [0.1, 0.99, 1.0], 3)])
 def test_coverage_by_simulation(spec: str, theta: list, seed: int) -> None:
