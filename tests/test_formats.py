@@ -248,6 +248,7 @@ def test_phone_folder_with_a_common_rate_is_one_six_axis_recording(tmp_path):
                "one common rate" in n for n in rec.notes)
 
 
+@pytest.mark.slow
 def test_phone_folder_without_a_common_rate_gives_each_sensor_its_rate(tmp_path):
     folder = _phyphox(tmp_path / "phone", 400.0, 100.0)
     with pytest.raises(InputError, match=r"no common rate \(gyroscope 400 Hz .*accelerometer "
@@ -374,6 +375,7 @@ def test_gaps_beyond_the_limit_make_the_rate_ambiguous():
     assert tb.freq == pytest.approx(200.0, rel=1e-9)  # the rate between the gaps
 
 
+@pytest.mark.slow
 def test_update_rate_is_the_defined_rate_on_every_surface(tmp_path):
     """The configuration's update_rate = the report's rate = the mean rate between gaps
     computed by hand from the stamps; --rostopic names the topic."""

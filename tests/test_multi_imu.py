@@ -253,6 +253,7 @@ def _values(path: Path) -> dict:
     return yaml.safe_load(path.read_text())
 
 
+@pytest.mark.slow
 def test_one_topic_alone_or_in_topic_all_gives_identical_results(two_imu_bags, tmp_path, capsys):
     from gmwm.calibrate import calibrate
     from gmwm.cli import main
@@ -311,6 +312,7 @@ def test_a_broken_topic_does_not_stop_the_others(broken_bag):
         calibrate(broken_bag, "WN+RW", topics="/imu1/data")
 
 
+@pytest.mark.slow
 def test_cli_topic_all_lists_failed_topics_with_exit_status_4(broken_bag, tmp_path, capsys):
     import json
 
