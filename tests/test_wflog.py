@@ -1,0 +1,66 @@
+"""The workflow scripts' shared start (workflow/scripts/wflog.py): thread limits and the per-job
+CPU record the archive reads."""
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+from gmwm_studies.archive import read_benchmarks
+
+SCRIPTS = Path(__file__).resolve().parents[1] / "workflow" / "scripts"
+
+
+def _run_job(tmp_path: Path, threads: int) -> dict:
+    """Run a stand-in script job (a ``snakemake`` object in ``__main__`` as Snakemake's preamble
+    leaves it) that imports wflog, then numpy, and spins; returns what it printed."""
+    script = tmp_path / "job.py"
+    script.write_text(textwrap.dedent(f"""
+        import json, os, sys, types
+        sys.path.insert(0, {str(SCRIPTS)!r})
+
+        class W(dict):
+            pass
+
+        snakemake = types.SimpleNamespace(rule="simulate_wv", threads={threads},
+                                          wildcards=W(study="s1", T="100", chunk="0"),
+                                          log=[{str(tmp_path / "job.log")!r}])
+        from wflog import THREAD_VARIABLES, get_logger
+        import numpy as np
+        log = get_logger(snakemake)
+        x = 0.0
+        for i in range(200000):
+            x += i * 0.5
+        print(json.dumps({{v: os.environ.get(v) for v in THREAD_VARIABLES}}))
+    """))
+    env = dict(os.environ, OMP_NUM_THREADS="7", GMWM_NUM_THREADS="9",
+               GMWM_BENCHMARK_PATTERNS=json.dumps(
+                   {"simulate_wv": "bench/simulate_wv/{study}/T{T}_c{chunk}.tsv"}))
+    out = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, check=True,
+                         capture_output=True, text=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_job_threads_set_and_cpu_recorded_beside_benchmark(tmp_path):
+    seen = _run_job(tmp_path, threads=1)
+    assert set(seen.values()) == {"1"}  # the parent's 7 and 9 are overridden
+    bench = tmp_path / "bench" / "simulate_wv" / "s1" / "T100_c0.tsv"
+    rec = json.loads((bench.parent / "T100_c0.tsv.rusage.json").read_text())
+    assert rec["threads"] == 1
+    assert rec["cpu_s"] > 0 and abs(rec["cpu_s"] - rec["user_s"] - rec["system_s"]) < 1e-9
+    assert "job CPU" in (tmp_path / "job.log").read_text().splitlines()[-1]
+    # read_benchmarks joins the record to Snakemake's benchmark row
+    bench.write_text("s\th:m:s\tmax_rss\tcpu_time\n1.5\t0:00:01\t100\t0.25\n")
+    other = tmp_path / "bench" / "fit" / "s1" / "x.tsv"
+    other.parent.mkdir(parents=True)
+    other.write_text("s\th:m:s\tmax_rss\tcpu_time\n2.0\t0:00:02\t100\t1.0\n")
+    table = read_benchmarks([bench, other, tmp_path / "missing.tsv"])
+    assert list(table["rule"]) == ["simulate_wv", "fit"]
+    assert table["cpu_s"].iloc[0] == rec["cpu_s"]
+    assert table["cpu_s"].isna().iloc[1]  # no record: NaN, not the polled value
+
+
+def test_declared_threads_are_passed_on(tmp_path):
+    assert set(_run_job(tmp_path, threads=3).values()) == {"3"}
