@@ -67,3 +67,23 @@ def test_cached_variances_do_not_depend_on_the_interval():
     x = np.random.default_rng(1).standard_normal(T).cumsum()
     assert STUDY_WV_CI == "eta3"
     np.testing.assert_array_equal(wvar(x, ci="eta3").variance, wvar(x).variance)
+
+
+def test_fused_chunk_is_the_wv_of_the_fused_signal():
+    from gmwm_studies.montecarlo import simulate_replicate
+    from gmwm_studies.seeds import replicate_rng
+
+    spec, truth = "WN+AR1+RW", {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.9, "AR1[1].sigma2": 0.1,
+                                "RW[1].gamma2": 1e-5}
+    kw = {"study": "cost", "base_seed": 3, "levels": 10}
+    fused = simulate_wv_chunk(spec, truth, 50_000, [0, 4], simulator="fused", **kw)
+    fast = simulate_wv_chunk(spec, truth, 50_000, [0, 4], simulator="fast", **kw)
+    for name in ("levels", "scales", "n"):
+        np.testing.assert_array_equal(getattr(fused, name), getattr(fast, name))
+    model = Model(spec)
+    for i, rep in enumerate([0, 4]):
+        x = simulate_replicate(model, model.theta(truth), 50_000,
+                               replicate_rng("cost", 50_000, rep, 3), "fused")
+        np.testing.assert_array_equal(fused.variances[i], wvar(x, levels=10).variance)
+    assert not np.array_equal(fused.variances, fast.variances)  # another stream
+    assert np.all(fused.seconds_wv == 0) and np.all(fused.seconds_simulate > 0)
