@@ -13,9 +13,10 @@ from gmwm_studies.archive import read_benchmarks
 SCRIPTS = Path(__file__).resolve().parents[1] / "workflow" / "scripts"
 
 
-def _run_job(tmp_path: Path, threads: int) -> dict:
+def _run_job(tmp_path: Path, threads: int, tail: str = "") -> subprocess.CompletedProcess:
     """Run a stand-in script job (a ``snakemake`` object in ``__main__`` as Snakemake's preamble
-    leaves it) that imports wflog, then numpy, and spins; returns what it printed."""
+    leaves it) that imports wflog, then numpy, spins and prints its thread variables, then runs
+    ``tail``."""
     script = tmp_path / "job.py"
     script.write_text(textwrap.dedent(f"""
         import json, os, sys, types
@@ -34,17 +35,21 @@ def _run_job(tmp_path: Path, threads: int) -> dict:
         for i in range(200000):
             x += i * 0.5
         print(json.dumps({{v: os.environ.get(v) for v in THREAD_VARIABLES}}))
-    """))
+    """) + tail)
     env = dict(os.environ, OMP_NUM_THREADS="7", GMWM_NUM_THREADS="9",
                GMWM_BENCHMARK_PATTERNS=json.dumps(
                    {"simulate_wv": "bench/simulate_wv/{study}/T{T}_c{chunk}.tsv"}))
-    out = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, check=True,
-                         capture_output=True, text=True)
+    return subprocess.run([sys.executable, str(script)], check=False, cwd=tmp_path, env=env,
+                          capture_output=True, text=True)
+
+
+def _printed(out: subprocess.CompletedProcess) -> dict:
+    assert out.returncode == 0, out.stderr
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 def test_job_threads_set_and_cpu_recorded_beside_benchmark(tmp_path):
-    seen = _run_job(tmp_path, threads=1)
+    seen = _printed(_run_job(tmp_path, threads=1))
     assert set(seen.values()) == {"1"}  # the parent's 7 and 9 are overridden
     bench = tmp_path / "bench" / "simulate_wv" / "s1" / "T100_c0.tsv"
     rec = json.loads((bench.parent / "T100_c0.tsv.rusage.json").read_text())
@@ -63,4 +68,36 @@ def test_job_threads_set_and_cpu_recorded_beside_benchmark(tmp_path):
 
 
 def test_declared_threads_are_passed_on(tmp_path):
-    assert set(_run_job(tmp_path, threads=3).values()) == {"3"}
+    assert set(_printed(_run_job(tmp_path, threads=3)).values()) == {"3"}
+
+
+def test_failing_job_keeps_its_status_and_record(tmp_path):
+    out = _run_job(tmp_path, threads=1, tail="raise SystemExit(3)\n")
+    assert out.returncode == 3
+    rec = tmp_path / "bench" / "simulate_wv" / "s1" / "T100_c0.tsv.rusage.json"
+    assert json.loads(rec.read_text())["cpu_s"] > 0
+    out = _run_job(tmp_path, threads=1, tail="import os, signal\nos.kill(os.getpid(), 9)\n")
+    assert out.returncode == -9  # killed child: the parent dies of the same signal
+
+
+def test_record_includes_the_child_s_finalization(tmp_path):
+    # work done after every exit hook (a finalizer at interpreter teardown) is counted too
+    tail = textwrap.dedent("""
+        import atexit, resource
+        class Late:
+            def __del__(self):
+                x = 0
+                for i in range(3_000_000):
+                    x += i
+        late = Late()
+        def report():
+            r = resource.getrusage(resource.RUSAGE_SELF)
+            print("hook", r.ru_utime + r.ru_stime, flush=True)
+        atexit.register(report)
+    """)
+    out = _run_job(tmp_path, threads=1, tail=tail)
+    assert out.returncode == 0, out.stderr
+    at_hook = float(out.stdout.split("hook")[-1])
+    rec = json.loads((tmp_path / "bench" / "simulate_wv" / "s1" /
+                      "T100_c0.tsv.rusage.json").read_text())
+    assert rec["cpu_s"] > at_hook + 0.05  # the 3e6-step loop ran after the hook

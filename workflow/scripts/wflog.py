@@ -6,18 +6,22 @@ Import it before numpy, numba or the library (every script's first import). On i
   more): Snakemake runs one job per core, so a job that also used every core for BLAS, Numba or
   the WV kernel (``GMWM_NUM_THREADS``; by default all cores for signals >= 2^17 samples) would
   compete with the other job for the same cores;
-* registers an exit hook that writes the job's own CPU time (``getrusage`` of the process and of
-  its waited-for children, exact, unlike the polled ``cpu_time`` of Snakemake's benchmark file)
-  beside the rule's benchmark file as ``<benchmark>.rusage.json`` (the Snakefile passes the
-  benchmark patterns in ``GMWM_BENCHMARK_PATTERNS``), which ``gmwm_studies.archive.read_benchmarks``
-  adds to the archive's ``timings.csv``, and as the log's last line.
+* records the job's exact CPU time: the script's process forks at this import (only the
+  standard library and Snakemake's preamble are loaded by then, no thread runs); the child runs
+  the script, the parent waits for it and takes its ``rusage`` from ``wait4`` (the child and its
+  waited-for children, interpreter finalization included: ~20 % of a job's import cost, which an
+  exit hook inside the script would miss), adds its own, and writes the record beside the rule's
+  benchmark file as ``<benchmark>.rusage.json`` (the Snakefile passes the benchmark patterns in
+  ``GMWM_BENCHMARK_PATTERNS``; ``gmwm_studies.archive.read_benchmarks`` adds it to the archive's
+  ``timings.csv`` as ``cpu_s``) and as the log's last line, then exits with the child's status.
+  Snakemake's own ``cpu_time`` is polled, a lower bound.
 """
 
-import atexit
 import json
 import logging
 import os
 import resource
+import signal
 import sys
 import time
 
@@ -57,11 +61,11 @@ def benchmark_path(snakemake) -> str | None:
     return pattern.format(**dict(snakemake.wildcards.items()))
 
 
-def cpu_record() -> dict:
-    """CPU seconds of this process and of its waited-for children (``getrusage``), wall seconds
-    since this module was imported and the peak resident set [MB]."""
+def cpu_record(child: resource.struct_rusage | None = None) -> dict:
+    """CPU seconds of this process and of ``child`` (its rusage from ``wait4``; default: the
+    waited-for children), wall seconds since this module was imported, peak resident set [MB]."""
     me = resource.getrusage(resource.RUSAGE_SELF)
-    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN) if child is None else child
     user = me.ru_utime + kids.ru_utime
     system = me.ru_stime + kids.ru_stime
     return {"cpu_s": user + system, "user_s": user, "system_s": system,
@@ -69,12 +73,14 @@ def cpu_record() -> dict:
             "max_rss_mb": max(me.ru_maxrss, kids.ru_maxrss) / 1024.0}
 
 
-def _write_cpu_record(snakemake, logger: logging.Logger | None) -> None:
-    rec = cpu_record()
+def _write_cpu_record(snakemake, rec: dict) -> None:
     rec["threads"] = int(snakemake.threads)
-    if logger is not None:
-        logger.info("job CPU %.2f s (user %.2f, system %.2f), wall %.2f s, peak RSS %.0f MB",
-                    rec["cpu_s"], rec["user_s"], rec["system_s"], rec["wall_s"], rec["max_rss_mb"])
+    if len(snakemake.log):
+        with open(snakemake.log[0], "a") as fh:
+            fh.write(time.strftime("%Y-%m-%d %H:%M:%S") +
+                     " INFO job CPU %.2f s (user %.2f, system %.2f), wall %.2f s, peak RSS %.0f MB"
+                     "\n" % (rec["cpu_s"], rec["user_s"], rec["system_s"], rec["wall_s"],
+                             rec["max_rss_mb"]))
     path = benchmark_path(snakemake)
     if path is None:
         return
@@ -86,11 +92,41 @@ def _write_cpu_record(snakemake, logger: logging.Logger | None) -> None:
     os.replace(tmp, f"{path}.rusage.json")
 
 
+def _run_in_child(snakemake) -> None:
+    """Fork; in the parent wait for the child, write its CPU record and exit with its status
+    (never returns); in the child return and let the script run."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    pid = os.fork()
+    if pid == 0:
+        return
+    while True:
+        try:
+            _, status, usage = os.wait4(pid, 0)
+            break
+        except InterruptedError:
+            continue
+    code = os.waitstatus_to_exitcode(status)
+    try:
+        _write_cpu_record(snakemake, cpu_record(usage))
+    except OSError as exc:  # the job's result stands; only its CPU record is missing
+        print(f"wflog: could not write the CPU record: {exc}", file=sys.stderr)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    # a child killed by a signal: the same signal here, so Snakemake sees what happened
+    if code < 0:
+        try:
+            signal.signal(-code, signal.SIG_DFL)
+        except (OSError, ValueError):  # SIGKILL and SIGSTOP keep their default anyway
+            pass
+        os.kill(os.getpid(), -code)
+    os._exit(code)  # nothing of the script ran here: no finalization to wait for
+
+
 _SNAKEMAKE = _job()
-_LOGGER: list = [None]
 if _SNAKEMAKE is not None:
     limit_threads(_SNAKEMAKE.threads)
-    atexit.register(lambda: _write_cpu_record(_SNAKEMAKE, _LOGGER[0]))
+    _run_in_child(_SNAKEMAKE)
 
 
 def get_logger(snakemake) -> logging.Logger:
@@ -105,5 +141,4 @@ def get_logger(snakemake) -> logging.Logger:
     for h in handlers:
         h.setFormatter(fmt)
         logger.addHandler(h)
-    _LOGGER[0] = logger
     return logger
