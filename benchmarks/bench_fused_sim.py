@@ -1,5 +1,5 @@
 """Cost of one Monte Carlo replicate's WV: NumPy's generator (`Model.simulate_fast` + `wvar`)
-against the fused pass `gmwm._simkernels.simulate_wv` (own generator, no full-length signal).
+against the fused pass `gmwm.fused.simulate_wv` (own generator, no full-length signal).
 
 The models and true parameters are the studies' own (`config/config.yaml`). Also times the
 building blocks at the same T: NumPy's `standard_normal`, `cumsum` and `wvar` of a materialised
@@ -24,7 +24,7 @@ import numpy as np
 import yaml
 
 import gmwm
-from gmwm import _simkernels
+from gmwm import _simkernels, fused
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 DEFAULT_STUDIES = ("stim300_gyro", "stim300_accel", "sim3", "sim2", "misspec")
@@ -90,7 +90,7 @@ def main() -> None:
         spec, model, theta = _study(name)
         w_np, c_np = _best(lambda m=model, t=theta: gmwm.wvar(m.simulate_fast(t, n, rng),
                                                               ci="eta3"), rep)
-        w_f, c_f = _best(lambda m=model, t=theta: _simkernels.simulate_wv(m, t, n, rng), rep)
+        w_f, c_f = _best(lambda m=model, t=theta: fused.simulate_wv(m, t, n, rng), rep)
         print(f"| {name} | {spec} | {w_np / n * 1e9:.2f} / {c_np / n * 1e9:.2f} | "
               f"{w_f / n * 1e9:.2f} / {c_f / n * 1e9:.2f} | {w_np / w_f:.2f} |")
     print(f"load average {os.getloadavg()[0]:.2f} at the end (numbers under load are indicative)")

@@ -1,4 +1,4 @@
-"""The fused simulation + WV pass (gmwm._simkernels.simulate_wv) and its generator: the WV has
+"""The fused simulation + WV pass (gmwm.fused.simulate_wv) and its generator (gmwm._simkernels): the WV has
 the bits of gmwm.wv.wvar on the materialised signal, the normals are standard normal, and the
 replicates' mean WV is the model's WV."""
 
@@ -7,6 +7,7 @@ import pytest
 from scipy import stats
 
 from gmwm import _simkernels as k
+from gmwm import fused
 from gmwm.errors import ModelError
 from gmwm.model import Model
 from gmwm.wv import wvar
@@ -29,12 +30,12 @@ MODELS = {
 def test_fused_wv_equals_wvar_of_the_materialised_signal(spec, n):
     model = Model(spec)
     theta = model.theta(MODELS[spec])
-    x = k.simulate_signal(model, theta, n, np.random.default_rng(5))
-    got = k.simulate_wv(model, theta, n, np.random.default_rng(5))
+    x = fused.simulate_signal(model, theta, n, np.random.default_rng(5))
+    got = fused.simulate_wv(model, theta, n, np.random.default_rng(5))
     np.testing.assert_array_equal(got, wvar(x).variance)  # same bits, not just close
     if n > 40_000:
         J = 9
-        np.testing.assert_array_equal(k.simulate_wv(model, theta, n, np.random.default_rng(5), J),
+        np.testing.assert_array_equal(fused.simulate_wv(model, theta, n, np.random.default_rng(5), J),
                                       wvar(x, levels=J).variance)
 
 
@@ -76,7 +77,7 @@ def test_mean_replicate_wv_is_the_model_wv():
                          "AR1[1].sigma2": 0.1, "RW[1].gamma2": 1e-3, "DR[1].omega": 1e-3})
     n, R = 1 << 12, 300
     rng = np.random.default_rng(7)
-    W = np.array([k.simulate_wv(model, theta, n, rng) for _ in range(R)])
+    W = np.array([fused.simulate_wv(model, theta, n, rng) for _ in range(R)])
     truth = model.wv(theta, 2.0 ** np.arange(1, W.shape[1] + 1))
     z = (W.mean(0) - truth) / (W.std(0, ddof=1) / np.sqrt(R))
     assert np.all(np.abs(z) < 4.5), z
@@ -85,9 +86,9 @@ def test_mean_replicate_wv_is_the_model_wv():
 def test_bad_input_is_named():
     model = Model("WN")
     with pytest.raises(ModelError, match="positive"):
-        k.simulate_signal(model, np.array([1.0]), 0, np.random.default_rng(0))
+        fused.simulate_signal(model, np.array([1.0]), 0, np.random.default_rng(0))
     with pytest.raises(ModelError):
-        k.simulate_wv(model, np.array([-1.0]), 100, np.random.default_rng(0))
+        fused.simulate_wv(model, np.array([-1.0]), 100, np.random.default_rng(0))
 
 
 def test_fused_wv_with_the_numba_kernel(monkeypatch):
@@ -96,7 +97,7 @@ def test_fused_wv_with_the_numba_kernel(monkeypatch):
 
     model = Model("WN+RW")
     theta = model.theta(MODELS["WN+RW"])
-    want = k.simulate_wv(model, theta, 70_000, np.random.default_rng(3))
+    want = fused.simulate_wv(model, theta, 70_000, np.random.default_rng(3))
     monkeypatch.setattr(wv_module, "_kernels", lambda: _wvkernels)
-    np.testing.assert_array_equal(k.simulate_wv(model, theta, 70_000, np.random.default_rng(3)),
+    np.testing.assert_array_equal(fused.simulate_wv(model, theta, 70_000, np.random.default_rng(3)),
                                   want)  # the C and Numba kernels have the same bits

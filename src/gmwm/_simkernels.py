@@ -4,8 +4,8 @@ samples) stays in cache, so the signal is written once instead of once per compo
 NumPy operation. Imported lazily, like :mod:`gmwm._ar1kernels`.
 
 Two users: :meth:`gmwm.model.Model.simulate_fast` (NumPy's normals and uniforms, one full-length
-signal) and the fused simulation + WV pass :func:`simulate_wv` of the Monte Carlo studies (its
-own generator, no full-length signal; see the section below).
+signal) and the fused simulation + WV pass of :mod:`gmwm.fused` (its own generator, below; no
+full-length signal).
 
 ``z``/``u`` are the block's standard normals / uniforms on [0, 1); ``t0`` is the 1-based time
 of the block's first sample.
@@ -14,12 +14,9 @@ of the block's first sample.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 from numba import njit
-
-from gmwm.errors import ModelError
 
 
 @njit(cache=True)
@@ -74,10 +71,8 @@ def add_sinusoid(x: np.ndarray, alpha: float, beta: float, phase: float, t0: int
 
 
 # --------------------------------------------------------------------------------------------------
-# The fused simulation + WV pass (:func:`simulate_wv`): the signal is generated block by block into
-# a buffer that stays in cache and each block goes straight through phase 1 of the WV kernel, so
-# no full-length signal exists. Its normals and uniforms come from the generator below rather
-# than NumPy's (which costs ~10 ns a normal on the dev VM, most of a replicate's time): xoshiro256++
+# The generator of the fused simulation + WV pass (:mod:`gmwm.fused`): its normals and uniforms
+# come from here rather than from NumPy's (which costs ~10 ns a normal on the dev VM, most of a replicate's time): xoshiro256++
 # (Blackman and Vigna) for the bits, a 256-layer ziggurat (Marsaglia and Tsang) for the normals,
 # both inlined in one Numba loop.
 
@@ -186,140 +181,3 @@ def seed_state(rng: np.random.Generator) -> np.ndarray:
     if not s.any():
         s[0] = 1
     return s
-
-
-class _Plan:
-    """The components of ``model`` at ``theta`` in the primitive form the block kernels take
-    (as in :meth:`gmwm.model.Model.simulate_fast`: WN and RW as one walk-plus-noise stream),
-    their start states drawn from ``rng`` (one normal per AR1/GM, one uniform per QN and per
-    SIN, in component order), then the xoshiro256++ state from ``rng``."""
-
-    def __init__(self, model: Any, theta: np.ndarray, rng: np.random.Generator,
-                 boundary_ok: bool = False) -> None:
-        theta = np.asarray(theta, dtype=float)
-        model.check(theta, boundary_ok=boundary_ok)
-        sigma2 = gamma2 = 0.0
-        self.omega = 0.0
-        self.ar1: list[list[float]] = []  # [phi, innovation sd, state]
-        self.qn: list[list[float]] = []  # [q, previous uniform]
-        self.sines: list[tuple[float, float, float]] = []  # (alpha, beta, phase)
-        for c in model.components:
-            kind, *v = c.process.primitive(theta[c.slice], model.freq)
-            if kind == "wn":
-                sigma2 += v[0]
-            elif kind == "rw":
-                gamma2 += v[0]
-            elif kind == "dr":
-                self.omega += v[0]
-            elif kind == "ar1":
-                phi, _, s2 = v
-                s = math.sqrt(s2)
-                self.ar1.append([phi, s, s * rng.standard_normal() / math.sqrt(1.0 - phi * phi)])
-            elif kind == "qn":
-                self.qn.append([math.sqrt(12.0 * v[0]), rng.random()])
-            elif kind == "sin":
-                self.sines.append((v[0], v[1], rng.uniform(0.0, 2 * np.pi)))
-            else:  # a process added to PROCESSES without a kernel here
-                raise ModelError(f"the fused simulator has no kernel for process "
-                                 f"{c.process.name!r}")
-        self.walk = sigma2 > 0 or gamma2 > 0
-        self.a_w = self.b_w = self.level = 0.0
-        if self.walk:
-            # x_t = a z_t + b sum_{k<t} z_k: increments MA(1) with the variance and lag-1
-            # covariance of the increments of WN + RW (derivation: Model.simulate_fast)
-            c0 = 2 * sigma2 + gamma2
-            g = math.sqrt(gamma2 * (4 * sigma2 + gamma2))
-            theta_ma = -2 * sigma2 / (c0 + g)
-            self.a_w = math.sqrt(c0 / (1 + theta_ma * theta_ma))
-            self.b_w = self.a_w * (gamma2 + g) / (c0 + g)
-        self.state = seed_state(rng)
-
-    def fill(self, xb: np.ndarray, t0: int, z: np.ndarray, u: np.ndarray) -> None:
-        """Samples ``t0 .. t0 + len(xb) - 1`` (0-based) into ``xb``; ``z``/``u``: work rows
-        (one per normal stream / QN) at least as long as ``xb``. Stream per block: the normals
-        of the walk (if any), then of each AR1/GM, then the uniforms of each QN."""
-        m = xb.size
-        xb[:] = 0.0
-        i = 0
-        if self.walk:
-            fill_normals(self.state, z[0, :m], _ZIG_K, _ZIG_W, _ZIG_F)
-            self.level = add_walk_noise(xb, z[0, :m], self.a_w, self.b_w, self.level)
-            i = 1
-        for st in self.ar1:
-            fill_normals(self.state, z[i, :m], _ZIG_K, _ZIG_W, _ZIG_F)
-            st[2] = add_ar1(xb, z[i, :m], st[0], st[1], st[2])
-            i += 1
-        for st in self.qn:
-            fill_uniforms(self.state, u[0, :m])
-            st[1] = add_quantization(xb, u[0, :m], st[0], st[1])
-        if self.omega:
-            add_drift(xb, self.omega, t0 + 1)
-        for alpha, beta, phase in self.sines:
-            add_sinusoid(xb, alpha, beta, phase, t0 + 1)
-
-    def work(self, m: int) -> tuple[np.ndarray, np.ndarray]:
-        return (np.empty((int(self.walk) + len(self.ar1), m)), np.empty((min(1, len(self.qn)), m)))
-
-
-#: samples generated per block of the fused pass (a multiple of the WV kernel's block is used)
-FUSED_BLOCK = 1 << 15
-
-
-def simulate_signal(model: Any, theta: np.ndarray, n: int, rng: np.random.Generator,
-                    boundary_ok: bool = False) -> np.ndarray:
-    """The signal :func:`simulate_wv` draws for the same ``rng`` state, materialised (length
-    ``n``): for tests, and for a study that needs the signal itself. Equal in distribution to
-    :meth:`gmwm.model.Model.simulate_fast`'s (up to an additive constant), other numbers."""
-    n = int(n)
-    if n < 1:
-        raise ModelError(f"number of samples must be positive, got {n}")
-    plan = _Plan(model, theta, rng, boundary_ok)
-    x = np.empty(n)
-    z, u = plan.work(min(FUSED_BLOCK, n))
-    for start in range(0, n, FUSED_BLOCK):
-        plan.fill(x[start:start + FUSED_BLOCK], start, z, u)
-    return x
-
-
-def simulate_wv(model: Any, theta: np.ndarray, n: int, rng: np.random.Generator,
-                levels: int | None = None, boundary_ok: bool = False) -> np.ndarray:
-    """Wavelet variances ``nu_1..nu_J`` (Haar, as :func:`gmwm.wv.wvar`'s ``variance``; J =
-    ``levels``, default floor(log2 n) - 1) of the signal :func:`simulate_signal` would return,
-    computed without it: each block of samples is generated into a buffer (with the
-    ``2**L - 1`` samples of halo phase 1 needs) and passed through phase 1 of the WV kernel in
-    the kernel's own block order, so the result has the bits of ``wvar(simulate_signal(...))``
-    (tests/test_simkernels.py). Memory: the phase-2 store (~8 bytes a sample) when J > L, as in
-    ``wvar``. One thread."""
-    from gmwm.wv import _kernels, _n_levels, _Workspace  # the kernel gmwm.stream streams through
-
-    n = int(n)
-    J = _n_levels(n, levels)
-    plan = _Plan(model, theta, rng, boundary_ok)
-    ws = _Workspace(n, J)
-    kern = _kernels()
-    extra = (1,) if kern.__name__ == "gmwm._haar" else ()
-    L = ws.n_block
-    halo = (1 << L) - 1
-    G = min(n, -(-FUSED_BLOCK // ws.block) * ws.block)  # whole kernel blocks: the same sums order
-    buf = np.empty(halo + G)
-    z, u = plan.work(G)
-    store = ws.store()
-    sums = np.zeros(J)
-    x0 = 0.0
-    h = 0  # samples of halo in front of the block
-    for start in range(0, n, G):
-        m = min(G, n - start)
-        plan.fill(buf[h:h + m], start, z, u)
-        if start == 0:
-            x0 = float(buf[0])
-        kern.phase1(buf[:h + m], start - h, start, start + m, x0, L, ws.block, sums, store, 0,
-                    ws.rows, ws.panel, *extra)
-        keep = min(halo, h + m)
-        buf[:keep] = buf[h + m - keep:h + m]
-        h = keep
-    if ws.phase2:
-        kern.phase2(store, ws.rows, ws.n_out, L, ws.panel, 0, ws.n_panels, J - L, sums, *extra)
-    if not np.all(np.isfinite(sums)):
-        raise ModelError("the simulated signal overflowed float64 (parameters too large)")
-    n_j = n - (1 << np.arange(1, J + 1)) + 1
-    return 0.25 * sums / n_j

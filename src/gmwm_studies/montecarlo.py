@@ -114,16 +114,16 @@ SIMULATORS = ("fused", "fast", "reference")
 def simulate_replicate(model: Any, theta: np.ndarray, n_samples: int, rng: np.random.Generator,
                        simulator: str = "fast") -> np.ndarray:
     """One replicate signal: ``"fused"`` = the signal of the fused simulation + WV pass
-    (``gmwm._simkernels.simulate_signal``: the distribution of ``"fast"``, its own generator,
+    (:func:`gmwm.fused.simulate_signal`: the distribution of ``"fast"``, its own generator,
     ~1.7x cheaper with the WV, which :func:`simulate_wv_chunk` then computes without the signal),
     ``"fast"`` = :meth:`gmwm.model.Model.simulate_fast` (the same distribution as ``"reference"``
     up to an additive constant, which the WV ignores; NumPy's normals), ``"reference"`` =
     :meth:`gmwm.model.Model.simulate` (the component-by-component stream of the earlier runs).
     The three give different random numbers for the same ``rng``."""
     if simulator == "fused":
-        from gmwm import _simkernels
+        from gmwm.fused import simulate_signal
 
-        return _simkernels.simulate_signal(model, theta, int(n_samples), rng)
+        return simulate_signal(model, theta, int(n_samples), rng)
     if simulator == "fast":
         return model.simulate_fast(theta, int(n_samples), rng)
     if simulator == "reference":
@@ -169,9 +169,9 @@ def simulate_wv_chunk(
         t0 = time.perf_counter()
         rng = replicate_rng(study, n_samples, rep, base_seed)
         if simulator == "fused":  # one pass, no signal: its time is all in seconds_simulate
-            from gmwm import _simkernels
+            from gmwm.fused import simulate_wv
 
-            rows.append(_simkernels.simulate_wv(model, theta, n_samples, rng, J))
+            rows.append(simulate_wv(model, theta, n_samples, rng, J))
             t1 = t2 = time.perf_counter()
         else:
             x = simulate_replicate(model, theta, n_samples, rng, simulator)
