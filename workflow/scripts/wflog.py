@@ -63,7 +63,9 @@ def benchmark_path(snakemake) -> str | None:
 
 def cpu_record(child: resource.struct_rusage | None = None) -> dict:
     """CPU seconds of this process and of ``child`` (its rusage from ``wait4``; default: the
-    waited-for children), wall seconds since this module was imported, peak resident set [MB]."""
+    waited-for children; both from the interpreter's start), wall seconds since this module was
+    imported (the interpreter's start-up and Snakemake's preamble not included), peak resident
+    set [MB]."""
     me = resource.getrusage(resource.RUSAGE_SELF)
     kids = resource.getrusage(resource.RUSAGE_CHILDREN) if child is None else child
     user = me.ru_utime + kids.ru_utime
