@@ -128,7 +128,8 @@ def _run_in_child(snakemake) -> None:
 _SNAKEMAKE = _job()
 if _SNAKEMAKE is not None:
     limit_threads(_SNAKEMAKE.threads)
-    _run_in_child(_SNAKEMAKE)
+    if hasattr(os, "fork") and hasattr(os, "wait4"):  # POSIX; elsewhere no record is written
+        _run_in_child(_SNAKEMAKE)
 
 
 def get_logger(snakemake) -> logging.Logger:
