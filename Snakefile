@@ -51,6 +51,16 @@ include: "workflow/rules/design.smk"
 include: "workflow/rules/report.smk"
 
 
+# Each job writes its exact CPU time (getrusage) beside its benchmark file
+# (workflow/scripts/wflog.py); it finds the file from its rule's pattern and its wildcards.
+import json as _json
+from snakemake.io import strip_wildcard_constraints as _strip
+
+os.environ["GMWM_BENCHMARK_PATTERNS"] = _json.dumps(
+    {r.name: _strip(str(r.benchmark)) for r in workflow.rules if r.benchmark}
+)
+
+
 rule all:
     default_target: True
     input:

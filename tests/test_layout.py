@@ -121,6 +121,8 @@ LIBRARY_API = {
     "gmwm.codec.write_result": "lossless result files (docs/API.md)",
     "gmwm.bootstrap.parametric_bootstrap": "the library's bootstrap (docs/API.md)",
     "gmwm.wv.wvar_many": "the WV of many signals at once (docs/API.md)",
+    "gmwm.fused.simulate_wv": "the WV of a simulated signal without the signal (Monte Carlo)",
+    "gmwm.fused.simulate_signal": "the signal gmwm.fused.simulate_wv draws (its tests, studies)",
     **{f"gmwm.units.{n}": _CONVERSION for n in (
         "deg_per_hour_to_rad_per_second", "dr_coefficient_from_omega", "dr_from_per_hour2",
         "micro_g_to_si", "qn_coefficient_from_q2", "rw_coefficient_from_gamma2",

@@ -40,10 +40,13 @@ def read_benchmarks(paths: Iterable[str | os.PathLike]) -> pd.DataFrame:
     """Collect Snakemake ``benchmark:`` files laid out as ``.../<rule>/<study>/<job>.tsv``.
 
     Missing files are skipped (their job ran in an earlier session whose benchmark was removed).
-    Returns one row per job: rule, study, job, seconds (wall), max_rss_mb, cpu_time [s].
-    ``cpu_time`` is Snakemake's polled CPU time (psutil every 1 s for the first 30 s, then every
-    30 s): what a job used after the last poll is missing, so it is a lower bound (a 5-replicate
-    SVO training job logged 14.5 s against ~24 s measured); ``seconds`` is exact.
+    Returns one row per job: rule, study, job, seconds (wall), max_rss_mb, cpu_time [s], cpu_s
+    [s]. ``cpu_time`` is Snakemake's polled CPU time (psutil every 1 s for the first 30 s, then
+    every 30 s): what a job used after the last poll is missing, so it is a lower bound (a
+    5-replicate SVO training job logged 14.5 s against ~24 s measured); ``seconds`` is exact.
+    ``cpu_s`` is exact: the job's own ``getrusage`` (itself and its children) written at its
+    exit beside the benchmark as ``<job>.tsv.rusage.json`` (``workflow/scripts/wflog.py``); NaN
+    when that file is absent (a job that failed before its script started, an older run).
     """
     rows = []
     for path in map(Path, paths):
@@ -61,9 +64,20 @@ def read_benchmarks(paths: Iterable[str | os.PathLike]) -> pd.DataFrame:
                 "seconds": _num(last.get("s", np.nan)),
                 "max_rss_mb": _num(last.get("max_rss", np.nan)),
                 "cpu_time": _num(last.get("cpu_time", np.nan)),
+                "cpu_s": _rusage_cpu(path),
             }
         )
-    return pd.DataFrame(rows, columns=["rule", "study", "job", "seconds", "max_rss_mb", "cpu_time"])
+    return pd.DataFrame(rows, columns=["rule", "study", "job", "seconds", "max_rss_mb",
+                                       "cpu_time", "cpu_s"])
+
+
+def _rusage_cpu(bench: Path) -> float:
+    """``cpu_s`` of the job's ``<benchmark>.rusage.json`` (NaN when absent or unreadable)."""
+    side = bench.with_name(bench.name + ".rusage.json")
+    try:
+        return _num(json.loads(side.read_text()).get("cpu_s"))
+    except (OSError, ValueError, AttributeError):
+        return float("nan")
 
 
 def _num(value: Any) -> float:

@@ -19,8 +19,6 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
-import xarray as xr
 
 from gmwm.atomic import write_text_atomic
 from gmwm.errors import GMWMError, InputError, ModelError
@@ -29,6 +27,9 @@ from gmwm_studies.seeds import replicate_rng, replicate_seed
 from gmwm_studies.store import WVChunk
 
 if TYPE_CHECKING:
+    import pandas as pd
+    import xarray as xr
+
     from gmwm.estimator import GMWMResult
 
 __all__ = [
@@ -107,15 +108,22 @@ def check_truth(model_spec: str, truth: Mapping[str, float]) -> np.ndarray:
     return theta
 
 
-SIMULATORS = ("fast", "reference")
+SIMULATORS = ("fused", "fast", "reference")
 
 
 def simulate_replicate(model: Any, theta: np.ndarray, n_samples: int, rng: np.random.Generator,
                        simulator: str = "fast") -> np.ndarray:
-    """One replicate signal: ``"fast"`` = :meth:`gmwm.model.Model.simulate_fast` (the same
-    distribution up to an additive constant, which the WV ignores; cheaper), ``"reference"``
-    = :meth:`gmwm.model.Model.simulate` (the component-by-component stream of the earlier
-    runs)."""
+    """One replicate signal: ``"fused"`` = the signal of the fused simulation + WV pass
+    (:func:`gmwm.fused.simulate_signal`: the distribution of ``"fast"``, its own generator,
+    ~1.7x cheaper with the WV, which :func:`simulate_wv_chunk` then computes without the signal),
+    ``"fast"`` = :meth:`gmwm.model.Model.simulate_fast` (the same distribution as ``"reference"``
+    up to an additive constant, which the WV ignores; NumPy's normals), ``"reference"`` =
+    :meth:`gmwm.model.Model.simulate` (the component-by-component stream of the earlier runs).
+    The three give different random numbers for the same ``rng``."""
+    if simulator == "fused":
+        from gmwm.fused import simulate_signal
+
+        return simulate_signal(model, theta, int(n_samples), rng)
     if simulator == "fast":
         return model.simulate_fast(theta, int(n_samples), rng)
     if simulator == "reference":
@@ -136,10 +144,11 @@ def simulate_wv_chunk(
 ) -> WVChunk:
     """Simulate each replicate's signal and keep only its wavelet variance.
 
-    One signal is in memory at a time (8 bytes x ``n_samples``). ``levels`` = number of WV levels J
-    (None: the library default floor(log2 T) - 1). ``simulator``: see :func:`simulate_replicate`.
-    Returns a :class:`WVChunk` with per-replicate
-    timings of the simulation and of the WV [s].
+    One signal is in memory at a time (8 bytes x ``n_samples``; none with ``"fused"``, whose WV
+    comes from the same pass). ``levels`` = number of WV levels J (None: the library default
+    floor(log2 T) - 1). ``simulator``: see :func:`simulate_replicate`. Returns a
+    :class:`WVChunk` with per-replicate timings of the simulation and of the WV [s] (``"fused"``:
+    the whole pass in ``seconds_simulate``, ``seconds_wv`` = 0).
     """
     from gmwm.model import Model
     from gmwm.wv import wvar
@@ -150,25 +159,33 @@ def simulate_wv_chunk(
     reps = [int(r) for r in replicates]
     if not reps:
         raise InputError("a chunk needs at least one replicate")
+    if simulator not in SIMULATORS:
+        raise InputError(f"unknown simulator {simulator!r}; choose one of {list(SIMULATORS)}")
+    J = int(n_samples).bit_length() - 2 if levels is None else int(levels)
     rows: list[np.ndarray] = []
     t_sim = np.empty(len(reps))
     t_wv = np.empty(len(reps))
-    wv = None
     for i, rep in enumerate(reps):
         t0 = time.perf_counter()
         rng = replicate_rng(study, n_samples, rep, base_seed)
-        x = simulate_replicate(model, theta, n_samples, rng, simulator)
-        t1 = time.perf_counter()
-        wv = wvar(x, levels=levels)
-        t2 = time.perf_counter()
-        del x
-        rows.append(np.asarray(wv.variance, dtype=np.float64))
+        if simulator == "fused":  # one pass, no signal: its time is all in seconds_simulate
+            from gmwm.fused import simulate_wv
+
+            rows.append(simulate_wv(model, theta, n_samples, rng, J))
+            t1 = t2 = time.perf_counter()
+        else:
+            x = simulate_replicate(model, theta, n_samples, rng, simulator)
+            t1 = time.perf_counter()
+            wv = wvar(x, levels=J, ci=STUDY_WV_CI)  # only the variances are kept
+            t2 = time.perf_counter()
+            del x
+            rows.append(np.asarray(wv.variance, dtype=np.float64))
         t_sim[i], t_wv[i] = t1 - t0, t2 - t1
         progress(
             f"{study} T={n_samples}: replicate {i + 1}/{len(reps)} (id {rep}) "
             f"simulate {t_sim[i]:.2f} s, WV {t_wv[i]:.2f} s"
         )
-    assert wv is not None
+    lev = np.arange(1, J + 1)
     return WVChunk(
         study=study,
         model=model_spec,
@@ -176,9 +193,9 @@ def simulate_wv_chunk(
         n_samples=int(n_samples),
         base_seed=int(base_seed),
         replicates=np.asarray(reps, dtype=np.int64),
-        levels=np.asarray(wv.levels, dtype=np.int64),
-        scales=np.asarray(wv.scales, dtype=np.float64),
-        n=np.asarray(wv.n, dtype=np.int64),
+        levels=lev.astype(np.int64),
+        scales=(2.0 ** lev).astype(np.float64),
+        n=(int(n_samples) - (1 << lev) + 1).astype(np.int64),
         variances=np.vstack(rows),
         seconds_simulate=t_sim,
         seconds_wv=t_wv,
@@ -191,6 +208,14 @@ def estimator_settings(settings: FitSettings | Mapping[str, Any] | None) -> FitS
     if isinstance(settings, FitSettings):
         return settings
     return FitSettings.of(**dict(settings or {}))
+
+
+#: interval the cached WVs are rebuilt with before a fit. No study output reads a fit's WV
+#: interval, and the estimators recompute the interval their weights need ("ci-mixture" weights
+#: compute the mixture bounds from the WV), so estimates, SEs and objectives are the same with
+#: either kind (tests/test_study_cost.py); the eta_3 bounds cost ~0.07 ms a WV against ~2 ms for
+#: the mixture interval (the library default), once per replicate and estimator.
+STUDY_WV_CI = "eta3"
 
 
 def replicate_fit(model_spec: str, truth: Mapping[str, float], n_samples: int, replicate: int, *,
@@ -212,9 +237,10 @@ def replicate_fit(model_spec: str, truth: Mapping[str, float], n_samples: int, r
     theta = model.theta(dict(truth))
     x = simulate_replicate(model, theta, n_samples,
                            replicate_rng(study, n_samples, replicate, base_seed), simulator)
-    wv = wvar(x, levels=levels, freq=freq)
+    wv = wvar(x, levels=levels, freq=freq, ci=STUDY_WV_CI)
     del x
-    wv = WaveletVariance.from_table(wv.scales, wv.variance, n_samples=int(n_samples), freq=freq)
+    wv = WaveletVariance.from_table(wv.scales, wv.variance, n_samples=int(n_samples), freq=freq,
+                                    ci=STUDY_WV_CI)
     seed = replicate_seed(study, n_samples, replicate, base_seed, stream=1)
     return fit(wv, model, settings=estimator_settings(settings), seed=seed)
 
@@ -240,6 +266,8 @@ def fit_chunk(
     converge keeps its row, with ``converged = False`` and the failure in ``message`` (estimates
     NaN if the fit raised). The random starts of the fit use stream 1 of the replicate's seed.
     """
+    import xarray as xr  # lazily: a simulate_wv job never needs it (start-up)
+
     from gmwm.model import Model
     from gmwm.wv import WaveletVariance
 
@@ -259,7 +287,7 @@ def fit_chunk(
     every = max(1, r // 50)  # at most ~50 progress lines per chunk
     for i, rep in enumerate(chunk.replicates):
         wv = WaveletVariance.from_table(
-            chunk.scales, chunk.variances[i], n_samples=chunk.n_samples, freq=freq
+            chunk.scales, chunk.variances[i], n_samples=chunk.n_samples, freq=freq, ci=STUDY_WV_CI
         )
         seed = replicate_seed(chunk.study, chunk.n_samples, int(rep), chunk.base_seed, stream=1)
         t0 = time.perf_counter()
@@ -339,6 +367,8 @@ def _canonical_with_se(model: Any, theta: np.ndarray, se: np.ndarray) -> tuple[n
 
 def gather(datasets: Iterable[xr.Dataset]) -> xr.Dataset:
     """Concatenate chunk Datasets along ``replicate``, sorted by replicate id; duplicates rejected."""
+    import xarray as xr  # lazily: a simulate_wv job never needs it (start-up)
+
     parts = list(datasets)
     if not parts:
         raise InputError("nothing to gather: no chunk estimates given")
@@ -426,6 +456,8 @@ def replicate_flags(ds: xr.Dataset) -> xr.Dataset:
 
     Non-converged replicates are never flagged (they are counted separately).
     """
+    import xarray as xr  # lazily: a simulate_wv job never needs it (start-up)
+
     from gmwm.model import Model
 
     model = Model(ds.attrs["model"])
@@ -483,6 +515,8 @@ def summarize(ds: xr.Dataset) -> pd.DataFrame:
 
     Statistics use the converged replicates; ``n_used`` says how many.
     """
+    import pandas as pd  # lazily: a simulate_wv job never needs it (start-up)
+
     est = _converged_estimates(ds)
     n_total = int(ds.sizes["replicate"])
     n_conv = int(ds["converged"].sum())

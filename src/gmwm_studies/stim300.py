@@ -404,4 +404,8 @@ def report_markdown(table: pd.DataFrame, cost: pd.DataFrame, *, title: str, mode
               f"{int(table['n_replicates'].max()) if len(table) else 0} replicates "
               f"(this run's count) on {cores} cores, compute only:"), "",
               format_markdown_table(cost, digits=3)]
+    if len(cost) and "wv_s" in cost and bool((cost["wv_s"] == 0).all()):
+        lines += ["", ("The signals were simulated by the fused simulator (`simulator: fused`): "
+                       "each replicate's WV is computed in the simulation's own pass, so "
+                       "`simulate_s` includes the WV and `wv_s` is 0.")]
     return "\n".join(lines) + "\n"

@@ -12,13 +12,16 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import h5py
 import numpy as np
-import xarray as xr
 
 from gmwm.atomic import atomic_path
 from gmwm.errors import InputError
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 __all__ = [
     "WVChunk",
@@ -155,6 +158,8 @@ def write_dataset(ds: xr.Dataset, path: str | os.PathLike) -> None:
 
 def read_dataset(path: str | os.PathLike) -> xr.Dataset:
     """Read a Dataset fully into memory and close the file (no handle left open)."""
+    import xarray as xr  # lazily: a simulate_wv job never needs it (start-up)
+
     path = Path(path)
     if not path.exists():
         raise InputError(f"estimates file not found: {path}")

@@ -1,10 +1,11 @@
 """Rule allan_chapter: [AV-chapter] Figs 4.1-4.2, Example 4.2, Lemma 4.2, Sec. 4.2.2 and Remark 4.3
 (gmwm_studies.allan_chapter); tables, figures and the key numbers (JSON)."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 from pathlib import Path
 
 import pandas as pd
-from wflog import get_logger
 
 from gmwm.atomic import save_figure, write_json_atomic
 from gmwm_studies import allan_chapter as ac

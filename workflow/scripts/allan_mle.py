@@ -1,9 +1,9 @@
 """Rule allan_mle: [AV-chapter] Example 4.1, exact MLE of WN + AR1 beside the GMWM
 (gmwm_studies.allan_chapter.mle_study) and the cost of the chapter's dense likelihood."""
 
-from pathlib import Path
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
 
-from wflog import get_logger
+from pathlib import Path
 
 from gmwm.atomic import write_json_atomic, write_text_atomic
 from gmwm_studies import allan_chapter as ac

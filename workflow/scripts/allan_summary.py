@@ -1,9 +1,9 @@
 """Rule allan_summary: the key numbers of the Allan-variance chapter study (the index's table and
 the JSON the reproduction table quotes)."""
 
-import json
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
 
-from wflog import get_logger
+import json
 
 from gmwm.atomic import write_json_atomic
 from gmwm_studies import allan_chapter as ac

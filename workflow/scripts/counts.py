@@ -1,8 +1,8 @@
 """Rule counts: the named counts of every per-replicate table -> reports/counts.json, counts.md."""
 
-from pathlib import Path
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
 
-from wflog import get_logger
+from pathlib import Path
 
 from gmwm_studies.counts import collect, write_counts
 from gmwm_studies.replicates import read_replicates

@@ -1,9 +1,10 @@
 """Rule counts_navchip: counts of the Navchip bootstrap draws -> reports/navchip/counts.{json,md}."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 from pathlib import Path
 
 import pandas as pd
-from wflog import get_logger
 
 from gmwm_studies.counts import draw_counts, write_counts
 

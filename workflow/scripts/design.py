@@ -1,10 +1,11 @@
 """Rule design: asymptotic SEs at the truth and design probabilities beside the observed counts
 -> reports/design/asymptotic.{csv,md}, reports/design/counts.{json,md}."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 import os
 
 import pandas as pd
-from wflog import get_logger
 
 from gmwm_studies.design import audit_counts, navchip_design, study_design, write_design
 from gmwm_studies.replicates import read_replicates

@@ -1,9 +1,9 @@
 """Rule figure_boxplot: boxplots of (estimate - truth) / empirical SD per parameter (Fig. 4 style),
 one panel per estimator, boundary and label-switched replicates marked and counted."""
 
-from pathlib import Path
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
 
-from wflog import get_logger
+from pathlib import Path
 
 from gmwm.atomic import save_figure
 from gmwm.plots import subplots

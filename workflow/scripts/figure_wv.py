@@ -1,12 +1,13 @@
 """Rule figure_wv: replicate WVs, model WV and component WVs, log-log ([Vibration] Fig. 3 style)."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
-from wflog import get_logger
 
 from gmwm.atomic import save_figure
 from gmwm.model import Model

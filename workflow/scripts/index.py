@@ -1,9 +1,10 @@
 """Rule index: one Markdown page listing every study with its figures, key numbers and run time."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 from pathlib import Path
 
 import pandas as pd
-from wflog import get_logger
 
 from gmwm.atomic import write_text_atomic
 from gmwm_studies.archive import archived_summary, read_benchmarks, render_index, run_summary

@@ -1,11 +1,12 @@
 """Rule misspec_report: bias/SD/RMSE table of every fitted model and Fig. 6 (AR1, RW estimates)."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
-from wflog import get_logger
 
 from gmwm.atomic import save_figure
 from gmwm_studies.misspec import BASIC_PARAMS, misspec_table, plot_fig6

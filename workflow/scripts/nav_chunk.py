@@ -1,8 +1,8 @@
 """Rule nav_chunk: emulate one chunk of navigation iterations (both filters on the same data)."""
 
-import time
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
 
-from wflog import get_logger
+import time
 
 from gmwm_studies.navigation import run_chunk
 from gmwm_studies.store import read_dataset, write_dataset

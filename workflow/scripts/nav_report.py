@@ -1,5 +1,7 @@
 """Rule nav_report: Fig. 7 (trajectory), Fig. 8 (position error ratio with CI), table of its maximum."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 import json
 from pathlib import Path
 
@@ -8,7 +10,6 @@ import matplotlib
 matplotlib.use("Agg")
 import pandas as pd
 import xarray as xr
-from wflog import get_logger
 
 from gmwm.atomic import save_figure, write_text_atomic
 from gmwm_studies.montecarlo import write_table

@@ -4,10 +4,10 @@ When the file is neither in the configured directory nor downloadable, the job f
 line naming the file and its public source (no traceback); the rest of the workflow still runs.
 """
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 import sys
 from pathlib import Path
-
-from wflog import get_logger
 
 from gmwm.errors import GMWMError
 from gmwm_studies.navchip import obtain_navchip

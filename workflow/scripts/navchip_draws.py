@@ -1,7 +1,8 @@
 """Rule navchip_draws: one row per Navchip bootstrap draw (label-aligned refit) and the estimates."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 import pandas as pd
-from wflog import get_logger
 
 from gmwm.atomic import write_text_atomic
 from gmwm.bootstrap import BootstrapResult

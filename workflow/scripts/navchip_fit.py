@@ -1,10 +1,10 @@
 """Rule navchip_fit: GMWM fit of the Navchip model to every axis; writes the fits file that the
 report and the bootstrap step read (gmwm_studies.navchip.load_fits)."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 import json
 from pathlib import Path
-
-from wflog import get_logger
 
 from gmwm.atomic import write_json_atomic
 from gmwm_studies.navchip import fit_channels, fits_to_json

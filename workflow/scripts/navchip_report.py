@@ -1,9 +1,9 @@
 """Rule navchip_report: Figures 3 and 4 of [GMWFM] per axis, the estimates table (with SEs) and
 the goodness-of-fit table, from the data file and the fits file."""
 
-from pathlib import Path
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
 
-from wflog import get_logger
+from pathlib import Path
 
 from gmwm.atomic import save_figure
 from gmwm_studies.navchip import (

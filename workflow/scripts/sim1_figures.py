@@ -1,6 +1,8 @@
 """Rule sim1_figures: Figures 1 (RMSE vs T), 2 (mean run time vs T) and 9 (standardized errors at
 the largest T) of the vibration-noise paper's Simulation 1, GMWM against the MLE."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 import textwrap
 from pathlib import Path
 
@@ -10,7 +12,6 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-from wflog import get_logger
 
 from gmwm.atomic import save_figure
 from gmwm.plots import style

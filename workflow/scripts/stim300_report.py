@@ -1,9 +1,9 @@
 """Rule stim300_report: bias/SD/RMSE table in Table I units (CSV + Markdown with the per-replicate
 cost), Figure 1 (boxplots per parameter, length and estimator) and Figure 2 (RMSE vs length)."""
 
-from pathlib import Path
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
 
-from wflog import get_logger
+from pathlib import Path
 
 from gmwm.atomic import save_figure, write_text_atomic
 from gmwm_studies import stim300 as ac

@@ -1,7 +1,8 @@
 """Rule svo_coverage: coverage replicates [a, b) of one SVO case (svo_study.coverage_chunk)."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 import numpy as np
-from wflog import get_logger
 
 from gmwm.atomic import atomic_path
 from gmwm_studies.svo_study import coverage_chunk

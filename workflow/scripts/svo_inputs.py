@@ -1,10 +1,11 @@
 """Rule svo_inputs: [SVO] Fig. 1 (Case 1) / Fig. 6 (Case 2), the absolute correlation matrices
 of the input innovation covariances (App. C), and their entries as a table."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 from pathlib import Path
 
 import pandas as pd
-from wflog import get_logger
 
 from gmwm.atomic import save_figure, write_text_atomic
 from gmwm_studies.montecarlo import format_markdown_table

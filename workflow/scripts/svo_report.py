@@ -1,10 +1,11 @@
 """Rule svo_report: figures and tables of one SVO case from its training chunks."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from wflog import get_logger
 
 from gmwm.atomic import save_figure, write_text_atomic
 from gmwm_studies.montecarlo import format_markdown_table

@@ -1,7 +1,8 @@
 """Rule svo_train: training replicates [a, b) of one SVO case (gmwm_studies.svo_study.train_chunk)."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 import numpy as np
-from wflog import get_logger
 
 from gmwm.atomic import atomic_path
 from gmwm_studies.svo_study import train_chunk

@@ -1,7 +1,8 @@
 """Rule table: bias, SD, RMSE and non-convergence per parameter (CSV + Markdown)."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 import pandas as pd
-from wflog import get_logger
 
 from gmwm_studies.montecarlo import summarize, write_table
 from gmwm_studies.store import read_dataset

@@ -1,7 +1,8 @@
 """Rule uncertainty_boot: parametric bootstrap draws [a, b) of one fitted model (NetCDF chunk)."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 import numpy as np
-from wflog import get_logger
 
 from gmwm.bootstrap import parametric_bootstrap
 from gmwm.codec import read_result

@@ -1,8 +1,9 @@
 """Rule uncertainty_corner: corner plot of the emcee quasi-posterior of one fitted model, with the
 GMWM estimate marked."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 import numpy as np
-from wflog import get_logger
 
 from gmwm.atomic import save_figure
 from gmwm.codec import read_result

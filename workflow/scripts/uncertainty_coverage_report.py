@@ -1,8 +1,9 @@
 """Rule coverage_report: coverage per parameter and interval kind with its MC error, bootstrap vs
 sandwich SE ratios (CSV + Markdown), and the coverage figure."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 import xarray as xr
-from wflog import get_logger
 
 from gmwm.atomic import save_figure
 from gmwm_studies.montecarlo import write_table

@@ -1,9 +1,10 @@
 """Rule uncertainty_identifiability(_navchip): pass/warn table with reasons, one row per fit."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 import json
 
 import pandas as pd
-from wflog import get_logger
 
 from gmwm_studies.montecarlo import write_table
 from gmwm_studies.uncertainty import summary_row

@@ -1,8 +1,9 @@
 """Rule uncertainty_identify: local, global and (if configured) emcee posterior identifiability
 checks of one fitted model; report as JSON, posterior draws as .npz (empty if not run)."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 import numpy as np
-from wflog import get_logger
 
 from gmwm.atomic import atomic_path, write_json_atomic
 from gmwm.codec import read_result

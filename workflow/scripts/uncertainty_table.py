@@ -1,8 +1,9 @@
 """Rule uncertainty_table(_navchip): Table 1, estimates with 95 % parametric bootstrap CIs
 (percentile and basic), bootstrap SE next to the sandwich SE, per fitted model (CSV + Markdown)."""
 
+from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
+
 import pandas as pd
-from wflog import get_logger
 
 from gmwm.bootstrap import BootstrapResult
 from gmwm.codec import read_result
