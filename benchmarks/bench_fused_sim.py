@@ -62,8 +62,8 @@ def _blocks(n: int, rep: int, rng: np.random.Generator
 
     def own_blocks() -> None:
         for s in range(0, n, z.size):
-            _simkernels.fill_normals(state, z[:min(z.size, n - s)], _simkernels._ZIG_K,
-                                     _simkernels._ZIG_W, _simkernels._ZIG_F)
+            _simkernels.fill_normals(state, z[:min(z.size, n - s)], _simkernels.ZIG_K,
+                                     _simkernels.ZIG_W, _simkernels.ZIG_F)
 
     return [("numpy standard_normal (blocks of 2^15)", _best(blocks, rep)),
             ("fused generator's normals (blocks of 2^15)", _best(own_blocks, rep)),

@@ -42,7 +42,7 @@ def test_fused_wv_equals_wvar_of_the_materialised_signal(spec, n):
 def test_normals_are_standard_normal():
     state = k.seed_state(np.random.default_rng(11))
     z = np.empty(1 << 20)
-    k.fill_normals(state, z, k._ZIG_K, k._ZIG_W, k._ZIG_F)
+    k.fill_normals(state, z, k.ZIG_K, k.ZIG_W, k.ZIG_F)
     n = z.size
     assert abs(z.mean()) < 5 / np.sqrt(n)
     assert abs(z.var() - 1) < 5 * np.sqrt(2 / n)
@@ -57,7 +57,7 @@ def test_normals_are_standard_normal():
     assert stats.kstest(shifted, "uniform").pvalue > 1e-3
     # the state advanced: the next block differs
     z2 = np.empty(16)
-    k.fill_normals(state, z2, k._ZIG_K, k._ZIG_W, k._ZIG_F)
+    k.fill_normals(state, z2, k.ZIG_K, k.ZIG_W, k.ZIG_F)
     assert not np.array_equal(z2, z[:16])
 
 
@@ -98,6 +98,6 @@ def test_fused_wv_with_the_numba_kernel(monkeypatch):
     model = Model("WN+RW")
     theta = model.theta(MODELS["WN+RW"])
     want = fused.simulate_wv(model, theta, 70_000, np.random.default_rng(3))
-    monkeypatch.setattr(wv_module, "_kernels", lambda: _wvkernels)
+    monkeypatch.setattr(wv_module, "classical_kernels", lambda: _wvkernels)
     np.testing.assert_array_equal(fused.simulate_wv(model, theta, 70_000, np.random.default_rng(3)),
                                   want)  # the C and Numba kernels have the same bits

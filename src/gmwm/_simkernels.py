@@ -108,7 +108,7 @@ def _ziggurat_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return k, w, f
 
 
-_ZIG_K, _ZIG_W, _ZIG_F = _ziggurat_tables()
+ZIG_K, ZIG_W, ZIG_F = _ziggurat_tables()
 
 
 @njit(cache=True, inline="always")

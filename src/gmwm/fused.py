@@ -16,9 +16,9 @@ from typing import Any
 import numpy as np
 
 from gmwm._simkernels import (
-    _ZIG_F,
-    _ZIG_K,
-    _ZIG_W,
+    ZIG_F,
+    ZIG_K,
+    ZIG_W,
     add_ar1,
     add_drift,
     add_quantization,
@@ -87,11 +87,11 @@ class _Plan:
         xb[:] = 0.0
         i = 0
         if self.walk:
-            fill_normals(self.state, z[0, :m], _ZIG_K, _ZIG_W, _ZIG_F)
+            fill_normals(self.state, z[0, :m], ZIG_K, ZIG_W, ZIG_F)
             self.level = add_walk_noise(xb, z[0, :m], self.a_w, self.b_w, self.level)
             i = 1
         for st in self.ar1:
-            fill_normals(self.state, z[i, :m], _ZIG_K, _ZIG_W, _ZIG_F)
+            fill_normals(self.state, z[i, :m], ZIG_K, ZIG_W, ZIG_F)
             st[2] = add_ar1(xb, z[i, :m], st[0], st[1], st[2])
             i += 1
         for st in self.qn:
@@ -135,13 +135,13 @@ def simulate_wv(model: Any, theta: np.ndarray, n: int, rng: np.random.Generator,
     the kernel's own block order, so the result has the bits of ``wvar(simulate_signal(...))``
     (tests/test_simkernels.py). Memory: the phase-2 store (~8 bytes a sample) when J > L, as in
     ``wvar``. One thread."""
-    from gmwm.wv import _kernels, _n_levels, _Workspace  # the kernel gmwm.stream streams through
+    from gmwm.wv import Workspace, classical_kernels, n_levels_for  # as gmwm.stream streams
 
     n = int(n)
-    J = _n_levels(n, levels)
+    J = n_levels_for(n, levels)
     plan = _Plan(model, theta, rng, boundary_ok)
-    ws = _Workspace(n, J)
-    kern = _kernels()
+    ws = Workspace(n, J)
+    kern = classical_kernels()
     extra = (1,) if kern.__name__ == "gmwm._haar" else ()
     L = ws.n_block
     halo = (1 << L) - 1

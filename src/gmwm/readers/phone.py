@@ -65,10 +65,10 @@ def is_phone_folder(p: str | os.PathLike) -> bool:
         return False
 
 
-def _sensor(p: Path, topic: str, freq: float | None, units: Any) -> Any:
-    """One sensor's file as a :class:`Recording` (its IMU axes from the header), topic set."""
-    from gmwm.readers.recording import read_recording
-
+def _sensor(p: Path, topic: str, freq: float | None, units: Any, read_recording: Any) -> Any:
+    """One sensor's file as a :class:`Recording` (its IMU axes from the header), topic set;
+    ``read_recording`` the reader of one CSV (:func:`gmwm.readers.recording.read_recording`,
+    passed in by its module: this one sits below it)."""
     f = _files(p)[topic]
     if p.is_dir():
         rec = read_recording(f, freq=freq, units=units)
@@ -107,6 +107,7 @@ def phone_topics(path: str | os.PathLike) -> list[str]:
 
 
 def read_phone_topics(path: str | os.PathLike, topics: str | Sequence[str] = "all", *,
+                      read_recording: Any,
                       freq: float | None = None, units: Any = None) -> dict[str, Any]:
     """Each sensor of a phone export as its own recording (own clock, own rate): ``"all"`` or
     topic names (``Gyroscope``, ``Accelerometer``, any case)."""
@@ -124,7 +125,7 @@ def read_phone_topics(path: str | os.PathLike, topics: str | Sequence[str] = "al
             if hit[0] in wanted:
                 raise InputError(f"topic {hit[0]} requested twice")
             wanted.append(hit[0])
-    return {t: _sensor(p, t, freq, units) for t in wanted}
+    return {t: _sensor(p, t, freq, units, read_recording) for t in wanted}
 
 
 def _pair(tg: np.ndarray, ta: np.ndarray, half: float) -> tuple[np.ndarray, np.ndarray]:
@@ -141,15 +142,16 @@ def _pair(tg: np.ndarray, ta: np.ndarray, half: float) -> tuple[np.ndarray, np.n
     return i[first], j[first]
 
 
-def read_phone_folder(path: str | os.PathLike, *, columns: Any = None, freq: float | None = None,
+def read_phone_folder(path: str | os.PathLike, *, read_recording: Any, finish: Any, select: Any,
+                      columns: Any = None, freq: float | None = None,
                       units: str | Mapping[str, str] | None = None) -> Any:
     """A phone export as one six-axis recording when its sensors share a rate (see the module
-    docstring); otherwise an :class:`InputError` pointing to ``--topic all``."""
-    from gmwm.readers.recording import _finish, _select
+    docstring); otherwise an :class:`InputError` pointing to ``--topic all``. The reading,
+    column choice and finishing of :mod:`gmwm.readers.recording` are passed in by it."""
     from gmwm.readers.timebase import time_base
 
     p = Path(path)
-    recs = read_phone_topics(p, "all", units=units)
+    recs = read_phone_topics(p, "all", units=units, read_recording=read_recording)
     g, a = recs["Gyroscope"], recs["Accelerometer"]
     fg, fa = g.time.freq, a.time.freq
     files = _files(p)
@@ -167,7 +169,7 @@ def read_phone_folder(path: str | os.PathLike, *, columns: Any = None, freq: flo
                          f"{i.size} of their samples coincide within half a step: calibrate "
                          "each on its own clock with --topic all")
     chans = {**{c: x[i] for c, x in g.channels.items()}, **{c: x[j] for c, x in a.channels.items()}}
-    names = _select(list(chans), columns, p, default_all=True)
+    names = select(list(chans), columns, p, default_all=True)
     off = np.abs(ta[j] - tg[i])
     notes = [*g.notes, *a.notes,
              (f"phone export {p}: {rates}, one common rate; each gyroscope sample paired with "
@@ -179,5 +181,5 @@ def read_phone_folder(path: str | os.PathLike, *, columns: Any = None, freq: flo
     tb = time_base(stamps, unit="s", where=f"the paired stamps of {p}",
                    source=f"the paired gyroscope stamps of {files['Gyroscope'].name} (s)")
     u = {**g.units, **a.units}
-    return _finish(p, "phyphox", {n: chans[n] for n in names}, {n: u[n] for n in names}, tb, freq,
+    return finish(p, "phyphox", {n: chans[n] for n in names}, {n: u[n] for n in names}, tb, freq,
                    None, notes, stamps=stamps)

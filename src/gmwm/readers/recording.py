@@ -615,7 +615,8 @@ def read_recordings(path: str | os.PathLike, topics: str | Sequence[str] = "all"
     if kind == "phone":
         from gmwm.readers.phone import read_phone_topics
 
-        recs = read_phone_topics(p, topics, freq=freq, units=units)
+        recs = read_phone_topics(p, topics, freq=freq, units=units,
+                                 read_recording=read_recording)
         return {t: r if columns is None else select_columns(r, columns) for t, r in recs.items()}
     from gmwm.readers.ulog import read_ulog_topics
 
@@ -660,9 +661,12 @@ def read_recording(path: str | os.PathLike, *, topic: str | None = None, columns
         from gmwm.readers.phone import read_phone_folder, read_phone_topics
 
         if topic is not None:
-            rec = read_phone_topics(p, [topic], freq=freq, units=units)
+            rec = read_phone_topics(p, [topic], freq=freq, units=units,
+                                    read_recording=read_recording)
             return select_columns(next(iter(rec.values())), columns)
-        return read_phone_folder(p, columns=columns, freq=freq, units=units)
+        return read_phone_folder(p, columns=columns, freq=freq, units=units,
+                                 read_recording=read_recording, finish=_finish,
+                                 select=_select)
     if kind == "text":
         return _from_table(p, columns, time_unit, freq, units)
     if kind == "npz":
