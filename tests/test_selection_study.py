@@ -50,8 +50,10 @@ def _study(label: str, T: int, reps: int) -> dict:
 def test_default_keeps_a_random_walk_at_3_se():
     out = _study("WN+RW, RW z=3", 2**14, 16)
     assert out[DEFAULT]["dropped"] <= 0.2
-    assert out["wic-log"]["dropped"] >= 0.5          # the failure the default avoids
-    assert out[DEFAULT]["rrw_rms"] < out["wic-log"]["rrw_rms"]
+    # wic-log's penalty alone would drop the RW in most fits (benchmarks/README.md); the
+    # goodness-of-fit test rejects WN on these records, and a rejected candidate never ranks
+    # above an accepted one, so no criterion drops it here
+    assert out["wic-log"]["dropped"] <= 0.2
 
 
 def test_default_on_a_strong_model_rarely_adds():
@@ -67,12 +69,13 @@ def test_ranking_notes_name_the_disagreement():
     ranking = rank_models(wvar(x), ["WN", "WN+RW", "WN+RW+DR"])
     assert ranking.criterion == DEFAULT == "wic" and ranking.factor == 2.0
     assert rerank(ranking, "wic-log").factor == pytest.approx(14 * math.log(2))
-    notes = ranking_notes(ranking, tol=1e9)          # every other model counted as a tie
-    assert len(notes) == 2
+    notes = ranking_notes(ranking, tol=1e9)          # every other accepted model counted as a tie
     best = ranking.ranked[0].model
     assert best == "WN+RW"
-    wn = next(n for n in notes if n.startswith("near tie: WN "))
-    assert "drops RW (z = " in wn and "in WN+RW)" in wn
+    # WN is rejected by the goodness-of-fit test: no tie of an accepted best, whatever its
+    # criterion
+    assert next(e for e in ranking.ranked if e.model == "WN").rejected()
+    assert not any(n.startswith("near tie: WN ") for n in notes) and len(notes) == 1
     dr = next(n for n in notes if "WN+RW+DR" in n)
     assert "adds DR" in dr
     # with the default tolerance WN is not a tie of WN+RW here (its RW is at ~3 SE)
@@ -80,29 +83,26 @@ def test_ranking_notes_name_the_disagreement():
 
 
 def test_ranking_output_carries_the_notes():
-    """A weak random walk (about 1.5 SE): WN and WN+RW are near ties; the ranking's text and
-    JSON say so and name the RW with its z-value; select_model uses the default criterion."""
+    """A weak random walk (about 1.5 SE): WN and WN+RW are near ties by the criterion, but the
+    goodness-of-fit test rejects WN on every one of 8 replicates (p < 1e-6: the RW lives at the
+    long scales the CI weights hardly see), so WN+RW ranks first and WN is no near tie; the
+    superset with a drift at 0 is one, and the ranking's text and JSON say so."""
     import json
 
     s = next(x for x in bs.settings() if x.label == "WN+RW, RW z=3")
     model, theta = s.truth(2**14)
     theta = theta.copy()
     theta[1] /= 4.0   # RW at about 3/4 x 2 = 1.5 SE: the criteria disagree within ~2 chi2
-    found = None
-    for seed in range(8):
+    for seed in range(3):
         x = model.simulate_fast(theta, 2**14, np.random.default_rng([8, seed]))
-        ranking = rank_models(wvar(x), ["WN", "WN+RW"])
-        if ranking.notes:
-            found = ranking
-            break
-    assert found is not None, "no near tie in 8 replicates of a 1.5 SE random walk"
-    d = json.loads(json.dumps(found.to_json_dict(), allow_nan=False))
-    assert d["criterion"] == "wic" and d["notes"] == found.notes
-    tie = d["near_ties"][0]
-    assert {tie["model"], found.best.model} == {"WN", "WN+RW"} and tie["delta_chi2"] < 2.0
-    diff = tie["differences"][0]
-    assert diff["process"] == "RW" and diff["in_model"] == "WN+RW" and len(diff["z"]) == 1
-    text = found.summary()
-    assert "note: near tie:" in text and "RW (z = " in text
-    best = select_model(wvar(x), ["WN", "WN+RW"])
-    assert best.model.spec == found.best.model
+        ranking = rank_models(wvar(x), ["WN", "WN+RW", "WN+RW+DR"])
+        assert ranking.best.model == "WN+RW"
+        wn = next(e for e in ranking.ranked if e.model == "WN")
+        assert wn.rejected() and ranking.ranked[-1].model == "WN"
+        d = json.loads(json.dumps(ranking.to_json_dict(), allow_nan=False))
+        assert d["criterion"] == "wic" and d["notes"] == ranking.notes
+        assert [t["model"] for t in d["near_ties"]] == ["WN+RW+DR"]
+        diff = d["near_ties"][0]["differences"][0]
+        assert diff["process"] == "DR" and diff["change"] == "adds"
+        assert "note: near tie: WN+RW+DR" in ranking.summary()
+        assert select_model(wvar(x), ["WN", "WN+RW"]).model.spec == "WN+RW"

@@ -629,7 +629,7 @@ def _header(exp: NoiseExport, tool: str, what: str, values: str, topic_key: bool
              f"Update rate: {exp.update_rate:g} Hz" + ("" if not topic_key else "; IMU topic: "
                                                        + (exp.topic or "not known from the input "
                                                           "(placeholder below: set yours or "
-                                                          "give --rostopic)")) + "."]
+                                                          "give the topic when calibrating (rostopic))")) + "."]
     return _wrap_comment(lines)
 
 
@@ -747,7 +747,7 @@ def kalibr_text(exp: NoiseExport) -> str:
         lines += [*_key_lines(exp, key), ""]
     if exp.topic is None:
         lines += _wrap_comment([("rostopic: placeholder, the input had no ROS topic: set yours "
-                                "or give --rostopic.")])
+                                "or give the topic when calibrating (rostopic).")])
     lines.append(f"rostopic: {_topic(exp)}")
     lines.append(f"update_rate: {_real(exp.update_rate)}  # Hz")
     lines += ["", *_axis_block(exp, keys)]
@@ -768,7 +768,7 @@ def openvins_text(exp: NoiseExport) -> str:
     for key in keys:
         lines += _key_lines(exp, key, "  ")
     lines += [*([("  # rostopic: placeholder (the input had no ROS topic): set yours or give "
-                 "--rostopic.")]
+                 "the topic when calibrating (rostopic).")]
                 if exp.topic is None else []),
               f"  rostopic: {_topic(exp)}", "  time_offset: 0.0",
               f"  update_rate: {_real(exp.update_rate)}", '  model: "kalibr"']
@@ -833,7 +833,7 @@ def vins_fusion_text(exp: NoiseExport, convention: str = "matched") -> str:
                                    values), "", "imu: 1"]
     if exp.topic is None:
         lines.append("# imu_topic: placeholder (the input had no ROS topic): set yours or give "
-                     "--rostopic.")
+                     "the topic when calibrating (rostopic).")
     lines += [f"imu_topic: {_topic(exp)}", ""]
     for key in keys:
         lines += [*_key_lines(exp, key), ""]
@@ -890,7 +890,7 @@ def liosam_text(exp: NoiseExport) -> str:
     lines += ["", "lio_sam:"]
     if exp.topic is None:
         lines.append("  # imuTopic: placeholder (the input had no ROS topic): set yours or give "
-                     "--rostopic.")
+                     "the topic when calibrating (rostopic).")
     lines.append(f"  imuTopic: {_topic(exp)}")
     for key in keys:
         lines += _key_lines(exp, key, "  ")
@@ -923,7 +923,7 @@ def fastlio_text(exp: NoiseExport) -> str:
     lines += ["", "common:"]
     if exp.topic is None:
         lines.append("  # imu_topic: placeholder (the input had no ROS topic): set yours or "
-                     "give --rostopic.")
+                     "give the topic when calibrating (rostopic).")
     lines += [f"  imu_topic: {_topic(exp)}", "mapping:"]
     for key in keys:
         lines += _key_lines(exp, key, "  ")

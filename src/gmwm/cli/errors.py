@@ -23,6 +23,7 @@ PARAMETER_FLAGS: Mapping[str, str] = {
     "dtype": "--dtype",
     "topic": "--topic",
     "topics": "--topic",
+    "rostopic": "--rostopic",
     "time_unit": "--time-unit",
     "n_samples": "--n-samples",
     "start_s": "--start",
