@@ -27,7 +27,9 @@ normal scores do not, while ``V`` at the estimate lacks that component's varianc
 WN + AR1 + RW (RW at 1-2 SE, at 0 in 31 % of the fits at T = 2^15) was rejected in 11.3 % of
 true-model fits at 5 % and 5.2 % at 1 %, 5.0 % and 1.0 % with the projection (R = 400, the
 calibration table of ``benchmarks/README.md``). The price is one degree of freedom per held
-parameter, and a departure along the direction of a negative component is not tested.
+parameter, and a departure along the direction of a negative component is not tested. A
+component whose WV is quadratic in its scale parameter (DR, SIN) has a zero column at 0: it is
+held as before.
 
 Statistic
 ---------
