@@ -144,9 +144,10 @@ def test_boundary_correction_by_hand_on_a_linear_model():
     g = res.gof
     assert g.df == tau.size - 2
     np.testing.assert_allclose(g.residuals, u, rtol=1e-6, atol=1e-6)
+    assert any(n.startswith("RW[1] at the boundary 0") for n in g.notes)   # the caveat, carried
     # the held test scores the constrained residual itself
     held = gof_test(res, hold_boundary=True)
-    assert held.df == tau.size - 1
+    assert held.df == tau.size - 1 and not any("boundary" in n for n in held.notes)
     assert np.max(np.abs(held.residuals - g.residuals)) > 0.1
     # interior fit (a real RW): both tests are the same test
     x = Model("WN+RW").simulate(np.array([1.0, 1e-4]), 2**12, np.random.default_rng(12))

@@ -27,7 +27,8 @@ normal scores do not, while ``V`` at the estimate lacks that component's varianc
 WN + AR1 + RW (RW at 1-2 SE, at 0 in 31 % of the fits at T = 2^15) was rejected in 11.3 % of
 true-model fits at 5 % and 5.2 % at 1 %, 5.0 % and 1.0 % with the projection (R = 400, the
 calibration table of ``benchmarks/README.md``). The price is one degree of freedom per held
-parameter, and a departure along the direction of a negative component is not tested. A
+parameter, and a departure along the direction of a negative component is not tested (the
+result's ``notes`` name the component). A
 component whose WV is quadratic in its scale parameter (DR, SIN) has a zero column at 0: it is
 held as before.
 
@@ -318,6 +319,19 @@ def _notes(result: Any) -> list[str]:
     return notes
 
 
+def _boundary_notes(result: Any, pr: _Projection) -> list[str]:
+    """The note of a test that projected out held components' directions (module docstring)."""
+    fixed = _fixed(result)
+    with np.errstate(all="ignore"):
+        A = pr.prob.jac_theta(pr.theta)
+    names = [c.name for c in result.model.components
+             if fixed[c.slice].all() and np.any(np.isfinite(A[:, c.slice]) & (A[:, c.slice] != 0))]
+    if not names:
+        return []
+    return [(f"{', '.join(names)} at the boundary 0: the test projects out the departure "
+            "its value of either sign would explain (df as for the model with it free)")]
+
+
 @dataclass
 class _Projection:
     """The linearised pieces of a fit's residual (module docstring)."""
@@ -438,7 +452,7 @@ def gof_test(result: Any, V: np.ndarray | None = None, *,
         return GOFResult(np.nan, 0, np.nan, objective, np.zeros(0), nan, prob.tau,
                          result.wv.freq, "none", ["the test could not be computed"])
     df = pr.Qp.shape[1]
-    notes = _notes(result)
+    notes = _notes(result) + ([] if hold_boundary else _boundary_notes(result, pr))
     if df == 0:
         return GOFResult(np.nan, 0, np.nan, objective, np.zeros(0), nan, prob.tau,
                          result.wv.freq, "none",
