@@ -7,8 +7,8 @@ sandwich standard errors (:mod:`gmwm.inference`).
 Residuals and their covariance
 ------------------------------
 ``f`` is the moment transform (identity for the GMWM, ``log10`` for ARMAV), ``A = d f(nu) /
-d theta`` at the estimate, ``Omega`` the fit's weight matrix, ``V`` the covariance of ``nu_hat`` and ``V_f = F V F'``
-(``F = d f / d nu``, the delta method for ARMAV). To first order the residual ``r = f(nu_hat) -
+d theta`` at the estimate, ``Omega`` the fit's weight matrix, ``V`` the covariance of
+``nu_hat`` and ``V_f = F V F'`` (``F = d f / d nu``, the delta method for ARMAV). To first order the residual ``r = f(nu_hat) -
 f(nu(theta_hat))`` is ``M e``, ``e = f(nu_hat) - f(nu_0)``, with ``M = I - A (A' Omega A)^-1 A'
 Omega``, so ``Cov(r) = M V_f M'`` (rank ``df = J - rank(A)``) for any weights; the weights enter
 through ``M``. ``V`` is the model-based covariance of the WV estimate at the estimate
@@ -28,17 +28,16 @@ WN + AR1 + RW (RW at 1-2 SE, at 0 in 31 % of the fits at T = 2^15) was rejected 
 true-model fits at 5 % and 5.2 % at 1 %, 5.0 % and 1.0 % with the projection (R = 400, the
 calibration table of ``benchmarks/README.md``). The price is one degree of freedom per held
 parameter, and a departure along the direction of a negative component is not tested (the
-result's ``notes`` name the component). A
-component whose WV is quadratic in its scale parameter (DR, SIN) has a zero column at 0: it is
-held as before.
+result's ``notes`` name the component). A component whose WV is quadratic in its scale
+parameter (DR, SIN) has a zero column at 0: it is held as before.
 
 Statistic
 ---------
-Per scale, ``nu_j(theta_hat) + r~_j`` (``nu_hat_j`` in the interior) is modelled as gamma
-with mean ``nu_j(theta_hat)`` and variance ``Cov(r)_jj`` (on the ``nu`` scale): at the long scales, where ``nu_hat_j`` has only
-``eta_j = M_j / tau_j`` (1-3) degrees of freedom, that is the scaled chi-square of the WV's own
-confidence interval; at short scales it is Gaussian. Its normal score ``u_j = Phi^-1(G_j(
-nu_hat_j))`` is the per-scale standardised residual (``residuals``: N(0, 1) under the model; a
+Per scale, ``x_j = nu_j(theta_hat) + r~_j`` (``nu_hat_j`` in the interior; on the ``f`` scale
+for ARMAV) is modelled as gamma with mean ``nu_j(theta_hat)`` and variance ``Cov(r)_jj`` (on the
+``nu`` scale): at the long scales, where ``nu_hat_j`` has only ``eta_j = M_j / tau_j`` (1-3)
+degrees of freedom, that is the scaled chi-square of the WV's own confidence interval; at short
+scales it is Gaussian. Its normal score ``u_j = Phi^-1(G_j(x_j))`` is the per-scale standardised residual (``residuals``: N(0, 1) under the model; a
 large ``|u_j|`` shows where the model misses). The statistic is ``U = sum_j u_j^2`` with null
 distribution ``sum_i lambda_i chi2_1``, ``lambda`` the eigenvalues of the correlation matrix of
 ``r`` (``df`` of them non-zero); reported as ``statistic = U df / J`` (null mean ``df``) with the
