@@ -8,8 +8,8 @@ Residuals and their covariance
 ------------------------------
 ``f`` is the moment transform (identity for the GMWM, ``log10`` for ARMAV), ``A = d f(nu) /
 d theta`` at the estimate, ``Omega`` the fit's weight matrix, ``V`` the covariance of
-``nu_hat`` and ``V_f = F V F'`` (``F = d f / d nu``, the delta method for ARMAV). To first order the residual ``r = f(nu_hat) -
-f(nu(theta_hat))`` is ``M e``, ``e = f(nu_hat) - f(nu_0)``, with ``M = I - A (A' Omega A)^-1 A'
+``nu_hat`` and ``V_f = F V F'`` (``F = d f / d nu``, the delta method for ARMAV). To first
+order the residual ``r = f(nu_hat) - f(nu(theta_hat))`` is ``M e``, ``e = f(nu_hat) - f(nu_0)``, with ``M = I - A (A' Omega A)^-1 A'
 Omega``, so ``Cov(r) = M V_f M'`` (rank ``df = J - rank(A)``) for any weights; the weights enter
 through ``M``. ``V`` is the model-based covariance of the WV estimate at the estimate
 (:func:`gmwm.inference.model_wv_cov`, between-scale correlation included), or the fit's user
@@ -37,8 +37,9 @@ Per scale, ``x_j = nu_j(theta_hat) + r~_j`` (``nu_hat_j`` in the interior; on th
 for ARMAV) is modelled as gamma with mean ``nu_j(theta_hat)`` and variance ``Cov(r)_jj`` (on the
 ``nu`` scale): at the long scales, where ``nu_hat_j`` has only ``eta_j = M_j / tau_j`` (1-3)
 degrees of freedom, that is the scaled chi-square of the WV's own confidence interval; at short
-scales it is Gaussian. Its normal score ``u_j = Phi^-1(G_j(x_j))`` is the per-scale standardised residual (``residuals``: N(0, 1) under the model; a
-large ``|u_j|`` shows where the model misses). The statistic is ``U = sum_j u_j^2`` with null
+scales it is Gaussian. Its normal score ``u_j = Phi^-1(G_j(x_j))`` is the per-scale
+standardised residual (``residuals``: N(0, 1) under the model; a large ``|u_j|`` shows where
+the model misses). The statistic is ``U = sum_j u_j^2`` with null
 distribution ``sum_i lambda_i chi2_1``, ``lambda`` the eigenvalues of the correlation matrix of
 ``r`` (``df`` of them non-zero); reported as ``statistic = U df / J`` (null mean ``df``) with the
 p-value from Imhof's numerical inversion of the characteristic function (the Lugannani-Rice
