@@ -11,9 +11,9 @@ d theta`` at the estimate, ``Omega`` the fit's weight matrix, ``V`` the covarian
 ``nu_hat`` and ``V_f = F V F'`` (``F = d f / d nu``, the delta method for ARMAV). To first
 order the residual ``r = f(nu_hat) - f(nu(theta_hat))`` is ``M e``, ``e = f(nu_hat) -
 f(nu_0)``, with ``M = I - A (A' Omega A)^-1 A' Omega``, so ``Cov(r) = M V_f M'`` (rank ``df =
-J - rank(A)``) for any weights; the weights enter through ``M``. ``V`` is the model-based covariance of the WV estimate at the estimate
-(:func:`gmwm.inference.model_wv_cov`, between-scale correlation included), or the fit's user
-covariance.
+J - rank(A)``) for any weights; the weights enter through ``M``. ``V`` is the model-based
+covariance of the WV estimate at the estimate (:func:`gmwm.inference.model_wv_cov`,
+between-scale correlation included), or the fit's user covariance.
 
 A component at the boundary 0 (a weak one, fitted at 0 in a share of the records) keeps its
 column in ``A``: the test projects the fit's residual, ``r~ = M r``, onto the complement of the
