@@ -11,6 +11,20 @@ generalised Wald statistic ``r' (M V M')^+ r`` (``generalised_wald``). Power: ``
 signals of a generating model fitted with a model that lacks a component (its strength set by
 its expected z-value in the generating model); the share rejected at 5 % by the test and by
 the objective. ``--write`` replaces this benchmark's section of ``benchmarks/README.md``.
+
+    python benchmarks/bench_gof.py --calibration [--R 400] [--R-power 200] [--workers 1]
+        [--seed 2031] [--models ...] [--write]
+
+Calibration (the p-value's law under true models, before and after the boundary correction of
+:func:`gmwm.gof.gof_test`): for each model of ``CALIBRATION`` at T = 2^15 and 2^18, ``R`` seeded
+signals fitted with the defaults (CI weights); from each fit the test as it is and as it was
+(``hold_boundary=True``: a component at 0 held there), on the same fits; the share of p-values
+below 1 % and 5 % with their Monte Carlo SEs, the KS test of uniformity and the share of fits
+with a component at the boundary; as a diagnostic, the test with the WV covariance at the true
+parameters. Power: ``R_power`` signals of each ``POWER_PLAIN`` generating
+model fitted with a model that lacks a component, at fixed strengths. ``--write`` replaces the
+calibration block of ``benchmarks/README.md`` (its own markers); ``--R-power 0`` skips the power
+rows, ``--seed`` and ``--models`` rerun rows on other seeds (printed, for a recheck).
 """
 
 from __future__ import annotations
@@ -27,6 +41,7 @@ from scipy import stats
 
 import gmwm
 from gmwm.gof import generalised_wald, gof_test, objective_test
+from gmwm.inference import model_wv_cov
 from gmwm.model import Model
 
 HERE = Path(__file__).resolve().parent
@@ -62,6 +77,157 @@ POWER: dict[str, tuple[str, dict[str, float], str, float]] = {
 }
 #: expected z-values of the missing component
 POWER_Z = (3.0, 5.0, 10.0)
+
+# -- calibration study (--calibration) ------------------------------------------------------------
+# IMU-like true models: label -> (model, truth, freq). The AR1 row is issue 40's case (its RW is
+# at 1-2 SE at 2^15, at the boundary 0 in about a third of the fits); 2*AR1 stands for the
+# two-time-constant (bias instability-like) gyro models.
+CALIBRATION: dict[str, tuple[str, dict[str, float], float]] = {
+    "WN+RW": ("WN+RW", {"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-5}, 1.0),
+    "WN+AR1+RW": ("WN+AR1+RW", {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.99, "AR1[1].sigma2": 0.01,
+                                "RW[1].gamma2": 2e-5}, 1.0),
+    "WN+GM+RW (100 Hz)": ("WN+GM+RW", _GM, 100.0),
+    "QN+WN+RW+DR": SIZE["QN+WN+RW+DR"][:3],
+    "WN+2*AR1": ("WN+2*AR1", {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.9, "AR1[1].sigma2": 0.05,
+                              "AR1[2].phi": 0.999, "AR1[2].sigma2": 1e-4}, 1.0),
+}
+CAL_LENGTHS = (15, 18)
+# plain misspecifications at fixed strengths: label -> (generating model, truth, fitted, freq)
+POWER_PLAIN: dict[str, tuple[str, dict[str, float], str, float]] = {
+    **{f"WN+RW fitted to WN+AR1 (phi 0.999, AR1 sigma2 {s2:g})": (
+        "WN+AR1", {"WN[1].sigma2": 1.0, "AR1[1].phi": 0.999, "AR1[1].sigma2": s2}, "WN+RW", 1.0)
+       for s2 in (1e-5, 1e-6)},
+    **{f"WN fitted to WN+RW (gamma2 {g:g})": (
+        "WN+RW", {"WN[1].sigma2": 1.0, "RW[1].gamma2": g}, "WN", 1.0) for g in (1e-7, 1e-8)},
+    **{f"WN+RW fitted to WN+GM+RW (100 Hz, GM sigma2 {s2:g})": (
+        "WN+GM+RW", {**_GM, "GM[1].sigma2": s2}, "WN+RW", 100.0) for s2 in (1e-6, 3e-7)},
+}
+
+
+def calibration_cell(label: str, k: int, R: int, seed: int = 2031) -> dict:
+    """p-values of the test after / before the boundary correction on R default fits of the
+    true model ``label`` at T = 2^k, and which fits hold a component at the boundary."""
+    spec, truth, freq = CALIBRATION[label]
+    model = Model(spec, freq)
+    theta = model.theta(truth)
+    T = 2**k
+    after, before, oracle, boundary = [], [], [], []
+    t0 = time.process_time()
+    for r in range(R):
+        x = model.simulate_fast(theta, T, np.random.default_rng([seed, T, r]))
+        res = gmwm.fit(x, model, freq=freq)
+        after.append(res.gof.p_value)
+        before.append(gof_test(res, hold_boundary=True).p_value)
+        # diagnostic: the covariance of the WV estimate at the truth instead of the estimate
+        oracle.append(gof_test(res, model_wv_cov(model, theta, res.wv)).p_value)
+        boundary.append(bool(res.diagnostics.get("at_boundary")))
+    return {"after": np.array(after), "before": np.array(before), "oracle": np.array(oracle),
+            "boundary": np.array(boundary), "cpu": time.process_time() - t0}
+
+
+def plain_power_cell(label: str, k: int, R: int, seed: int = 2032) -> dict:
+    """p-values after / before the correction of the misspecified fits ``label`` at 2^k."""
+    spec, truth, fitted, freq = POWER_PLAIN[label]
+    model = Model(spec, freq)
+    theta = model.theta(truth)
+    T = 2**k
+    after, before = [], []
+    t0 = time.process_time()
+    for r in range(R):
+        x = model.simulate_fast(theta, T, np.random.default_rng([seed, T, r]))
+        res = gmwm.fit(x, fitted, freq=freq)
+        after.append(res.gof.p_value)
+        before.append(gof_test(res, hold_boundary=True).p_value)
+    return {"after": np.array(after), "before": np.array(before),
+            "cpu": time.process_time() - t0}
+
+
+def _size_cell(p: np.ndarray, R: int) -> str:
+    """``1 % / 5 % (KS p)``, a share beyond 2 Monte Carlo SEs of its level in bold."""
+    p = p[np.isfinite(p)]
+    cells = []
+    for a in (0.01, 0.05):
+        share = float(np.mean(p < a))
+        txt = f"{share:.3f}"
+        cells.append(f"**{txt}**" if abs(share - a) > 2 * math.sqrt(a * (1 - a) / R) else txt)
+    ks = stats.kstest(p, "uniform").pvalue
+    ks_txt = f"{ks:.2g}"
+    return f"{cells[0]} / {cells[1]} ({f'**{ks_txt}**' if ks < 0.01 else ks_txt})"
+
+
+def calibration_table(rows: list[tuple[str, int, dict]], R: int) -> list[str]:
+    lines = [("| true model | T | fits with a component at 0 | before: 1 % / 5 % (KS p) | "
+             "after: 1 % / 5 % (KS p) | after, V at the truth | CPU s |"),
+             "|---|---|---|---|---|---|---|"]
+    for label, k, out in rows:
+        lines.append(f"| {label} | 2^{k} | {np.mean(out['boundary']):.3f} | "
+                     f"{_size_cell(out['before'], R)} | {_size_cell(out['after'], R)} | "
+                     f"{_size_cell(out['oracle'], R)} | {out['cpu']:.0f} |")
+    lines += ["", (f"{R} seeded replicates per row, default fit (CI weights); before = the test "
+              "with a component at 0 held there (`gof_test(res, hold_boundary=True)`), after = "
+              "the default `gof_test`, on the same fits; V at the truth: the same test with "
+              "the covariance of the WV estimate at the true parameters (a diagnostic, not "
+              "available on data). Monte Carlo SE of the share: "
+              f"{math.sqrt(0.01 * 0.99 / R):.4f} at 1 %, {math.sqrt(0.05 * 0.95 / R):.4f} at 5 %; "
+              "bold: beyond 2 SE of the level, or KS p < 0.01.")]
+    return lines
+
+
+def plain_power_table(rows: list[tuple[str, int, dict]], R: int) -> list[str]:
+    lines = ["| misspecification | T | before: 5 % / 1 % | after: 5 % / 1 % |", "|---|---|---|---|"]
+    for label, k, out in rows:
+        b, a = out["before"], out["after"]
+        lines.append(f"| {label} | 2^{k} | {np.mean(b < .05):.3f} / {np.mean(b < .01):.3f} | "
+                     f"{np.mean(a < .05):.3f} / {np.mean(a < .01):.3f} |")
+    lines += ["", (f"Share rejected, {R} seeded replicates per row (default fit of the model "
+              "lacking the component).")]
+    return lines
+
+
+def _run_cell(task: tuple[str, str, int, int, int]) -> tuple[str, str, int, dict]:
+    kind, label, k, R, seed = task
+    fun = calibration_cell if kind == "size" else plain_power_cell
+    return kind, label, k, fun(label, k, R, seed)
+
+
+def calibration_main(args: argparse.Namespace) -> None:
+    if args.write and (args.models or args.seed != 2031 or args.R_power <= 0):
+        sys.exit("--write renders the full study: no --models, --seed or --R-power 0 with it")
+    t0 = time.perf_counter()
+    labels = args.models or list(CALIBRATION)
+    tasks = [("size", lab, k, args.R, args.seed) for lab in labels for k in CAL_LENGTHS]
+    if args.R_power > 0:
+        tasks += [("power", lab, k, args.R_power, args.seed + 1) for lab in POWER_PLAIN
+                  for k in CAL_LENGTHS]
+    if args.workers > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(args.workers) as pool:
+            done = list(pool.map(_run_cell, tasks))
+    else:
+        done = []
+        for task in tasks:
+            done.append(_run_cell(task))
+            print(task[:3], f"{done[-1][3]['cpu']:.0f} s CPU", flush=True)
+    srows = [(lab, k, out) for kind, lab, k, out in done if kind == "size"]
+    prows = [(lab, k, out) for kind, lab, k, out in done if kind == "power"]
+    cpu = sum(out["cpu"] for *_, out in done)
+    lines = [("Size (true model fitted; share of p-values below 1 % and 5 %, KS test of their "
+             "uniformity):"), "", *calibration_table(srows, args.R)]
+    if prows:
+        lines += ["", "Power (plain misspecifications, fixed strengths):", "",
+                  *plain_power_table(prows, args.R_power)]
+    print("\n".join(lines))
+    if args.write:
+        from bench_selection import commit
+
+        head = (f"Generated by `python benchmarks/bench_gof.py --calibration --R {args.R} "
+                f"--R-power {args.R_power}{'' if args.seed == 2031 else f' --seed {args.seed}'}"
+                f" --write` (commit {commit()}, "
+                f"{time.perf_counter() - t0:.0f} s wall, {cpu:.0f} s CPU in the fits and tests, "
+                f"{args.workers} process(es), 1-minute load {os.getloadavg()[0]:.1f} at the "
+                "end).\n")
+        write_section(head + "\n" + "\n".join(lines), "bench_gof_calibration")
 
 
 def satterthwaite(objective: float, lam: np.ndarray) -> float:
@@ -173,7 +339,19 @@ def main() -> None:
     ap.add_argument("--size", nargs="*", default=list(SIZE))
     ap.add_argument("--power", nargs="*", default=list(POWER))
     ap.add_argument("--write", action="store_true")
+    ap.add_argument("--calibration", action="store_true",
+                    help="the calibration study (module docstring) instead of size and power")
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--seed", type=int, default=2031,
+                    help="calibration: the size rows' seed (the power rows' is seed + 1)")
+    ap.add_argument("--models", nargs="*", choices=list(CALIBRATION), default=None,
+                    help="calibration: these true models only (default all)")
     args = ap.parse_args()
+    if args.calibration:
+        sys.path.insert(0, str(HERE))
+        if "--R-power" not in sys.argv:
+            args.R_power = 200
+        return calibration_main(args)
     t0 = time.perf_counter()
     srows, prows = [], []
     for label in args.size:
