@@ -1,0 +1,49 @@
+# The fleet workflow of `gmwm fleet` (gmwm.fleet.run): one `calibrate` job per recording, then
+# the fleet table. Run in OUT (--directory OUT) with --config fleet_config=OUT/.fleet/config.json,
+# which `gmwm fleet` writes (gmwm.fleet.run.prepare). Not meant to be run by hand, but
+# `gmwm fleet ... --dry-run` shows what it would do.
+#
+# Incremental: a calibrate job's inputs are the recording's content-hash stamp (rewritten only
+# when the content changes) and the settings file (rewritten only when a setting changes); the
+# hash is also a param. The table depends on every recording's status.json.
+# Cluster: `group: "calibrate"` lets a profile bundle many recordings into one submission
+# (e.g. --group-components calibrate=50 in the profile).
+
+import json
+
+CFG = json.load(open(config["fleet_config"]))
+RECS = CFG["recordings"]
+PY = CFG["python"]
+CONFIG = config["fleet_config"]
+
+wildcard_constraints:
+    unit=r"[^/]+",
+    rec=r"[^/]+",
+
+localrules: all, fleet_table
+
+rule all:
+    input: "fleet.json"
+
+rule calibrate:
+    input:
+        stamp=".fleet/inputs/{unit}/{rec}.sha256",
+        settings=".fleet/settings.json",
+    output: "units/{unit}/{rec}/status.json"
+    params:
+        sha256=lambda w: RECS[f"{w.unit}/{w.rec}"]["sha256"],
+    group: "calibrate"
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    shell:
+        "{PY:q} -m gmwm.fleet.job calibrate --config {CONFIG:q} --key {wildcards.unit:q}/{wildcards.rec:q}"
+
+rule fleet_table:
+    input:
+        status=[f"units/{k}/status.json" for k in RECS],
+        settings=".fleet/settings.json",
+    output: "fleet.json", "fleet.csv", "fleet_summary.csv", "fleet.md", "fleet.html"
+    shell:
+        "{PY:q} -m gmwm.fleet.job table --config {CONFIG:q}"
