@@ -115,6 +115,8 @@ def _is_manifest(path: Path) -> bool:
 def _walk(folder: Path) -> list[Path]:
     if (folder / "metadata.yaml").is_file():  # a ROS 2 bag
         return [folder]
+    if (folder / ".fleet").is_dir():  # a fleet's output folder: its tables are no recordings
+        return []
     found: list[Path] = []
     for p in sorted(folder.iterdir()):
         if p.name.startswith("."):

@@ -293,13 +293,13 @@ def run_workflow(out: Path, config: Path, *, cores: int | None = None,
                      + " ".join(argv) + "\n")
             fh.flush()
             # the child inherits the lock's descriptor: the flock lives as long as Snakemake
-            proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                    text=True, env=env, pass_fds=(lock.fileno(),))
-            assert proc.stdout is not None
-            for line in proc.stdout:
-                fh.write(line)
-                if log is not None:
-                    log.write(line)
-            return proc.wait()
+            with subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                  text=True, env=env, pass_fds=(lock.fileno(),)) as proc:
+                assert proc.stdout is not None
+                for line in proc.stdout:
+                    fh.write(line)
+                    if log is not None:
+                        log.write(line)
+                return proc.wait()
     finally:
         lock.close()
