@@ -3,9 +3,9 @@
 # which `gmwm fleet` writes (gmwm.fleet.run.prepare). Not meant to be run by hand, but
 # `gmwm fleet ... --dry-run` shows what it would do.
 #
-# Incremental: a calibrate job's inputs are the recording's content-hash stamp (rewritten only
-# when the content changes) and the settings file (rewritten only when a setting changes); the
-# hash is also a param. The table depends on every recording's status.json.
+# Incremental: run with --rerun-triggers params input; a calibrate job's params are its
+# recording's content hash and the settings' hash (not time stamps: a touched file reruns nothing,
+# a changed one its job). The table depends on every recording's status.json.
 # Cluster: `group: "calibrate"` lets a profile bundle many recordings into one submission
 # (e.g. --group-components calibrate=50 in the profile).
 
@@ -27,11 +27,11 @@ rule all:
 
 rule calibrate:
     input:
-        stamp=".fleet/inputs/{unit}/{rec}.sha256",
         settings=".fleet/settings.json",
     output: "units/{unit}/{rec}/status.json"
     params:
         sha256=lambda w: RECS[f"{w.unit}/{w.rec}"]["sha256"],
+        settings=CFG["settings_sha256"],
     group: "calibrate"
     threads: 1
     resources:
@@ -45,5 +45,8 @@ rule fleet_table:
         status=[f"units/{k}/status.json" for k in RECS],
         settings=".fleet/settings.json",
     output: "fleet.json", "fleet.csv", "fleet_summary.csv", "fleet.md", "fleet.html"
+    params:
+        settings=CFG["settings_sha256"],
+        recordings=sorted(RECS),
     shell:
         "{PY:q} -m gmwm.fleet.job table --config {CONFIG:q}"

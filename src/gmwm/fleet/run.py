@@ -6,14 +6,15 @@ Layout of ``OUT``::
     OUT/units/<unit>/<recording>/   the recording's report, configuration files, report.json
                                     (the report's --json), status.json (the fleet job's verdict)
     OUT/fleet.{json,csv,md,html}, OUT/fleet_summary.csv   the fleet table (gmwm.fleet.output)
-    OUT/.fleet/settings.json        the settings every job uses (an input of every job)
-    OUT/.fleet/inputs/<unit>/<recording>.sha256   the recording's content hash (rewritten only
-                                    when the content changes: Snakemake reruns what it feeds)
-    OUT/.fleet/config.json          the recordings (path, topic, datasheet, date) by key
+    OUT/.fleet/settings.json        the settings every job uses
+    OUT/.fleet/config.json          the recordings (path, content hash, topic, datasheet, date)
+                                    by key, and the settings' hash
+    OUT/.fleet/snakemake.log        Snakemake's output, one part per run
 
-Incremental: a new or changed recording (by content, not by name or time stamp) reruns its job
-and the table; a changed setting rewrites settings.json and reruns everything; an unchanged run
-does nothing. Resumable: a killed run is rerun with the same command (stale Snakemake locks of a
+Incremental: a job's params are its recording's content hash and the settings' hash, and
+Snakemake reruns on params and inputs only (not time stamps): a new or changed recording reruns its
+job and the table; a changed setting reruns everything; an unchanged run (or a touched file) does
+nothing. Resumable: a killed run is rerun with the same command (stale Snakemake locks of a
 dead run are removed under an OS lock, as workflow/rules/runlock.smk does for the pipeline).
 """
 
@@ -22,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import fcntl
+import hashlib
 import io
 import json
 import os
@@ -46,6 +48,8 @@ __all__ = ["MIN_STATIC_S", "FleetSettings", "calibrate_recording", "prepare", "r
 #: failed. 60 s holds ~2^12 samples at 100 Hz, enough for the white-noise densities' intervals
 #: but not for random walks (the plan rule then says so term by term).
 MIN_STATIC_S = 60.0
+#: the line that starts each run's part of OUT/.fleet/snakemake.log
+RUN_MARK = "#### gmwm fleet run"
 
 
 @dataclass(frozen=True)
@@ -213,12 +217,19 @@ class Prepared:
 
 
 def prepare(recordings: Sequence[Recording], out: Path, settings: FleetSettings) -> Prepared:
-    """Write ``OUT/.fleet``: settings, one hash stamp per recording (only when it changed), the
-    config the workflow reads. Recordings whose file cannot be read are still listed (their job
-    fails and says why)."""
+    """Write ``OUT/.fleet``: the settings and the config the workflow reads (every recording's
+    path and content hash, the settings' hash). The hashes are the jobs' params, which is what
+    Snakemake compares (not time stamps): a dry run changes nothing a later run depends on.
+    ``changed``: recordings new or changed since the last prepare. An unreadable recording is
+    still listed (its job fails and says why)."""
     meta = out / ".fleet"
-    _write_if_changed(meta / "settings.json",
-                      json.dumps(settings.to_json(), indent=2, sort_keys=True) + "\n")
+    text = json.dumps(settings.to_json(), indent=2, sort_keys=True) + "\n"
+    _write_if_changed(meta / "settings.json", text)
+    path = meta / "config.json"
+    try:
+        old = json.loads(path.read_text(encoding="utf-8")).get("recordings", {})
+    except (OSError, ValueError):
+        old = {}
     recs: dict[str, Any] = {}
     changed = []
     for r in recordings:
@@ -226,14 +237,14 @@ def prepare(recordings: Sequence[Recording], out: Path, settings: FleetSettings)
             digest = content_hash(r.path)
         except OSError as exc:
             digest = f"unreadable: {exc.strerror or exc}"
-        if _write_if_changed(meta / "inputs" / r.unit / f"{r.name}.sha256", digest + "\n"):
+        if old.get(r.key, {}).get("sha256") != digest:
             changed.append(r.key)
         recs[r.key] = {"path": str(r.path.resolve()), "unit": r.unit, "name": r.name,
                        "date": r.date.isoformat() if r.date else None, "topic": r.topic,
                        "datasheet": r.datasheet, "temperature": r.temperature,
                        "sha256": digest}
-    config = {"recordings": recs, "python": sys.executable, "out": str(out.resolve())}
-    path = meta / "config.json"
+    config = {"recordings": recs, "python": sys.executable, "out": str(out.resolve()),
+              "settings_sha256": hashlib.sha256(text.encode()).hexdigest()}
     write_json_atomic(path, config)
     return Prepared(path, changed, list(recordings))
 
@@ -262,7 +273,7 @@ def snakemake_argv(out: Path, config: Path, *, cores: int | None = None,
     """The ``python -m snakemake`` command that runs the fleet in ``out``."""
     argv = [sys.executable, "-m", "snakemake", "--snakefile", str(workflow_file()),
             "--directory", str(out), "--config", f"fleet_config={config.resolve()}",
-            "--rerun-triggers", "mtime", "params", "input", "--keep-going",
+            "--rerun-triggers", "params", "input", "--keep-going",
             "--rerun-incomplete"]
     if profile:
         argv += ["--profile", profile]
@@ -287,9 +298,10 @@ def run_workflow(out: Path, config: Path, *, cores: int | None = None,
         src = str(Path(__file__).resolve().parents[2])
         env["PYTHONPATH"] = os.pathsep.join([src, *filter(None, [env.get("PYTHONPATH")])])
         env.setdefault("MPLBACKEND", "Agg")
+        env["PYTHONUNBUFFERED"] = "1"  # Snakemake's lines reach the log as they happen
         logfile = out / ".fleet" / "snakemake.log"
         with open(logfile, "a", encoding="utf-8") as fh:
-            fh.write(f"\n# {_dt.datetime.now().isoformat(timespec='seconds')}: "
+            fh.write(f"\n{RUN_MARK} {_dt.datetime.now().isoformat(timespec='seconds')}: "
                      + " ".join(argv) + "\n")
             fh.flush()
             # the child inherits the lock's descriptor: the flock lives as long as Snakemake
@@ -298,6 +310,7 @@ def run_workflow(out: Path, config: Path, *, cores: int | None = None,
                 assert proc.stdout is not None
                 for line in proc.stdout:
                     fh.write(line)
+                    fh.flush()
                     if log is not None:
                         log.write(line)
                 return proc.wait()

@@ -160,7 +160,7 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if args.json:
         out.write(json.dumps(table, indent=2) + "\n")
         return 0
-    units = {u["unit"] for u in table["units"]}
+    units = {u["unit"] for u in table["units"]} | {f["unit"] for f in table["failed"]}
     odd = sorted({u["unit"] for u in table["units"] if u["status"] == "out of family"})
     drifting = sorted({f"{d['unit']} {d['coefficient']}" for d in table["drift"]
                        if d["flagged"]})
