@@ -142,3 +142,21 @@ def test_drift_flagged_in_the_fleet_only_when_it_excludes_zero():
 def test_log_se():
     assert log_se((1.0, math.e ** (2 * 1.959964))) == pytest.approx(1.0, rel=1e-6)
     assert log_se((0.0, 1.0)) is None and log_se(None) is None
+
+
+def test_compare_flags_units_that_moved_beyond_their_intervals():
+    from gmwm.fleet.core import compare_units
+
+    def table(vals, rec):
+        return {"units": [{"unit": u, "coefficient": "gx.noise_density", "recording": rec,
+                           "value": v, "ci95": None if v is None else [v / 1.05, v * 1.05]}
+                          for u, v in vals.items()]}
+
+    old = table({"a": 1.0e-4, "b": 1.0e-4, "c": 1.0e-4}, "r1")
+    new = table({"a": 1.01e-4, "b": 1.3e-4, "c": None}, "r2")
+    rows = compare_units(old, new)
+    assert [(r["unit"], r["moved"]) for r in rows] == [("a", False), ("b", True)]
+    # ln(1.3) / sqrt(2 * (ln(1.05) / 1.96)^2)
+    assert rows[1]["z"] == pytest.approx(math.log(1.3) / (math.sqrt(2) * math.log(1.05) / 1.959964),
+                                         rel=1e-5)
+    assert compare_units(old, old) == []  # the same recordings: nothing to compare

@@ -12,7 +12,8 @@ standard error ``s_i = (log hi_i - log lo_i) / (2 z)`` (``z`` = 1.96 for a 95 % 
 ``tau`` the between-unit spread on the log scale: units typically differ by a factor
 ``exp(tau)``, separated from each unit's own estimation error, so short noisy recordings do not
 inflate it. ``mu`` and ``tau^2`` come from :func:`statsmodels.stats.meta_analysis.combine_effects`
-(Paule-Mandel by default, or DerSimonian-Laird); tau's interval is the Q-profile interval
+(Paule-Mandel by default, or DerSimonian-Laird); mu's interval is the modified Hartung-Knapp one
+(:class:`RandomEffects`); tau's interval is the Q-profile interval
 (:func:`q_profile_tau2`, written here: statsmodels has none); the 95 % prediction interval for a
 new unit is ``mu +- t_{k-2} sqrt(tau^2 + se(mu)^2)`` (Higgins, Thompson & Spiegelhalter 2009).
 
@@ -35,7 +36,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from statistics import NormalDist
 from typing import Any
@@ -53,6 +54,7 @@ __all__ = [
     "Fleet",
     "RandomEffects",
     "UnitVerdict",
+    "compare_units",
     "fit_drift",
     "fleet_table",
     "log_se",
@@ -141,7 +143,8 @@ class Estimate:
 @dataclass(frozen=True)
 class RandomEffects:
     """A random-effects fit on the log scale (module docstring): ``mu`` with its standard error
-    and ``1 - alpha`` interval, ``tau2`` (between-unit variance) with its Q-profile interval,
+    and ``1 - alpha`` interval (modified Hartung-Knapp: ``t_{k-1}`` times the larger of the
+    Hartung-Knapp and the plain random-effects standard errors), ``tau2`` (between-unit variance) with its Q-profile interval,
     Cochran's ``q`` and ``i2``, the ``k`` units used, the estimator ``method`` ("pm" or "dl")."""
 
     mu: float
@@ -218,13 +221,17 @@ def random_effects(y: Sequence[float], v: Sequence[float], method: str = "pm",
         raise InputError("a random-effects fit needs at least two units")
     if not (np.all(np.isfinite(y)) and np.all(np.isfinite(v)) and np.all(v > 0)):
         raise InputError("a random-effects fit needs finite log values and positive variances")
+    from scipy.stats import t
+
     res = combine_effects(y, v, method_re=method, alpha=alpha, use_t=False)
     mu, se = float(res.mean_effect_re), float(res.sd_eff_w_re)
-    z = _z(alpha)
     q = float(res.q)
     k = int(y.size)
     i2 = max(0.0, (q - (k - 1)) / q) if q > 0 else 0.0
-    return RandomEffects(mu, se, (mu - z * se, mu + z * se), float(res.tau2),
+    # mu's interval: Hartung-Knapp-Sidik-Jonkman with t_{k-1}, never narrower than the plain
+    # random-effects SE (the normal interval undercovers badly for few units; benchmarks)
+    half = float(t.ppf(1.0 - alpha / 2.0, k - 1)) * max(se, float(res.sd_eff_w_re_hksj))
+    return RandomEffects(mu, se, (mu - half, mu + half), float(res.tau2),
                          q_profile_tau2(y, v, alpha), q, i2, k, method, alpha)
 
 
@@ -485,3 +492,40 @@ def fleet_table(estimates: Sequence[Estimate], *, method: str = "pm", alpha: flo
                                 icpt, tuple((e.date.isoformat(), e.value, *e.ci95)
                                             for e in dated)))
     return Fleet(coefficients, verdicts, drifts, list(failed), method, alpha)
+
+
+# --------------------------------------------------------------------------------------------------
+# comparison with an earlier fleet run
+# --------------------------------------------------------------------------------------------------
+
+
+def compare_units(old: Mapping[str, Any], new: Mapping[str, Any], alpha: float = 0.05
+                  ) -> list[dict[str, Any]]:
+    """Units whose coefficient moved between two fleet runs (their ``fleet.json`` dicts): per
+    unit and coefficient with a usable estimate in both, the log ratio new/old against its
+    standard error ``sqrt(s_old^2 + s_new^2)`` (each from the run's own 95 % interval); a row
+    per pair with ``moved`` True where ``|z|`` exceeds the normal ``1 - alpha/2`` quantile. A
+    recording shared by both runs (same unit, recording and value) is skipped: it cannot have
+    moved."""
+    def cells(obj: Mapping[str, Any]) -> dict[tuple[str, str], Mapping[str, Any]]:
+        return {(u["unit"], u["coefficient"]): u for u in obj.get("units", [])
+                if u.get("value") is not None and u.get("ci95")}
+
+    a, b = cells(old), cells(new)
+    z_crit = _z(alpha)
+    rows = []
+    for key in sorted(a.keys() & b.keys()):
+        o, n = a[key], b[key]
+        if o.get("recording") == n.get("recording") and o["value"] == n["value"]:
+            continue
+        so, sn = log_se(o["ci95"], alpha), log_se(n["ci95"], alpha)
+        if so is None or sn is None or not (o["value"] > 0 and n["value"] > 0):
+            continue
+        d = math.log(n["value"]) - math.log(o["value"])
+        z = d / math.hypot(so, sn)
+        rows.append({"unit": key[0], "coefficient": key[1], "old_recording": o.get("recording"),
+                     "old_value": o["value"], "old_ci95": list(o["ci95"]),
+                     "new_recording": n.get("recording"), "new_value": n["value"],
+                     "new_ci95": list(n["ci95"]), "ratio": math.exp(d), "z": z,
+                     "moved": abs(z) > z_crit, "value_unit": n.get("value_unit", "")})
+    return rows

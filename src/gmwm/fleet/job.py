@@ -41,7 +41,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     recs = [Recording(Path(r["path"]), r["unit"], r["name"],
                       _dt.date.fromisoformat(r["date"]) if r["date"] else None, r["topic"],
                       r["datasheet"], r["temperature"]) for r in cfg["recordings"].values()]
-    build_and_write(out, recs, settings)
+    build_and_write(out, recs, settings, config=cfg)
     return 0
 
 

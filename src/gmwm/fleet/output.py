@@ -18,7 +18,7 @@ from gmwm.atomic import write_json_atomic, write_text_atomic
 from gmwm.fleet.collect import UNIT_RULE, Recording, estimates_from_folder
 from gmwm.fleet.core import Fleet, fleet_table
 
-__all__ = ["build_and_write", "build_fleet", "write_fleet"]
+__all__ = ["archive", "build_and_write", "build_fleet", "write_compare", "write_fleet"]
 
 _UNIT_COLUMNS = ("unit", "recording", "date", "coefficient", "sensor", "value_unit", "value",
                  "ci95_low", "ci95_high", "status", "reason", "datasheet_verdict")
@@ -251,7 +251,65 @@ def write_fleet(out: Path, fleet: Fleet, *, settings: dict[str, Any] | None = No
     return files
 
 
-def build_and_write(out: Path, recordings: Sequence[Recording], settings: Any) -> list[Path]:
-    """:func:`build_fleet` then :func:`write_fleet` (the workflow's table job)."""
+def _versions() -> dict[str, str | None]:
+    import importlib.metadata as md
+    import platform
+
+    out: dict[str, str | None] = {"python": platform.python_version()}
+    for name in ("gmwm", "numpy", "scipy", "statsmodels", "snakemake", "matplotlib"):
+        try:
+            out[name] = md.version(name)
+        except md.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+def archive(out: Path, config: dict[str, Any] | None, settings: dict[str, Any]) -> Path:
+    """Archive this table in ``OUT/archive/<UTC time>/``: fleet.json, the settings, every input's
+    path and content hash, the package versions (``gmwm fleet --compare`` reads it)."""
+    import datetime as _dt
+
+    stamp = _dt.datetime.now(_dt.UTC).strftime("%Y%m%dT%H%M%S.%fZ")
+    dest = out / "archive" / stamp
+    write_json_atomic(dest / "settings.json", settings)
+    write_json_atomic(dest / "inputs.json",
+                      {k: {"path": r["path"], "sha256": r["sha256"], "date": r["date"]}
+                       for k, r in (config or {}).get("recordings", {}).items()})
+    write_json_atomic(dest / "versions.json", _versions())
+    write_text_atomic(dest / "fleet.json", (out / "fleet.json").read_text(encoding="utf-8"))
+    return dest
+
+
+def build_and_write(out: Path, recordings: Sequence[Recording], settings: Any,
+                    config: dict[str, Any] | None = None) -> list[Path]:
+    """:func:`build_fleet`, :func:`write_fleet` and :func:`archive` (the workflow's table
+    job)."""
     fleet = build_fleet(out, recordings, settings.method_re)
-    return write_fleet(out, fleet, settings=settings.to_json())
+    files = write_fleet(out, fleet, settings=settings.to_json())
+    archive(out, config, settings.to_json())
+    return files
+
+
+_COMPARE_COLUMNS = ("unit", "coefficient", "value_unit", "old_recording", "old_value",
+                    "old_ci95", "new_recording", "new_value", "new_ci95", "ratio", "z", "moved")
+
+
+def write_compare(out: Path, rows: list[dict[str, Any]], against: str) -> list[Path]:
+    """``compare.csv``, ``compare.md`` and ``compare.json``: every unit and coefficient
+    estimated in both runs, ``moved`` where the change exceeds its 95 % interval."""
+    def fmt(r: dict[str, Any]) -> dict[str, Any]:
+        return {c: (f"[{_g(r[c][0])}, {_g(r[c][1])}]" if c.endswith("ci95") else
+                    _g(r[c]) if isinstance(r[c], float) else
+                    ("yes" if r[c] else "no") if c == "moved" else r[c]) for c in _COMPARE_COLUMNS}
+
+    moved = [fmt(r) for r in rows if r["moved"]]
+    md = (f"# Fleet compared with {against}\n\n"
+          "Moved: the log ratio new/old exceeds 1.96 standard errors (each run's own 95 % "
+          "interval); recordings shared by both runs are not compared.\n\n"
+          f"## Moved ({len(moved)} of {len(rows)} compared)\n\n"
+          + _md_table(moved, _COMPARE_COLUMNS)
+          + "\n## All compared\n\n" + _md_table([fmt(r) for r in rows], _COMPARE_COLUMNS))
+    return [write_text_atomic(out / "compare.csv", _csv([fmt(r) for r in rows],
+                                                         _COMPARE_COLUMNS)),
+            write_text_atomic(out / "compare.md", md),
+            write_json_atomic(out / "compare.json", {"against": against, "rows": rows})]

@@ -89,6 +89,10 @@ def register(sub: Any, formatter: Any) -> None:
                         "with --profile, 1 locally)")
     p.add_argument("--dry-run", "-n", action="store_true",
                    help="show the jobs Snakemake would run, run nothing")
+    p.add_argument("--compare", default=None, metavar="ARCHIVE",
+                   help="an earlier run's archive folder (OUT/archive/<time>/), its OUT, or its "
+                        "fleet.json: list the units whose coefficients moved beyond their "
+                        "intervals (OUT/compare.md, .csv, .json)")
     p.add_argument("--json", action="store_true", help="print the fleet table's JSON on stdout")
     p.add_argument("--quiet", "-q", action="store_true",
                    help="no progress lines on stderr (shown only on a terminal anyway)")
@@ -117,6 +121,7 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     dest = Path(args.output).resolve()
     if dest.exists() and not dest.is_dir():
         raise InputError(f"--output {args.output} exists and is not a folder")
+    old_table = _old_table(args.compare) if args.compare else None
     recs = find_recordings(args.inputs)
     for r in recs:
         if _inside(r.path.resolve(), dest):
@@ -155,6 +160,14 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
     if args.dry_run:
         return 0
     table = json.loads((dest / "fleet.json").read_text(encoding="utf-8"))
+    moved = None
+    if args.compare:
+        from gmwm.fleet.core import compare_units
+        from gmwm.fleet.output import write_compare
+
+        rows = compare_units(old_table, table)
+        write_compare(dest, rows, str(args.compare))
+        moved = sorted({f"{r['unit']} {r['coefficient']}" for r in rows if r["moved"]})
     err.writelines(f"gmwm: warning: {f['unit']}/{f['recording']}: {f['reason']}\n"
                    for f in table["failed"])
     if args.json:
@@ -169,4 +182,23 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
               f"fleet_summary.csv, fleet.json\n")
     out.write(f"out of family: {', '.join(odd) if odd else 'none'}; drifting: "
               f"{', '.join(drifting) if drifting else 'none'}\n")
+    if moved is not None:
+        out.write(f"moved since {args.compare}: {', '.join(moved) if moved else 'none'} "
+                  f"({dest / 'compare.md'})\n")
     return 0
+
+
+def _old_table(where: str) -> dict[str, Any]:
+    """The fleet.json of ``--compare`` (a file, an archive folder, or an earlier OUT)."""
+    from gmwm.errors import InputError
+
+    p = Path(where)
+    if p.is_dir():
+        p = p / "fleet.json"
+    try:
+        obj = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise InputError(f"--compare {where}: no readable fleet.json ({exc})") from None
+    if not isinstance(obj, dict) or "units" not in obj:
+        raise InputError(f"--compare {where}: not a fleet table (no 'units')")
+    return obj
