@@ -177,6 +177,12 @@ def _figures(fleet: Fleet) -> list[tuple[str, str]]:
                         fmt="o", ms=3, color=col, capsize=2)
         ax.set_yticks(range(len(vs)), [v.estimate.unit for v in vs], fontsize=7)
         ax.set_xscale("log")
+        # the units set the range: a band wider than them (few units) runs off the axes
+        lo = min(v.estimate.ci95[0] for v in vs)
+        hi = max(v.estimate.ci95[1] for v in vs)
+        if c.typical is not None:
+            lo, hi = min(lo, c.typical), max(hi, c.typical)
+        ax.set_xlim(lo / 2.0, hi * 2.0)
         ax.set_xlabel(f"{coef} [{c.value_unit}]")
         if pi is not None:
             ax.legend(fontsize=7, loc="best")
