@@ -71,9 +71,17 @@ def test_failed_and_flagged_terms_from_a_folder(tmp_path):
             "noise_density": {"estimate": 1e-4, "ci95": [0.9e-4, 1.1e-4], "flag": None},
             "random_walk": {"estimate": 0.0, "ci95": [0.0, 2e-5], "flag": "boundary"}}
     (d / "imu_noise.json").write_text(json.dumps({"axes": {"gx": axis}}))
+    fit = {"datasheet": {"ARW": {"value": 1e-4, "parameters": ["WN[1].sigma2"]}},
+           "datasheet_verdict": {"rows": [{"term": "ARW", "quantity": "", "datasheet": 0.007,
+                                           "unit": "deg/s/sqrt(Hz)", "measured": 0.0057296,
+                                           "verdict": "better"}]}}
+    (d / "report.json").write_text(json.dumps({"fits": {"gx": fit}}))
     ests, why = estimates_from_folder(d, rec)
     assert why is None
     by = {e.coefficient: e for e in ests}
+    # the verdict of the report, the datasheet value in the estimate's unit (rad/s/sqrt(Hz))
+    assert by["gx.noise_density"].datasheet == "better"
+    assert by["gx.noise_density"].datasheet_value == pytest.approx(1.2217e-4, rel=1e-4)
     assert by["gx.random_walk"].excluded == "at the boundary 0"
     assert by["gx.noise_density"].excluded == "not identifiable at the 90 s used (gmwm plan rule)"
     assert not any(e.usable for e in ests)

@@ -237,7 +237,7 @@ def _datasheet(fit: dict[str, Any], quantity: str, value: float | None
                ) -> tuple[str | None, float | None]:
     """This axis's datasheet verdict for ``quantity`` and the datasheet value in the quantity's
     own unit (scaled by the ratio of the estimate to the verdict's measured value)."""
-    verdict = fit.get("verdict") or {}
+    verdict = fit.get("datasheet_verdict") or fit.get("verdict") or {}
     rows = verdict.get("rows") or []
     if quantity == "bias_instability":
         term = "BI"
