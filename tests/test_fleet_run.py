@@ -123,6 +123,17 @@ def test_changed_setting_reruns_everything(fleet):
     assert planned(proc.stdout)["calibrate"] == 4
 
 
+def test_archive_and_compare_with_it(fleet):
+    _, inputs, out, _, _ = fleet
+    archives = sorted((out / "archive").iterdir())
+    assert {p.name for p in archives[-1].iterdir()} == {"fleet.json", "settings.json",
+                                                         "inputs.json", "versions.json"}
+    proc = gmwm_fleet(str(inputs), "-o", str(out), *OPTS, "--compare", str(archives[-1]))
+    assert proc.returncode == 0, proc.stderr
+    assert "moved since" in proc.stdout and ": none (" in proc.stdout  # same recordings
+    assert (out / "compare.md").is_file()
+
+
 def test_kill_then_same_command_resumes(tmp_path):
     import json
 

@@ -29,11 +29,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     raw["units"], raw["report_args"] = tuple(raw["units"]), tuple(raw["report_args"])
     settings = FleetSettings(**raw)
     if args.what == "calibrate":
+        from gmwm.atomic import write_json_atomic
         from gmwm.fleet.run import calibrate_recording
 
         rec = cfg["recordings"][args.key]
-        calibrate_recording(rec["path"], out / "units" / args.key, settings, topic=rec["topic"],
-                            datasheet=rec["datasheet"], content=rec["sha256"])
+        try:
+            calibrate_recording(rec["path"], out / "units" / args.key, settings,
+                                topic=rec["topic"], datasheet=rec["datasheet"],
+                                content=rec["sha256"])
+        except Exception as exc:  # noqa: BLE001 (a bug must not block the table: listed instead)
+            line = (str(exc).strip().splitlines() or [""])[0]
+            write_json_atomic(out / "units" / args.key / "status.json",
+                              {"ok": False, "recording": rec["path"],
+                               "reason": f"internal error ({type(exc).__name__}: {line}); "
+                                         "please report it"})
         return 0
     from gmwm.fleet.collect import Recording
     from gmwm.fleet.output import build_and_write
