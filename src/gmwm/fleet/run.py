@@ -243,8 +243,13 @@ def prepare(recordings: Sequence[Recording], out: Path, settings: FleetSettings)
                        "date": r.date.isoformat() if r.date else None, "topic": r.topic,
                        "datasheet": r.datasheet, "temperature": r.temperature,
                        "sha256": digest}
+    from gmwm import __version__
+
+    # another gmwm version may calibrate differently: it counts as a changed setting
+    key = f"{text}gmwm {__version__}\n"
     config = {"recordings": recs, "python": sys.executable, "out": str(out.resolve()),
-              "settings_sha256": hashlib.sha256(text.encode()).hexdigest()}
+              "gmwm_version": __version__,
+              "settings_sha256": hashlib.sha256(key.encode()).hexdigest()}
     write_json_atomic(path, config)
     return Prepared(path, changed, list(recordings))
 
