@@ -11,6 +11,12 @@ interval), and of the 95 % prediction interval for one new unit drawn from the s
 its Monte Carlo SE ``sqrt(p (1 - p) / R)``. The designs include tau = 0 (every lower end is 0, the
 interval covers whenever Q's upper end does).
 
+Overhead (``--overhead N``, off by default): a synthetic fleet of ``N`` static units written by
+``examples/make_fleet.py`` (``--minutes`` each, CSV, six axes), calibrated once by ``gmwm fleet``
+(model WN+RW, ``--cores``) and once by ``N`` separate ``gmwm report`` runs with the same options;
+reported: CPU seconds (user + system of every child process) and wall time of each, and their
+ratio per recording (the fleet's includes Snakemake and the table job).
+
 Scale. :func:`gmwm.fleet.core.fleet_table` for ``--table-units`` units x 1 coefficient (the
 whole-fleet band above 500 units, gmwm.fleet.core.LOO_MAX_UNITS) and for 500 units (leave-one-out
 band): CPU seconds.
@@ -70,11 +76,59 @@ def table_time(n_units: int, seed: int) -> float:
     return time.process_time() - t0
 
 
+def overhead(n_units: int, minutes: float, cores: int) -> dict[str, float]:
+    import os
+    import resource
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    env = dict(os.environ, MPLBACKEND="Agg")
+    env["PYTHONPATH"] = os.pathsep.join([str(root / "src"), env.get("PYTHONPATH", "")])
+    opts = ["WN+RW", "--columns", "all", "--units", "gx,gy,gz=rad/s", "--units",
+            "ax,ay,az=m/s^2"]
+
+    def cpu() -> float:
+        r = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return r.ru_utime + r.ru_stime
+
+    with tempfile.TemporaryDirectory() as tmp:
+        d = Path(tmp)
+        subprocess.run([sys.executable, str(root / "examples" / "make_fleet.py"), str(d / "in"),
+                        "--units", str(n_units), "--minutes", str(minutes), "--odd", "0",
+                        "--dated", "0", "--corrupt", "0"], check=True, env=env,
+                       capture_output=True)
+        (d / "in" / "moved_2026-01-05.csv").unlink()
+        files = sorted((d / "in").glob("*.csv"))
+        c0, t0 = cpu(), time.perf_counter()
+        subprocess.run([sys.executable, "-m", "gmwm", "fleet", str(d / "in"), "-o",
+                        str(d / "fleet"), "--model", *opts, "--cores", str(cores), "-q"],
+                       check=True, env=env, capture_output=True)
+        fleet_cpu, fleet_wall = cpu() - c0, time.perf_counter() - t0
+        c0, t0 = cpu(), time.perf_counter()
+        for f in files:
+            subprocess.run([sys.executable, "-m", "gmwm", "report", str(f), *opts, "-o",
+                            str(d / "rep" / f.stem), "--segment", "longest-static",
+                            "--export", "kalibr,json", "-q"], check=True, env=env,
+                           capture_output=True)
+        rep_cpu, rep_wall = cpu() - c0, time.perf_counter() - t0
+    n = len(files)
+    return {"recordings": n, "fleet_cpu_s": fleet_cpu, "fleet_wall_s": fleet_wall,
+            "reports_cpu_s": rep_cpu, "reports_wall_s": rep_wall,
+            "cpu_ratio": fleet_cpu / rep_cpu}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--reps", type=int, default=2000)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--table-units", type=int, default=10000)
+    ap.add_argument("--overhead", type=int, default=0, metavar="N",
+                    help="also time a fleet of N units against N gmwm report runs")
+    ap.add_argument("--minutes", type=float, default=5.0)
+    ap.add_argument("--cores", type=int, default=2)
     ap.add_argument("--json", default=None, help="also write the numbers to this JSON file")
     a = ap.parse_args()
     rows = []
@@ -91,11 +145,18 @@ def main() -> None:
     t_loo = table_time(500, a.seed)
     print(f"fleet_table CPU: {a.table_units} units {t_big:.2f} s (whole-fleet band); "
           f"500 units {t_loo:.2f} s (leave-one-out band)")
+    over = None
+    if a.overhead:
+        over = overhead(a.overhead, a.minutes, a.cores)
+        print(f"overhead: {over['recordings']} recordings, gmwm fleet {over['fleet_cpu_s']:.1f} "
+              f"CPU s ({over['fleet_wall_s']:.1f} s wall, {a.cores} cores) vs gmwm report "
+              f"{over['reports_cpu_s']:.1f} CPU s ({over['reports_wall_s']:.1f} s wall, serial):"
+              f" {over['cpu_ratio']:.2f}x CPU per recording")
     if a.json:
         with open(a.json, "w") as fh:
             json.dump({"reps": a.reps, "seed": a.seed, "coverage": rows,
-                       "table_seconds": {str(a.table_units): t_big, "500": t_loo}}, fh,
-                      indent=2)
+                       "table_seconds": {str(a.table_units): t_big, "500": t_loo},
+                       "overhead": over}, fh, indent=2)
 
 
 if __name__ == "__main__":

@@ -22,6 +22,8 @@ __all__ = ["archive", "build_and_write", "build_fleet", "write_compare", "write_
 
 _UNIT_COLUMNS = ("unit", "recording", "date", "coefficient", "sensor", "value_unit", "value",
                  "ci95_low", "ci95_high", "status", "reason", "datasheet_verdict")
+#: fleets up to this many units get one named row per unit in the figures
+_LABELLED_UNITS = 60
 _SUMMARY_COLUMNS = ("coefficient", "sensor", "value_unit", "n_units", "typical",
                     "typical_ci95_low", "typical_ci95_high", "tau_log", "tau_log_ci95_low",
                     "tau_log_ci95_high", "spread_factor", "prediction95_low",
@@ -79,10 +81,21 @@ def _summary_rows(fleet: Fleet) -> list[dict[str, Any]]:
                      "prediction95_low": _g(pi[0]) if pi else "",
                      "prediction95_high": _g(pi[1]) if pi else "",
                      "i2": _g(f.i2) if f else "",
-                     "excluded_units": "; ".join(f"{u}: {r}" for u, r in c.excluded),
+                     "excluded_units": _excluded_text(c.excluded),
                      "datasheet_value": _g(c.datasheet_value),
                      "datasheet_verdict": c.datasheet_verdict or ""})
     return rows
+
+
+def _excluded_text(excluded: Sequence[tuple[str, str]], shown: int = 5) -> str:
+    """The units left out of a coefficient's fit, grouped by reason: 'reason: n units (a, b,
+    ...)' (the full list is in fleet.csv and fleet.json)."""
+    by: dict[str, list[str]] = {}
+    for u, r in excluded:
+        by.setdefault(r, []).append(u)
+    return "; ".join(f"{r}: {len(us)} unit{'s' if len(us) > 1 else ''} ("
+                     + ", ".join(us[:shown]) + (", ..." if len(us) > shown else "") + ")"
+                     for r, us in by.items())
 
 
 def _csv(rows: list[dict[str, Any]], columns: Sequence[str]) -> str:
@@ -105,7 +118,9 @@ _METHOD = ("Random-effects model on the log scale ({method}; tau: between-unit s
            "of log(value), units typically differ by the factor exp(tau); tau's 95 % interval "
            "by the Q-profile method); a unit's standard error from its own 95 % interval. Out "
            "of family: the unit's 95 % interval lies outside the fleet's 95 % prediction "
-           "interval for a new unit (computed without that unit for fleets up to 500 units). "
+           "interval for a new unit (computed without that unit for fleets up to 500 units); "
+           "it is a 95 % band, so in a large fleet a few ordinary units (up to about 5 % when "
+           "their own intervals are narrow) fall outside it by chance: the reason says how far. "
            "Each unit enters with its latest recording; drift: weighted least squares of "
            "log(value) on the date, per year.")
 
@@ -163,7 +178,8 @@ def _figures(fleet: Fleet) -> list[tuple[str, str]]:
     for coef, vs in by_coef.items():
         c = fleet.coefficients[coef]
         vs = sorted(vs, key=lambda v: v.estimate.value)
-        fig = Figure(figsize=(7, 0.8 + 0.22 * len(vs)))
+        many = len(vs) > _LABELLED_UNITS  # a large fleet: one point per unit, no names
+        fig = Figure(figsize=(7, 0.8 + 0.22 * min(len(vs), _LABELLED_UNITS)))
         ax = fig.subplots()
         pi = c.prediction
         if pi is not None:
@@ -174,8 +190,13 @@ def _figures(fleet: Fleet) -> list[tuple[str, str]]:
             e = v.estimate
             col = "tab:red" if v.status == "out of family" else "black"
             ax.errorbar([e.value], [i], xerr=[[e.value - e.ci95[0]], [e.ci95[1] - e.value]],
-                        fmt="o", ms=3, color=col, capsize=2)
-        ax.set_yticks(range(len(vs)), [v.estimate.unit for v in vs], fontsize=7)
+                        fmt="o", ms=1.5 if many else 3, lw=0.5 if many else 1, color=col,
+                        capsize=0 if many else 2)
+        if many:
+            ax.set_yticks([])
+            ax.set_ylabel(f"{len(vs)} units, sorted")
+        else:
+            ax.set_yticks(range(len(vs)), [v.estimate.unit for v in vs], fontsize=7)
         ax.set_xscale("log")
         # the units set the range: a band wider than them (few units) runs off the axes
         lo = min(v.estimate.ci95[0] for v in vs)
@@ -183,7 +204,7 @@ def _figures(fleet: Fleet) -> list[tuple[str, str]]:
         if c.typical is not None:
             lo, hi = min(lo, c.typical), max(hi, c.typical)
         ax.set_xlim(lo / 2.0, hi * 2.0)
-        ax.set_xlabel(f"{coef} [{c.value_unit}]")
+        ax.set_xlabel(f"{coef} [{c.value_unit}]" if c.value_unit else coef)
         if pi is not None:
             ax.legend(fontsize=7, loc="best")
         out.append((f"{coef}: each unit with its 95 % interval (red: out of family)", _png(fig)))
