@@ -1,10 +1,11 @@
 """`gmwm fleet` end to end (Snakemake runs: marked `pipeline`): a small fleet of CSV recordings
-with one corrupt file, the incremental rerun, kill and resume, the SLURM profile's plan, and the
+and a ROS 1 bag with one corrupt file, the incremental rerun, kill and resume, the SLURM profile's plan, and the
 static-stretch rule of one recording (gmwm.fleet.run.calibrate_recording)."""
 
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import os
 import re
 import shutil
@@ -41,6 +42,13 @@ def write_recording(path: Path, sigma: float, seed: int, n: int = 20000, freq: f
     return path
 
 
+def _example():
+    spec = importlib.util.spec_from_file_location("make_fleet", ROOT / "examples" / "make_fleet.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
 def _env() -> dict[str, str]:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), env.get("PYTHONPATH", "")])
@@ -71,8 +79,15 @@ def _snapshot(folder: Path) -> dict[str, str]:
 def fleet(tmp_path_factory):
     base = tmp_path_factory.mktemp("fleet")
     inputs = base / "in"
-    for i, s in enumerate((1.0e-4, 1.05e-4, 0.95e-4)):
+    for i, s in enumerate((1.0e-4, 1.05e-4)):
         write_recording(inputs / f"imu{i}_2026-0{i + 1}-01.csv", s, seed=i)
+    # the third unit as a ROS 1 bag, written by rosbags' writer (examples/make_fleet.py)
+    example = _example()
+    if importlib.util.find_spec("rosbags") is not None:
+        data = example.signals(20000, 100.0, 0.95e-4, 1e-3, np.random.default_rng(2))
+        example.write_bag(inputs / "imu2_2026-03-01.bag", data, 100.0)
+    else:
+        write_recording(inputs / "imu2_2026-03-01.csv", 0.95e-4, seed=2)
     (inputs / "broken_2026-01-01.csv").write_text("time,gx,gy\n0,1\n1,2\n")
     before = _snapshot(inputs)
     proc = gmwm_fleet(str(inputs), "-o", str(base / "out"), *OPTS)
@@ -88,6 +103,7 @@ def test_table_written_and_corrupt_file_listed(fleet):
     assert [f["unit"] for f in table["failed"]] == ["broken"]
     assert "broken/broken_2026-01-01:" in proc.stderr
     assert {u["unit"] for u in table["units"]} == {"imu0", "imu1", "imu2"}
+    assert {u["status"] for u in table["units"] if u["unit"] == "imu2"} >= {"in family"}
     nd = table["coefficients"]["gx.noise_density"]
     assert nd["n_units"] == 3 and 0.8e-4 < nd["typical"] < 1.2e-4
     for name in ("fleet.html", "fleet.md", "fleet.csv", "fleet_summary.csv"):
