@@ -416,6 +416,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_select_parser(sub)
     _add_svo_parser(sub)
     _add_plan_parser(sub)
+    from gmwm.cli.commands.fleet import register as _register_fleet
+
+    _register_fleet(sub, _Formatter)
     return parser
 
 
@@ -624,7 +627,8 @@ def check_args(args: argparse.Namespace) -> None:
         raise UsageError(f"--plot {plot}: use a .png, .pdf or .svg file name")
     for opt in ("plot", "output"):
         path = getattr(args, opt, None)
-        if path and Path(path).is_dir() and not (args.command == "report" and opt == "output"):
+        if path and Path(path).is_dir() and not (args.command in ("report", "fleet")
+                                                  and opt == "output"):
             raise InputError(f"--{opt} {path} is a directory: give a file name")
     if args.command == "report" and Path(args.output).exists() and not Path(args.output).is_dir():
         raise InputError(f"--output {args.output} exists and is not a directory")

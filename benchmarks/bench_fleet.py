@@ -1,0 +1,163 @@
+"""The fleet table's statistics by simulation (gmwm.fleet.core), and its time at scale.
+
+    python benchmarks/bench_fleet.py [--reps 2000] [--seed 1] [--table-units 10000] [--json F]
+
+Coverage. Fleets of ``k`` units drawn from the random-effects model on the log scale:
+``y_i = mu + u_i + e_i``, ``u_i ~ N(0, tau^2)``, ``e_i ~ N(0, s_i^2)`` with ``s_i`` uniform on
+``[s_lo, s_hi]`` (unequal recording lengths), ``mu = log(1e-4)``. Per design, ``R`` seeded fleets;
+reported: the share whose Q-profile 95 % interval covers the true tau^2 (exact under the model:
+expected 95 %), of the 95 % interval of mu (Paule-Mandel estimate, modified Hartung-Knapp
+interval), and of the 95 % prediction interval for one new unit drawn from the same fleet; each with
+its Monte Carlo SE ``sqrt(p (1 - p) / R)``. The designs include tau = 0 (every lower end is 0, the
+interval covers whenever Q's upper end does).
+
+Overhead (``--overhead N``, off by default): a synthetic fleet of ``N`` static units written by
+``examples/make_fleet.py`` (``--minutes`` each, CSV, six axes), calibrated once by ``gmwm fleet``
+(model WN+RW, ``--cores``) and once by ``N`` separate ``gmwm report`` runs with the same options;
+reported: CPU seconds (user + system of every child process) and wall time of each, and their
+ratio per recording (the fleet's includes Snakemake and the table job).
+
+Scale. :func:`gmwm.fleet.core.fleet_table` for ``--table-units`` units x 1 coefficient (the
+whole-fleet band above 500 units, gmwm.fleet.core.LOO_MAX_UNITS) and for 500 units (leave-one-out
+band): CPU seconds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+
+import numpy as np
+
+from gmwm.fleet.core import Estimate, fleet_table, q_profile_tau2, random_effects
+
+DESIGNS = [  # (k units, tau, s_lo, s_hi)
+    (5, 0.3, 0.02, 0.2),
+    (10, 0.3, 0.02, 0.2),
+    (30, 0.3, 0.02, 0.2),
+    (10, 0.05, 0.02, 0.2),
+    (10, 0.0, 0.02, 0.2),
+    (100, 0.2, 0.01, 0.1),
+]
+
+
+def coverage(k: int, tau: float, s_lo: float, s_hi: float, reps: int, seed: int
+             ) -> dict[str, float]:
+    rng = np.random.default_rng([seed, k, int(tau * 1000)])
+    mu = math.log(1e-4)
+    hit_tau = hit_mu = hit_pi = 0
+    for _ in range(reps):
+        s = rng.uniform(s_lo, s_hi, k)
+        y = mu + rng.normal(0.0, tau, k) + rng.normal(0.0, s)
+        lo, hi = q_profile_tau2(y, s ** 2)
+        hit_tau += lo <= tau ** 2 <= hi
+        re = random_effects(y, s ** 2, "pm")
+        hit_mu += re.ci_mu[0] <= mu <= re.ci_mu[1]
+        new = mu + rng.normal(0.0, tau)  # a new unit's true log value
+        pi = re.pi
+        hit_pi += pi[0] <= new <= pi[1]
+    out = {}
+    for name, h in (("tau2_qprofile", hit_tau), ("mu", hit_mu), ("prediction", hit_pi)):
+        p = h / reps
+        out[name] = p
+        out[name + "_mcse"] = math.sqrt(p * (1 - p) / reps)
+    return out
+
+
+def table_time(n_units: int, seed: int) -> float:
+    rng = np.random.default_rng(seed)
+    vals = 1e-4 * np.exp(rng.normal(0, 0.2, n_units))
+    ests = [Estimate(f"u{i}", "r", "gx.noise_density", float(v), (v / 1.1, v * 1.1))
+            for i, v in enumerate(vals)]
+    t0 = time.process_time()
+    fleet_table(ests)
+    return time.process_time() - t0
+
+
+def overhead(n_units: int, minutes: float, cores: int) -> dict[str, float]:
+    import os
+    import resource
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    env = dict(os.environ, MPLBACKEND="Agg")
+    env["PYTHONPATH"] = os.pathsep.join([str(root / "src"), env.get("PYTHONPATH", "")])
+    opts = ["WN+RW", "--columns", "all", "--units", "gx,gy,gz=rad/s", "--units",
+            "ax,ay,az=m/s^2"]
+
+    def cpu() -> float:
+        r = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return r.ru_utime + r.ru_stime
+
+    with tempfile.TemporaryDirectory() as tmp:
+        d = Path(tmp)
+        subprocess.run([sys.executable, str(root / "examples" / "make_fleet.py"), str(d / "in"),
+                        "--units", str(n_units), "--minutes", str(minutes), "--odd", "0",
+                        "--dated", "0", "--corrupt", "0"], check=True, env=env,
+                       capture_output=True)
+        (d / "in" / "moved_2026-01-05.csv").unlink()
+        files = sorted((d / "in").glob("*.csv"))
+        c0, t0 = cpu(), time.perf_counter()
+        subprocess.run([sys.executable, "-m", "gmwm", "fleet", str(d / "in"), "-o",
+                        str(d / "fleet"), "--model", *opts, "--cores", str(cores), "-q"],
+                       check=True, env=env, capture_output=True)
+        fleet_cpu, fleet_wall = cpu() - c0, time.perf_counter() - t0
+        c0, t0 = cpu(), time.perf_counter()
+        for f in files:
+            subprocess.run([sys.executable, "-m", "gmwm", "report", str(f), *opts, "-o",
+                            str(d / "rep" / f.stem), "--segment", "longest-static",
+                            "--export", "kalibr,json", "-q"], check=True, env=env,
+                           capture_output=True)
+        rep_cpu, rep_wall = cpu() - c0, time.perf_counter() - t0
+    n = len(files)
+    return {"recordings": n, "fleet_cpu_s": fleet_cpu, "fleet_wall_s": fleet_wall,
+            "reports_cpu_s": rep_cpu, "reports_wall_s": rep_wall,
+            "cpu_ratio": fleet_cpu / rep_cpu}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--reps", type=int, default=2000)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--table-units", type=int, default=10000)
+    ap.add_argument("--overhead", type=int, default=0, metavar="N",
+                    help="also time a fleet of N units against N gmwm report runs")
+    ap.add_argument("--minutes", type=float, default=5.0)
+    ap.add_argument("--cores", type=int, default=2)
+    ap.add_argument("--json", default=None, help="also write the numbers to this JSON file")
+    a = ap.parse_args()
+    rows = []
+    print(f"coverage of nominal 95 % intervals, R = {a.reps} fleets per design (MC SE)")
+    print(f"{'k':>4} {'tau':>5} {'s range':>12} {'tau2 Q-prof':>14} {'mu (mod. HK)':>14} "
+          f"{'prediction':>14}")
+    for k, tau, lo, hi in DESIGNS:
+        c = coverage(k, tau, lo, hi, a.reps, a.seed)
+        rows.append({"k": k, "tau": tau, "s_lo": lo, "s_hi": hi, **c})
+        print(f"{k:4d} {tau:5.2f} {lo:5.2f}-{hi:<5.2f} "
+              + " ".join(f"{c[n]:7.3f} ({c[n + '_mcse']:.3f})"
+                         for n in ("tau2_qprofile", "mu", "prediction")))
+    t_big = table_time(a.table_units, a.seed)
+    t_loo = table_time(500, a.seed)
+    print(f"fleet_table CPU: {a.table_units} units {t_big:.2f} s (whole-fleet band); "
+          f"500 units {t_loo:.2f} s (leave-one-out band)")
+    over = None
+    if a.overhead:
+        over = overhead(a.overhead, a.minutes, a.cores)
+        print(f"overhead: {over['recordings']} recordings, gmwm fleet {over['fleet_cpu_s']:.1f} "
+              f"CPU s ({over['fleet_wall_s']:.1f} s wall, {a.cores} cores) vs gmwm report "
+              f"{over['reports_cpu_s']:.1f} CPU s ({over['reports_wall_s']:.1f} s wall, serial):"
+              f" {over['cpu_ratio']:.2f}x CPU per recording")
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump({"reps": a.reps, "seed": a.seed, "coverage": rows,
+                       "table_seconds": {str(a.table_units): t_big, "500": t_loo},
+                       "overhead": over}, fh, indent=2)
+
+
+if __name__ == "__main__":
+    main()
