@@ -194,17 +194,18 @@ def test_slurm_profile_plans_grouped_jobs(fleet):
 
 
 def test_static_stretch_of_a_log_that_moved(tmp_path):
+    from gmwm.fleet.job import report
     from gmwm.fleet.run import FleetSettings, calibrate_recording
 
     s = FleetSettings(model="WN+RW", columns="gx,gy", units=("rad/s",))
     moved = write_recording(tmp_path / "m.csv", 1e-4, seed=7, moving_from=12000)
-    st = calibrate_recording(moved, tmp_path / "m", s)
+    st = calibrate_recording(moved, tmp_path / "m", s, report=report)
     assert st["ok"] and st["used"] == "longest static segment"
     assert 100 < st["used_s"] < 120  # the static start, not the 200 s recording
     # 2 minutes of white noise cannot identify a random walk: said per axis
     assert st["not_identifiable"]["gx"] == {"WN": False, "RW": True}
     short = write_recording(tmp_path / "s.csv", 1e-4, seed=8, moving_from=4000)
-    st = calibrate_recording(short, tmp_path / "s", s)
+    st = calibrate_recording(short, tmp_path / "s", s, report=report)
     assert not st["ok"]
     assert re.fullmatch(r"the longest static stretch lasts \d+\.\d s, shorter than the "
                         r"fleet's minimum of 60 s", st["reason"])

@@ -12,7 +12,21 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-__all__ = ["main"]
+__all__ = ["main", "report"]
+
+
+def report(argv: list[str]) -> tuple[int, str, str]:
+    """``gmwm report`` in this process: (exit status, stdout, stderr). The job is the layer above
+    the command line (nothing imports this module: Snakemake runs it)."""
+    import contextlib
+    import io
+
+    from gmwm.cli import main as cli_main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = cli_main(argv)
+    return code, out.getvalue(), err.getvalue()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -34,7 +48,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         rec = cfg["recordings"][args.key]
         try:
-            calibrate_recording(rec["path"], out / "units" / args.key, settings,
+            calibrate_recording(rec["path"], out / "units" / args.key, settings, report=report,
                                 topic=rec["topic"], datasheet=rec["datasheet"],
                                 content=rec["sha256"])
         except Exception as exc:  # noqa: BLE001 (a bug must not block the table: listed instead)

@@ -20,18 +20,16 @@ dead run are removed under an OS lock, as workflow/rules/runlock.smk does for th
 
 from __future__ import annotations
 
-import contextlib
 import datetime as _dt
 import fcntl
 import hashlib
-import io
 import json
 import os
 import shutil
 import subprocess
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -101,17 +99,6 @@ class FleetSettings:
 # --------------------------------------------------------------------------------------------------
 
 
-def _report(argv: list[str]) -> tuple[int, str, str]:
-    """The interim single call: ``gmwm report`` in this process; (exit status, stdout, stderr).
-    To be replaced by the library function of gmwm.calibrate once it exists."""
-    from gmwm.cli import main
-
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(argv)
-    return code, out.getvalue(), err.getvalue()
-
-
 def _not_identifiable(fits: Mapping[str, Any], notes: list[str]) -> dict[str, dict[str, bool]]:
     """Per axis, per component (WN, RW, ...): True where the ``gmwm plan`` rule at the fitted
     values and the length used says the term is not identifiable. An axis the rule cannot be
@@ -137,18 +124,21 @@ def _not_identifiable(fits: Mapping[str, Any], notes: list[str]) -> dict[str, di
 
 
 def calibrate_recording(path: str | Path, outdir: str | Path, settings: FleetSettings, *,
+                        report: Callable[[list[str]], tuple[int, str, str]],
                         topic: str | None = None, datasheet: str | None = None,
                         content: str | None = None) -> dict[str, Any]:
     """Calibrate one recording into ``outdir`` exactly as ``gmwm report`` would (same defaults,
     same refusals; the longest static stretch), then judge what the fleet can use: ``ok``, the
     exit status, a one-line ``reason`` when not ok, the length used and, per axis, the terms the
-    ``gmwm plan`` rule finds not identifiable at that length. Writes ``report.json`` and, last
+    ``gmwm plan`` rule finds not identifiable at that length. ``report(argv)`` runs ``gmwm
+    report`` and returns (exit status, stdout, stderr) (:func:`gmwm.fleet.job.report`: the job
+    layer calls the command line; this module sits below it). Writes ``report.json`` and, last
     (so a killed job leaves none), ``status.json``; returns the status."""
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     argv = settings.report_argv(str(path), str(outdir), topic, datasheet)
-    code, out, err = _report(argv)
+    code, out, err = report(argv)
     lines = [ln for ln in err.splitlines() if ln.strip()]
     errors = [ln.removeprefix("gmwm: error: ") for ln in lines if ln.startswith("gmwm: error:")]
     status: dict[str, Any] = {"ok": False, "exit_status": code, "reason": "",
