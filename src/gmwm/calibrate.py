@@ -40,6 +40,12 @@ __all__ = ["AUTO", "MIN_STATIC_SAMPLES", "AxisCalibration", "CalibrationResult",
 AUTO = "auto"
 #: the shortest static stretch ``segment="longest-static"`` accepts [samples]
 MIN_STATIC_SAMPLES = 64
+#: largest share of the samples used that flagged motion may take and still be excluded (the
+#: estimate then pools the clean parts); beyond it no configuration is written
+MOTION_SHARE = 0.05
+#: padding of each flagged range on both sides before it is excluded [s] (the tests locate a
+#: change to within their window; the shortest windows are ~0.1-1 s)
+MOTION_PAD_S = 1.0
 
 
 def available_cores() -> int:
@@ -200,6 +206,14 @@ class Prepared:
     timing: tuple[str, ...] | None = None
     messages: tuple[str, ...] = ()
     topic: str | None = None
+    #: why no configuration may be written (gmwm.verdict: motion beyond the excluded share, an
+    #: ambiguous rate), and what the configuration files must say (motion excluded or allowed)
+    refusals: tuple[str, ...] = ()
+    caveats: tuple[str, ...] = ()
+    #: samples the estimate uses (after gaps and excluded motion); None: not known (a table)
+    n_used: int | None = None
+    #: the flagged motion was left out of the estimate (the axes' warnings say so)
+    motion_excluded: bool = False
 
     @property
     def rostopic(self) -> str | None:
@@ -214,10 +228,101 @@ class Prepared:
         return "" if rec is None else f"{rec.format}, {rec.n} samples"
 
 
+def _motion(st: Any, i0: int, i1: int, freq: float | None, share_max: float,
+            allow: bool) -> tuple[list[tuple[int, int]], list[str], list[str]]:
+    """The flagged ranges of ``[i0, i1)`` to exclude (padded by :data:`MOTION_PAD_S`, merged;
+    relative to ``i0``), the refusals and the caveats of the motion policy (docs/recordings.md):
+    a share up to ``share_max`` is excluded; beyond it the configuration is refused, naming the
+    longest static segment, unless ``allow`` (then the caveat says the values describe motion)."""
+    from gmwm.formatting import spans
+
+    segs = st.segments_in(i0, i1)
+    if not segs:
+        return [], [], []
+    pad = round(MOTION_PAD_S * freq) if freq else 0
+    ranges: list[tuple[int, int]] = []
+    for seg in sorted(segs, key=lambda s: s.i0):
+        a, b = max(i0, seg.i0 - pad), min(i1, seg.i1 + pad)
+        if ranges and a <= ranges[-1][1]:
+            ranges[-1] = (ranges[-1][0], max(ranges[-1][1], b))
+        else:
+            ranges.append((a, b))
+    n = max(i1 - i0, 1)
+    share = sum(b - a for a, b in ranges) / n
+    where = spans(st, segs)
+    if allow:
+        return [], [], [(f"the recording MOVED: {100 * share:.3g} % of the samples used are "
+                        f"flagged as motion ({where}); written anyway (allow_motion): these "
+                        "values describe the motion, not the sensor at rest")]
+    if share > share_max:
+        a, b = st.clean_segment(i0, i1)
+        longest = ("no static stretch" if b <= a else
+                   f"the longest static segment is {st.span(st.time_at(a), st.time_at(b))} "
+                   f"({(st.time_at(b) - st.time_at(a)):.4g}{' s' if st.freq else ' samples'}, {b - a} "
+                   "samples): calibrate it with `segment` longest-static")
+        return [], [(f"the recording moved: {100 * share:.3g} % of the samples used are flagged "
+                    f"as motion ({where}), more than the {100 * share_max:g} % that may be "
+                    f"excluded; {longest} (or give `allow_motion`)")], []
+    excluded = [(a - i0, b - i0) for a, b in ranges]
+    return excluded, [], [(f"motion excluded: {100 * share:.3g} % of the samples used "
+                          f"({where}, padded by {MOTION_PAD_S:g} s) are flagged as moving and "
+                          "left out; the estimate pools the clean parts")]
+
+
+#: largest |mean| of a static gyroscope axis that a real bias explains [rad/s] (20 deg/s: MEMS
+#: biases are up to a few deg/s); beyond it the unit is suspect (deg/s read as rad/s: x 57.3)
+MAX_STATIC_GYRO_MEAN = 0.35
+
+
+def _unit_caveats(rec: Any, units: Mapping[str, str]) -> list[str]:
+    """Unit mix-ups a static recording shows: a gyroscope axis whose mean is beyond any bias
+    (:data:`MAX_STATIC_GYRO_MEAN`), named with the likely cause."""
+    from gmwm.units import unit_system
+
+    out = []
+    for c, u in units.items():
+        us = unit_system(u or None)
+        if us.sensor != "gyroscope" or not us.si or c not in rec.channels:
+            continue
+        x = np.asarray(rec.channels[c], float)
+        m = float(np.nanmean(x)) * us.si if x.size else 0.0
+        if abs(m) > MAX_STATIC_GYRO_MEAN:
+            out.append(f"{c}: the static gyroscope reads {m:.3g} rad/s on average "
+                       f"({np.degrees(m):.3g} deg/s), beyond any bias (> "
+                       f"{MAX_STATIC_GYRO_MEAN:g} rad/s): check its unit (`units`); deg/s read as "
+                       "rad/s would make every coefficient 57.3x too large")
+    return out
+
+
+def _without(decision: Any, excluded: Sequence[tuple[int, int]], min_len: int = 4) -> Any:
+    """The gap decision ``decision`` with the ``excluded`` sample ranges also left out: its
+    segments cut around them and pooled (policy 'combine')."""
+    from gmwm.readers.timebase import GapDecision
+
+    if not excluded:
+        return decision
+    out: list[tuple[int, int]] = []
+    for a, b in decision.segments:
+        start = a
+        for ea, eb in excluded:
+            if eb <= start or ea >= b:
+                continue
+            if ea - start >= min_len:
+                out.append((start, ea))
+            start = max(start, eb)
+        if b - start >= min_len:
+            out.append((start, b))
+    if not out:
+        raise InputError("nothing is left once the flagged motion is excluded")
+    used = sum(b - a for a, b in out)
+    return GapDecision("combine", tuple(out), used, decision.n, decision.message)
+
+
 def prepare(rec: Any, *, units: str | Sequence[str] | Mapping[str, str | None] | None = None,
             levels: int | None = None, gaps: str = "auto", start_s: float | None = None,
             end_s: float | None = None, segment: str = "all", strict: bool = False,
-            require_time: str | None = None, where: str | None = None) -> Prepared:
+            require_time: str | None = None, where: str | None = None,
+            motion_share: float = MOTION_SHARE, allow_motion: bool = False) -> Prepared:
     """The stationarity check, the part used and the fit inputs of one recording
     (:class:`gmwm.readers.Recording`).
 
@@ -226,7 +331,10 @@ def prepare(rec: Any, *, units: str | Sequence[str] | Mapping[str, str | None] |
     (:meth:`gmwm.readers.recording.Recording.gaps`); ``start_s``/``end_s``: the part to use,
     seconds since the first sample; ``segment``, ``strict``: as :func:`choose_part`;
     ``require_time``: what needs the rate (a recording without stamps or rate is then an error;
-    so it is when a channel has a unit, never 1 Hz); ``where``: the input's name in messages."""
+    so it is when a channel has a unit, never 1 Hz); ``where``: the input's name in messages.
+    ``motion_share``, ``allow_motion``: the motion policy (:func:`_motion`): flagged ranges up to
+    that share of the part used are excluded like gaps; beyond it the :class:`Prepared` carries a
+    refusal (no configuration file), unless ``allow_motion``."""
     from gmwm.readers.recording import sample_range, select_samples
     from gmwm.readers.timebase import signal_for_wv
     from gmwm.stationarity import check_stationarity
@@ -246,10 +354,25 @@ def prepare(rec: Any, *, units: str | Sequence[str] | Mapping[str, str | None] |
         sample_range(rec, start_s, end_s)
     st, i0, i1 = choose_part(st, i0, i1, segment=segment, strict=strict, where=where)
     messages += part_messages(st)
+    if not 0 <= motion_share < 1:
+        raise InputError(f"`motion_share` must lie in [0, 1), got {motion_share}")
+    excluded, refusals, caveats = _motion(st, i0, i1, freq if rec.time is not None else None,
+                                          motion_share, allow_motion)
+    if excluded:  # the stationarity warning's "the estimate includes them" no longer holds
+        messages = [m.split("; the estimate uses")[0] + "; they are excluded from the estimate"
+                    if "turns motion into noise" in m else m for m in messages]
     used = rec if (i0, i1) == (0, rec.n) else select_samples(rec, i0, i1)
     decision = used.gaps(gaps)
     if decision.message:
         messages.append(f"warning: {decision.message}")
+    decision = _without(decision, excluded)
+    units_bad = _unit_caveats(used, u)
+    messages += [f"note: {c}" for c in caveats] + [f"warning: {c}" for c in units_bad]
+    caveats += units_bad
+    ambiguous = getattr(used, "rate_ambiguity", None)  # None once `freq` settled it
+    if ambiguous and gaps == "auto":
+        refusals.append(f"{ambiguous}: no configuration's `update_rate` can be trusted; give "
+                        "`freq` with the rate to assume, or a `gaps` policy")
     timing = None
     if used.time is not None:
         timing = [f"Recording ({used.format}{', topic ' + used.topic if used.topic else ''}): "
@@ -259,7 +382,9 @@ def prepare(rec: Any, *, units: str | Sequence[str] | Mapping[str, str | None] |
             timing.append(decision.message)
     data = {c: signal_for_wv(x, decision, levels, freq) for c, x in used.channels.items()}
     return Prepared(data, freq, u, used, st, decision, timing=None if timing is None
-                    else tuple(timing), messages=tuple(messages), topic=rec.topic)
+                    else tuple(timing), messages=tuple(messages), topic=rec.topic,
+                    refusals=tuple(refusals), caveats=tuple(caveats), n_used=decision.used,
+                    motion_excluded=bool(excluded))
 
 
 # -- results --------------------------------------------------------------------------------------
@@ -316,6 +441,8 @@ class TopicCalibration:
     label: str = ""
     messages: tuple[str, ...] = ()
     error: BaseException | None = field(default=None, repr=False, compare=False)
+    #: what happens to the configuration files (:class:`gmwm.verdict.Verdict`)
+    verdict: Any = None
 
     @property
     def ok(self) -> bool:
@@ -557,9 +684,9 @@ def _fit_job(job: _Job, progress: Callable[[str], None] | None = None
     return res, choice, drawn, page
 
 
-def _axis_warnings(res: Any, st: Any, channel: str) -> list[str]:
+def _axis_warnings(res: Any, st: Any, channel: str, excluded: bool = False) -> list[str]:
     """The fit's warnings (less the non-convergence one) and, when the part used moved in this
-    channel, where."""
+    channel, where (and whether that motion was ``excluded`` from the estimate)."""
     from gmwm.formatting import fit_warnings, spans
 
     found = fit_warnings(res)
@@ -568,7 +695,8 @@ def _axis_warnings(res: Any, st: Any, channel: str) -> list[str]:
         segs = [s for s in st.segments_in(a, b) if channel in s.channels]
         if segs:
             found.append(f"not static in {spans(st, segs, more='more ranges')} (see "
-                         "Stationarity): the coefficients include that motion")
+                         "Stationarity): " + ("excluded from the estimate" if excluded else
+                                              "the coefficients include that motion"))
     return found
 
 
@@ -634,7 +762,8 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
               workers: int | None = None, worker_kind: str = "process",
               require_time: str | None = "a calibration report",
               name: str | None = None, progress: Callable[[str], None] | None = None,
-              while_waiting: Callable[[Mapping[str, Prepared]], None] | None = None
+              while_waiting: Callable[[Mapping[str, Prepared]], None] | None = None,
+              motion_share: float = MOTION_SHARE, allow_motion: bool = False
               ) -> CalibrationResult:
     """Calibrate the IMU(s) of ``source``: a file path, a :class:`gmwm.readers.Recording`, a
     :class:`Prepared` input, or a mapping topic -> either (several IMUs).
@@ -665,7 +794,13 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
     kept as ``status="failed"`` with its one-line ``reason`` while the others are calibrated; the
     error itself is raised when there is only one topic, and an :class:`InputError` listing the
     reasons when every topic failed. Wrong settings (a model string, a unit, ``fit`` options) are
-    errors before any fit."""
+    errors before any fit.
+
+    Each calibrated topic carries its :attr:`TopicCalibration.verdict`
+    (:class:`gmwm.verdict.Verdict`): whether its configuration files may be written and the
+    caveats their first lines must carry. ``motion_share``/``allow_motion``: the motion policy
+    of :func:`prepare` (flagged motion up to that share excluded; beyond it no configuration
+    unless ``allow_motion``)."""
     from gmwm.readers.recording import Recording
     from gmwm.settings import FitSettings
 
@@ -728,7 +863,8 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
             prep = prepare(item, units=units.get(topic) if multi_units else units,
                            levels=levels, gaps=gaps, start_s=start_s, end_s=end_s,
                            segment=segment, strict=strict, require_time=require_time,
-                           where=f"{label} topic {topic}" if several else label)
+                           where=f"{label} topic {topic}" if several else label,
+                           motion_share=motion_share, allow_motion=allow_motion)
         except _TOPIC_ERRORS as exc:
             if not several:
                 raise
@@ -786,11 +922,11 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
                                           messages=p.messages)
             tell(topic, f"warning: not calibrated: {_reason(bad)}")
             continue
-        out[topic] = TopicCalibration(topic, "calibrated",
-                                      _axes(p, got, sheet, check, say), freq=p.freq,
+        axes = _axes(p, got, sheet, check, say)
+        out[topic] = TopicCalibration(topic, "calibrated", axes, freq=p.freq,
                                       timing=p.timing, stationarity=p.stationarity,
                                       gaps=p.gaps, rostopic=p.rostopic, label=p.label,
-                                      messages=p.messages)
+                                      messages=p.messages, verdict=_verdict(p, axes))
     result = CalibrationResult(label, out, several)
     if not result.calibrated:
         fails = result.failed
@@ -881,6 +1017,21 @@ def _run_jobs(jobs: Sequence[_Job], *, several: bool, workers: int | None, kind:
     return out
 
 
+def _verdict(p: Prepared, axes: Mapping[str, AxisCalibration]) -> Any:
+    """The configuration verdict of one topic (:func:`gmwm.verdict.decide`)."""
+    from gmwm.units import unit_system
+    from gmwm.verdict import decide
+
+    n = p.n_used
+    if n is None:  # a WV table or a streamed input: the length the WVs were computed on
+        n = min((int(getattr(a.result.wv, "n_samples", 0)) for a in axes.values()), default=0)
+    systems = {c: unit_system(a.units or None) for c, a in axes.items()}
+    return decide({c: a.choice if a.choice is not None else a.result for c, a in axes.items()},
+                  n_samples=n, kinds={c: u.sensor for c, u in systems.items()},
+                  to_si={c: u.si or 1.0 for c, u in systems.items()},
+                  refusals=p.refusals, caveats=p.caveats)
+
+
 def _axes(p: Prepared, got: Mapping[str, Any], sheet: Any, check: bool,
           progress: Callable[[str], None]) -> dict[str, AxisCalibration]:
     """The axes of one prepared topic from its fits."""
@@ -907,7 +1058,8 @@ def _axes(p: Prepared, got: Mapping[str, Any], sheet: Any, check: bool,
 
                 verdict = judge(res, sheet, unit)
         axes[c] = AxisCalibration(res, unit, page.get("datasheet") or datasheet(res, unit or None),
-                                  tuple(_axis_warnings(res, p.stationarity, c)), choice,
+                                  tuple(_axis_warnings(res, p.stationarity, c,
+                                                       p.motion_excluded)), choice,
                                   page.get("readings"), verdict, chk, tuple(files))
     return axes
 

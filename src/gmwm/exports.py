@@ -36,7 +36,7 @@ import json
 import math
 import os
 import re
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -62,7 +62,9 @@ AXIS_RULES = {
             "its interval from the axes' interval ends, conservative)"),
 }
 FLAG_TEXT = {"boundary": "at the boundary 0 (the fit puts this term at 0)",
-             "weak": "not distinguishable from zero (estimate below 1.96 standard errors)"}
+             "weak": "not distinguishable from zero (estimate below 1.96 standard errors)",
+             "unidentified": "not identifiable at this length (its predicted 95 % interval at "
+                             "the fitted values includes 0: gmwm plan)"}
 _ROS_NAME = re.compile(r"^[~/]?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
 
 
@@ -299,7 +301,8 @@ def noise_export(per_axis: Mapping[str, tuple[str | None, Any]],
                  readings: Mapping[str, Mapping[str, Any] | None] | None = None,
                  source: str | None = None,
                  datasheets: Mapping[str, Mapping[str, Any] | None] | None = None,
-                 caveats: Sequence[str] = ()) -> NoiseExport:
+                 caveats: Sequence[str] = (),
+                 unidentified: Mapping[str, Collection[str]] | None = None) -> NoiseExport:
     """Build the noise representation from per-axis fits.
 
     ``per_axis[axis] = (unit, result)``: the signal unit (its sensor role and SI factor from
@@ -313,7 +316,9 @@ def noise_export(per_axis: Mapping[str, tuple[str | None, Any]],
     :func:`gmwm.datasheet.allan_readings` (computed from the fit's WV when not given; their bias
     instability goes into the comments). ``datasheets[axis]``: that fit's
     :func:`gmwm.datasheet.datasheet` in ``unit`` (computed when not given). ``caveats``: lines
-    every file starts with (:attr:`gmwm.verdict.Verdict.caveats`).
+    every file starts with (:attr:`gmwm.verdict.Verdict.caveats`); ``unidentified[axis]``: the
+    components not identifiable at the length used (:attr:`gmwm.verdict.Verdict.unidentified`),
+    flagged and written like a term not distinguishable from 0 (its 95 % upper bound).
     """
     if rule not in AXIS_RULES:
         raise InputError(f"unknown axis rule {rule!r}; use one of {', '.join(AXIS_RULES)}")
@@ -338,7 +343,8 @@ def noise_export(per_axis: Mapping[str, tuple[str | None, Any]],
             continue
         got = None if readings is None else readings.get(name)
         ds = None if datasheets is None else datasheets.get(name)
-        axes[name] = _axis(name, unit, parsed[2], res, got, ds)
+        axes[name] = _axis(name, unit, parsed[2], res, got, ds,
+                           (unidentified or {}).get(name, ()))
     if not axes:
         raise InputError("no axis has a gyroscope or accelerometer unit (deg/s, rad/s, m/s^2, g, "
                          "...): the noise files need one to know the sensor and SI units")
@@ -384,9 +390,11 @@ def _scale_index(result: Any, proc: Any) -> list[tuple[str, int]]:
             if n.startswith(proc.name + "[") and n.endswith("." + key)]
 
 
-def _flag(result: Any, comp: str, i: int) -> str | None:
-    """The fit's own verdict on a scale parameter: at the boundary (vanished, held at 0) or not
-    distinguishable from 0 (the rule behind its "not distinguishable from zero" warning)."""
+def _flag(result: Any, comp: str, i: int, unidentified: Collection[str] = ()) -> str | None:
+    """The fit's own verdict on a scale parameter: at the boundary (vanished, held at 0), not
+    distinguishable from 0 (the rule behind its "not distinguishable from zero" warning), or
+    not identifiable at the length used (``unidentified``: components named by
+    :func:`gmwm.verdict.identifiability`)."""
     from gmwm.diagnostics import is_weak
 
     theta = float(np.asarray(result.params, float)[i])
@@ -396,7 +404,7 @@ def _flag(result: Any, comp: str, i: int) -> str | None:
     se = getattr(result, "se", None)
     if se is not None and bool(is_weak(np.array([theta]), np.array([np.asarray(se, float)[i]]))[0]):
         return "weak"
-    return None
+    return "unidentified" if comp in unidentified else None
 
 
 def _param_interval(result: Any, i: int) -> tuple[float, float] | None:
@@ -412,7 +420,7 @@ def _param_interval(result: Any, i: int) -> tuple[float, float] | None:
 
 
 def _axis(name: str, unit: str, sensor: str, result: Any, readings: Mapping[str, Any] | None,
-          ds: Mapping[str, Any] | None = None) -> AxisNoise:
+          ds: Mapping[str, Any] | None = None, unidentified: Collection[str] = ()) -> AxisNoise:
     us = unit_system(unit)
     freq = float(result.wv.freq)
     if ds is None:
@@ -426,7 +434,8 @@ def _axis(name: str, unit: str, sensor: str, result: Any, readings: Mapping[str,
         keys = [k for k in ds if k.split("[")[0] == label]
         used_keys.update(keys)
         terms[term] = _axis_term(result, comps, [ds[k] for k in keys], us.si / to_si,
-                                 lambda p, c=proc.coefficient: us.si * c(p, freq), proc.name)
+                                 lambda p, c=proc.coefficient: us.si * c(p, freq), proc.name,
+                                 unidentified)
     terms["noise_density"] = _fold_fast_terms(terms["noise_density"], result, us.si)
     others, extra = _other_terms(ds, used_keys, us, result, unit, readings)
     model = getattr(getattr(result, "model", None), "spec", None) or "+".join(
@@ -460,7 +469,8 @@ def _fold_fast_terms(term: AxisTerm, result: Any, si: float) -> AxisTerm:
 
 
 def _axis_term(result: Any, comps: list[tuple[str, int]], entries: list[dict], to_si: float,
-               param_to_si: Callable[[float], float], prefix: str) -> AxisTerm:
+               param_to_si: Callable[[float], float], prefix: str,
+               unidentified: Collection[str] = ()) -> AxisTerm:
     if not comps:
         return AxisTerm(None, None, None, None, f"the model has no {prefix} component")
     values, los, his, flags = [], [], [], []
@@ -478,7 +488,7 @@ def _axis_term(result: Any, comps: list[tuple[str, int]], entries: list[dict], t
         values.append(v)
         los.append(lo)
         his.append(hi)
-        flags.append(_flag(result, comp, i))
+        flags.append(_flag(result, comp, i, unidentified))
     # several components of one kind add their variances (independent white noises / walks)
     est = math.sqrt(sum(v * v for v in values))
     ci = None if any(c is None for c in (*los, *his)) else (

@@ -310,7 +310,7 @@ def _freq(axes: Mapping[str, Mapping[str, Any]], where: str = "the report") -> f
 
 
 def _export(axes: Mapping[str, Mapping[str, Any]], freq: float, topic: str | None,
-            inflation: Any, source: str) -> Any:
+            inflation: Any, source: str, verdict: Any = None) -> Any:
     """The noise export of the axes with a sensor unit (None: no axis has one)."""
     from gmwm.exports import noise_export
 
@@ -320,12 +320,30 @@ def _export(axes: Mapping[str, Mapping[str, Any]], freq: float, topic: str | Non
     return noise_export({n: (a["units"], a["result"]) for n, a in axes.items()}, freq,
                         topic=topic, inflation=inflation, source=source,
                         datasheets={n: a.get("datasheet") for n, a in axes.items()},
-                        readings={n: a.get("readings") for n, a in axes.items()})
+                        readings={n: a.get("readings") for n, a in axes.items()},
+                        caveats=() if verdict is None else verdict.caveats,
+                        unidentified=None if verdict is None else verdict.unidentified)
+
+
+def _verdict_lines(verdict: Any) -> tuple[list[str], list[str]]:
+    """The verdict block at the top of a report (Markdown, HTML): the verdict line, then its
+    caveats (what every configuration file also starts with)."""
+    if verdict is None:
+        return [], []
+    md = [f"> **{verdict.line()}**", *([">"] if verdict.caveats else []),
+          *(f"> - {c}" for c in verdict.caveats), ""]
+    colour = "#D55E00" if not verdict.written else ("#E69F00" if verdict.caveats else "#009E73")
+    items = "".join(f"<li>{html.escape(c)}</li>" for c in verdict.caveats)
+    body = [f'<div style="border-left:4px solid {colour};padding-left:8px"><p><strong>'
+            f"{html.escape(verdict.line())}</strong></p>" + (f"<ul>{items}</ul>" if items else "")
+            + "</div>"]
+    return md, body
 
 
 def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
                  timing: Sequence[str] | None, stationarity: Any, lv: int = 2, prefix: str = "",
-                 config_dir: str | None = None) -> tuple[list[str], list[str], list[_Figure]]:
+                 config_dir: str | None = None, refused: Sequence[str] = ()
+                 ) -> tuple[list[str], list[str], list[_Figure]]:
     """Markdown lines, HTML parts and figures (to draw, :func:`_render`) of one IMU: the
     not-static warning, time base, stationarity, summary, one part per axis and the Kalibr block;
     headings of level ``lv``, figure names starting with ``prefix``; ``config_dir`` the folder of
@@ -423,7 +441,11 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
         else:
             md += ["No warnings.", ""]
             body += ["<p>No warnings.</p>"]
-    if exp is not None:
+    if refused:
+        why = "No filter configuration file written: " + "; ".join(refused) + "."
+        md += [f"{h} Noise densities", "", f"**{why}**", ""]
+        body += [f"<h{lv}>Noise densities</h{lv}>", f"<p><strong>{html.escape(why)}</strong></p>"]
+    elif exp is not None:
         yaml = kalibr_text(exp).rstrip("\n")
         md += [f"{h} Noise densities (Kalibr imu.yaml)", ""]
         body += [f"<h{lv}>Noise densities (Kalibr imu.yaml)</h{lv}>"]
@@ -459,7 +481,8 @@ _INTRO = ("Coefficients are continuous-time datasheet values with 95 % intervals
 def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]], *, source: str,
                  title: str, timing: Sequence[str] | None = None, stationarity: Any = None,
                  topic: str | None = None, targets: str | Sequence[str] = ("kalibr",),
-                 inflation: Any = None, drawn: Sequence[str | os.PathLike] = ()) -> list[Path]:
+                 inflation: Any = None, drawn: Sequence[str | os.PathLike] = (),
+                 verdict: Any = None) -> list[Path]:
     """Write ``report.md``, ``report.html``, the filter configuration files of ``targets``
     (:func:`gmwm.exports.parse_targets`; default the Kalibr ``imu.yaml``) and one
     ``<axis>_wv.png`` per axis to ``outdir``; return the paths.
@@ -476,7 +499,9 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     ``"noise=2,walk=10"`` (:func:`gmwm.exports.parse_inflation`). Without any gyroscope or
     accelerometer unit no configuration file is written and the report says why.
     ``drawn``: figure files already written for this page (:func:`warm_up`), not drawn again.
-    Several IMUs on one page: :func:`write_multi_report`.
+    ``verdict``: a :class:`gmwm.verdict.Verdict`: its line and caveats open the page, the
+    caveats open every configuration file, and a verdict that refuses them leaves them unwritten
+    (the report is written, saying why). Several IMUs on one page: :func:`write_multi_report`.
     """
     from gmwm.atomic import write_text_atomic
     from gmwm.exports import parse_targets, write_exports
@@ -486,20 +511,23 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     freq = _freq(axes)
     # the configuration files' inputs are checked before any file is written
     names = parse_targets(targets)
-    exp = _export(axes, freq, topic, inflation, source)
-    md = [f"# {title}", "",
+    exp = _export(axes, freq, topic, inflation, source, verdict)
+    vmd, vbody = _verdict_lines(verdict)
+    md = [f"# {title}", "", *vmd,
           (f"Input `{source}`, sampling frequency {freq:g} Hz, {len(axes)} axes; "
            f"GMWM fits by gmwm {__version__}. " + _INTRO), ""]
-    body: list[str] = [f"<h1>{html.escape(title)}</h1>",
+    body: list[str] = [f"<h1>{html.escape(title)}</h1>", *vbody,
                        (f"<p>Input <code>{html.escape(source)}</code>, sampling frequency {freq:g} "
                         f"Hz, {len(axes)} axes; GMWM fits by gmwm {html.escape(__version__)}.</p>")]
-    smd, sbody, figures = _imu_section(out, axes, exp, timing=timing, stationarity=stationarity)
+    smd, sbody, figures = _imu_section(
+        out, axes, exp, timing=timing, stationarity=stationarity,
+        refused=() if verdict is None or verdict.written else verdict.reasons)
     written = _render(figures, [Path(p) for p in drawn])
     md += smd
     body += sbody
     written.append(write_text_atomic(out / "report.md", "\n".join(md)))
     written.append(write_text_atomic(out / "report.html", _page(title, body)))
-    if exp is not None and names:
+    if exp is not None and names and (verdict is None or verdict.written):
         written += write_exports(exp, out, names)
     return written
 
@@ -549,19 +577,25 @@ def write_multi_report(outdir: str | os.PathLike, imus: Mapping[str, Any], *,
         sec = next(iter(imus.values()))
         return write_report(outdir, sec.axes, source=source, title=title, timing=sec.timing,
                             stationarity=sec.stationarity, topic=sec.rostopic, targets=targets,
-                            inflation=inflation, drawn=drawn)
+                            inflation=inflation, drawn=drawn,
+                            verdict=getattr(sec, "verdict", None))
     out = report_dir(outdir)
     names = parse_targets(targets)
     folders = imu_folders(list(imus))
     freqs = {t: _freq(sec.axes, f"IMU {t}") for t, sec in done.items()}
-    exps = {t: _export(sec.axes, freqs[t], sec.rostopic, inflation, f"{source} ({t})")
+    verdicts = {t: getattr(sec, "verdict", None) for t, sec in done.items()}
+    exps = {t: _export(sec.axes, freqs[t], sec.rostopic, inflation, f"{source} ({t})",
+                       verdicts[t])
             for t, sec in done.items()}
+    writes = {t: exps[t] is not None and bool(names) and (verdicts[t] is None
+                                                          or verdicts[t].written) for t in done}
     out.mkdir(parents=True, exist_ok=True)
     overview = [(t, sec.label or "–", f"{freqs[t]:g}", len(sec.axes),
                  sum(len(_axis_warnings(a)) for a in sec.axes.values()),
                  "not static" if sec.stationarity is not None and sec.stationarity.moving
                  else "static" if sec.stationarity is not None else "not checked",
-                 f"{folders[t]}/" if exps[t] is not None and names else "–")
+                 f"{folders[t]}/" if writes[t] else "NOT written" if exps[t] is not None
+                 and names else "–")
                 if t in done else
                 (t, f"FAILED: {sec.reason}", "–", 0, "–", "–", "–")
                 for t, sec in imus.items()]
@@ -595,19 +629,22 @@ def write_multi_report(outdir: str | os.PathLike, imus: Mapping[str, Any], *,
                 + ".")
         md += [line, ""]
         body.append(f"<p>{html.escape(line)}</p>")
+        vmd, vbody = _verdict_lines(verdicts[t])
+        md += vmd
+        body += vbody
         smd, sbody, files = _imu_section(
             out, sec.axes, exps[t], timing=sec.timing, stationarity=sec.stationarity, lv=3,
-            prefix=folders[t] + "_", config_dir=folders[t] if names else None)
+            prefix=folders[t] + "_", config_dir=folders[t] if writes[t] else None,
+            refused=() if verdicts[t] is None or verdicts[t].written else verdicts[t].reasons)
         md += smd
         body += sbody
         figures += files
     written = _render(figures, [Path(p) for p in drawn])
     written.append(write_text_atomic(out / "report.md", "\n".join(md)))
     written.append(write_text_atomic(out / "report.html", _page(title, body)))
-    if names:
-        for t, exp in exps.items():
-            if exp is not None:
-                written += write_exports(exp, out / folders[t], names)
+    for t, exp in exps.items():
+        if writes[t]:
+            written += write_exports(exp, out / folders[t], names)
     return written
 
 
@@ -657,6 +694,7 @@ def write_calibration(outdir: str | os.PathLike, result: Any, *, title: str | No
         return write_report(outdir, sec.axes, source=result.source, title=title,
                             timing=sec.timing, stationarity=sec.stationarity,
                             topic=rostopic or sec.rostopic, targets=targets,
-                            inflation=inflation, drawn=drawn)
+                            inflation=inflation, drawn=drawn,
+                            verdict=getattr(sec, "verdict", None))
     return write_multi_report(outdir, topics, source=result.source, title=title,
                               targets=targets, inflation=inflation, drawn=drawn)

@@ -253,6 +253,9 @@ class Verdict:
     reasons: tuple[str, ...] = ()
     caveats: tuple[str, ...] = ()
     notes: tuple[str, ...] = field(default=())
+    #: channel -> {component: length [s] from which it would be identifiable (None: beyond the
+    #: plan's range)} for the components not identifiable at the length used
+    unidentified: Mapping[str, Mapping[str, float | None]] = field(default_factory=dict)
 
     @property
     def written(self) -> bool:
@@ -285,19 +288,24 @@ def decide(axes: Mapping[str, Any], *, n_samples: int,
         reasons.append(short)
     lines = list(caveats)
     kinds = dict(kinds or {})
+    unidentified: dict[str, dict[str, float | None]] = {}
     for ch, obj in axes.items():
         res = getattr(obj, "result", obj)
         gof = getattr(res, "gof", None)
         if gof is not None and gof.rejected():
             lines.append(f"{ch}: model {res.model.spec} REJECTED by the goodness-of-fit test "
                          f"(p {gof.p_value:.2g}): {misfit(res).describe()}")
-        for comp, need in identifiability(res, n_samples).items():
+        weak = identifiability(res, n_samples) if n_samples >= MIN_SAMPLES else {}
+        for comp, need in weak.items():
             from gmwm.plan import format_duration
 
             lines.append(f"{ch}: {comp} not identifiable at this length ("
                          f"{format_duration(n_samples / res.model.freq)}); "
                          + (f"identifiable from {format_duration(need)}" if need else
-                            "not within 30 days") + ": its value is not written as a measurement")
+                            "not within 30 days") + ": a filter term it gives is written as its "
+                         "95 % upper bound, not as a measurement")
+        if weak:
+            unidentified[ch] = dict(weak)
         we = white_equivalent(res)
         if we is not None and we.changed:
             parts = ", ".join(f"{t.component} (correlation time {t.tau_samples:.2g} samples)"
@@ -308,6 +316,6 @@ def decide(axes: Mapping[str, Any], *, n_samples: int,
             if warn:
                 lines.append(f"{ch}: {warn}")
     if reasons:
-        return Verdict(NOT_WRITTEN, tuple(reasons), tuple(lines))
-    return Verdict(FLAGGED if lines else WRITTEN, (), tuple(lines))
+        return Verdict(NOT_WRITTEN, tuple(reasons), tuple(lines), unidentified=unidentified)
+    return Verdict(FLAGGED if lines else WRITTEN, (), tuple(lines), unidentified=unidentified)
 

@@ -30,6 +30,8 @@ PARAMETER_FLAGS: Mapping[str, str] = {
     "end_s": "--end",
     "segment": "--segment",
     "strict": "--strict",
+    "allow_motion": "--allow-motion",
+    "motion_share": "--motion-share",
     "gaps": "--gaps",
     "sheet": "--datasheet",
     "levels": "--levels",

@@ -23,6 +23,9 @@ EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_NOT_CONVERGED, EXIT_INTERRUPTED = 0, 1, 2,
 #: ``gmwm report`` over several topics: some were calibrated, some could not be (their reasons
 #: are on stderr and in the report)
 EXIT_SOME_FAILED = 4
+#: ``gmwm report``: the report is written but no configuration file (the recording moved beyond
+#: the share that may be excluded, too few samples, an ambiguous rate): the last line says why
+EXIT_NO_CONFIGURATION = 5
 
 _EXIT_STATUS_HELP = """exit status:
   0  success
@@ -30,7 +33,10 @@ _EXIT_STATUS_HELP = """exit status:
   2  usage error (unknown option, malformed --param, ...)
   3  (fit, report) the optimizer did not converge: the estimate is printed with a warning
   4  (report, several topics) some topics could not be calibrated: the others are, and
-     the report lists each failed topic with its one-line reason"""
+     the report lists each failed topic with its one-line reason
+  5  (report) the report is written but no configuration file: the recording moved
+     beyond --motion-share (the last line names its longest static segment), it is too
+     short, or its rate is ambiguous; the last line 'gmwm: verdict: ...' says which"""
 
 _PARAM = re.compile(r"^\s*([A-Za-z][A-Za-z0-9]*\[\d+\]\.[A-Za-z][A-Za-z0-9_]*)\s*=\s*(\S+)\s*$")
 #: a model typed with a negative count ('-1*WN') that argparse would take for an option
@@ -104,6 +110,17 @@ def _int_at_least(text: str, low: int, what: str) -> int:
         raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
     if v < low:
         raise argparse.ArgumentTypeError(f"must be a {what} integer, got {text!r}")
+    return v
+
+
+def _share(text: str) -> float:
+    """A share in [0, 1)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0 <= v < 1:
+        raise argparse.ArgumentTypeError(f"a share in [0, 1) is needed, got {text}")
     return v
 
 
@@ -195,6 +212,13 @@ def _add_input(p: argparse.ArgumentParser, what: str = "signal") -> None:
     p.add_argument("--strict", action="store_true",
                    help="a recording whose used part moved, stepped or shook is an error (exit "
                         "1), not a warning")
+    p.add_argument("--motion-share", type=_share, default=0.05, metavar="F",
+                   help="flagged motion up to this share of the samples used is left out of "
+                        "the estimate (padded by 1 s; the files say so); beyond it no "
+                        "configuration file is written (exit 5; default 0.05)")
+    p.add_argument("--allow-motion", action="store_true",
+                   help="write the configuration even if the recording moved beyond "
+                        "--motion-share; its first comment lines say that it moved and where")
     p.add_argument("--dtype", default=None, metavar="DTYPE",
                    help="read FILE as raw binary samples of this NumPy dtype (float32, <i2, "
                         ">f8, ...); channels are named 0, 1, ... (the file's name if only one)")
@@ -206,7 +230,8 @@ def _add_input(p: argparse.ArgumentParser, what: str = "signal") -> None:
 
 #: the input options of _add_input, for a command (svo) that reads a recording without them
 _INPUT_DEFAULTS = {"column": None, "topic": None, "time_unit": None, "gaps": "auto", "start": None,
-                   "end": None, "segment": "all", "strict": False, "dtype": None,
+                   "end": None, "segment": "all", "strict": False, "motion_share": 0.05,
+                   "allow_motion": False, "dtype": None,
                    "raw_channels": 1, "raw_offset": 0, "units": []}
 
 

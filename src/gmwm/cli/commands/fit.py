@@ -101,7 +101,9 @@ def calibrate_input(args: argparse.Namespace, err: TextIO, *, require_time: str 
             segment=args.segment, strict=args.strict, fit=options, sheet=sheet,
             check=getattr(args, "check", False), readings=readings, draw=draw,
             require_time=require_time, name=args.input, progress=say,
-            while_waiting=while_waiting)
+            while_waiting=while_waiting,
+            motion_share=getattr(args, "motion_share", 0.05),
+            allow_motion=getattr(args, "allow_motion", False))
     finally:
         stop_warm_server()
 

@@ -51,7 +51,27 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         else:
             out.write(f"report of {len(result.only().axes)} axes of {args.input} written to: "
                       + ", ".join(shown) + "\n")
-    return calibration_status(result, err, True)
+    status = calibration_status(result, err, True)
+    return _verdicts(result, err, status)
+
+
+def _verdicts(result: Any, err: TextIO, status: int) -> int:
+    """The terminal's last line(s): each calibrated topic's configuration verdict
+    (:class:`gmwm.verdict.Verdict`); exit status 5 when a configuration was not written."""
+    from gmwm.cli.errors import as_flags
+    from gmwm.cli.parser import EXIT_NO_CONFIGURATION, EXIT_SOME_FAILED
+
+    refused = False
+    for t, sec in result.calibrated.items():
+        v = sec.verdict
+        if v is None:
+            continue
+        who = f"{t}: " if result.several else ""
+        err.write(f"gmwm: {who}{as_flags(v.line())}\n")
+        refused = refused or not v.written
+    if refused and status != EXIT_SOME_FAILED:  # a missing file outranks a warning
+        return EXIT_NO_CONFIGURATION
+    return status
 
 
 def _fits(args: argparse.Namespace, axes: Any) -> dict[str, Any]:
