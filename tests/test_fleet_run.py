@@ -207,5 +207,8 @@ def test_static_stretch_of_a_log_that_moved(tmp_path):
     short = write_recording(tmp_path / "s.csv", 1e-4, seed=8, moving_from=4000)
     st = calibrate_recording(short, tmp_path / "s", s, report=report)
     assert not st["ok"]
+    # refused by the report itself (fewer samples than a configuration needs) or by the
+    # fleet's own minimum, whichever is stricter: either way a one-line reason, no numbers
     assert re.fullmatch(r"the longest static stretch lasts \d+\.\d s, shorter than the "
-                        r"fleet's minimum of 60 s", st["reason"])
+                        r"fleet's minimum of 60 s", st["reason"]) or (
+        "fewer than the 4096 a configuration needs" in st["reason"])

@@ -384,7 +384,7 @@ def test_update_rate_is_the_defined_rate_on_every_surface(tmp_path):
     from gmwm.cli import main
 
     rng = np.random.default_rng(8)
-    n = 2 ** 11
+    n = 2 ** 13  # above gmwm.verdict.MIN_SAMPLES: a configuration is written
     d = 5e-3 * (1 + 0.03 * rng.standard_normal(n - 1))
     d[1000] = 0.04  # one gap
     t = np.concatenate(([0.0], np.cumsum(d)))

@@ -178,7 +178,7 @@ def test_imu_folders_are_distinct():
 @pytest.mark.slow
 def test_ulog_streams_have_no_rostopic(tmp_path):
     # a ULog stream name is not a ROS topic: its configuration files hold the placeholder
-    n = 2 ** 11
+    n = N  # 2^13 samples: above gmwm.verdict.MIN_SAMPLES
     g, a = (x.astype(np.float32) for x in _simulate(250.0, 1e-3, 2e-2, 6))
     fields, _, gyro = _sensor_combined(n, g[:n], a[:n])
     p = write_ulog(tmp_path / "f.ulg", {("sensor_gyro", 0): gyro, ("sensor_gyro", 1): gyro},

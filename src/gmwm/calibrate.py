@@ -294,6 +294,26 @@ def _unit_caveats(rec: Any, units: Mapping[str, str]) -> list[str]:
     return out
 
 
+def _streamed_motion(p: Prepared, share_max: float, allow: bool) -> Prepared:
+    """The motion policy of :func:`prepare` for an input prepared elsewhere (a streamed file,
+    whose WV was computed in one pass and cannot be cut afterwards): beyond ``share_max`` a
+    refusal (or, with ``allow``, the moved caveat); within it a caveat that the flagged motion
+    is *included* (a streamed input is not cut)."""
+    st = p.stationarity
+    if st is None or not getattr(st, "tested", False) or p.refusals or p.caveats:
+        return p
+    a, b = st.used or (0, st.n)
+    excluded, refusals, caveats = _motion(st, a, b, st.freq, share_max, allow)
+    if excluded:
+        caveats = [c.replace("motion excluded:", "motion NOT excluded:").replace(
+                       "are flagged as moving and left out; the estimate pools the clean parts", "are flagged as moving and NOT left out: a streamed input "
+                             "is not cut, so the values include that motion; read the file "
+                             "whole (GMWM_STREAM_MIN_BYTES) or give `start_s`/`end_s`")
+                   for c in caveats]
+    return dataclasses.replace(p, refusals=tuple(refusals), caveats=tuple(caveats),
+                               messages=(*p.messages, *(f"note: {c}" for c in caveats)))
+
+
 def _without(decision: Any, excluded: Sequence[tuple[int, int]], min_len: int = 4) -> Any:
     """The gap decision ``decision`` with the ``excluded`` sample ranges also left out: its
     segments cut around them and pooled (policy 'combine')."""
@@ -369,6 +389,8 @@ def prepare(rec: Any, *, units: str | Sequence[str] | Mapping[str, str | None] |
     units_bad = _unit_caveats(used, u)
     messages += [f"note: {c}" for c in caveats] + [f"warning: {c}" for c in units_bad]
     caveats += units_bad
+    if units_bad and refusals:  # a wrong unit looks like motion to the check: say it first
+        refusals[0] = f"likely a unit mix-up, not motion ({units_bad[0]}); {refusals[0]}"
     ambiguous = getattr(used, "rate_ambiguity", None)  # None once `freq` settled it
     if ambiguous and gaps == "auto":
         refusals.append(f"{ambiguous}: no configuration's `update_rate` can be trusted; give "
@@ -856,7 +878,9 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
             tell(topic, f"warning: not calibrated: {_reason(item)}")
             continue
         if isinstance(item, Prepared):
-            prepared[topic] = item
+            prepared[topic] = _streamed_motion(item, motion_share, allow_motion)
+            for m in prepared[topic].messages[len(item.messages):]:
+                tell(topic, m)
             continue
         say(f"checking stationarity of {topic}" if several else "checking stationarity")
         try:
