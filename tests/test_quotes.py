@@ -28,7 +28,7 @@ PAGE = """# Quotes
 |---|---|
 | Fig 7 | RDVG [0.9376](t/wv.csv#method=rdvg&level=15&col=ratio_to_equal) at j = 15, \
 range [0.912](t/wv.csv#level=15&col=ratio_to_equal&agg=min)-\
-[0.938](t/wv.csv#level=15&col=ratio_to_equal&agg=max); lowest in [80.8](t/wv.csv#level=14&col=share&scale=100) %, |share| at least [25](t/wv.csv#col=share&agg=min&abs=1&scale=100) % |
+[0.938](t/wv.csv#level=15&col=ratio_to_equal&agg=max); lowest in [80.8](t/wv.csv#level=14&col=share&mul=100) %, |share| at least [25](t/wv.csv#col=share&agg=min&abs=1&mul=100) % |
 
 JSON: [1.00004](s.json#fig41/N/mc_mean); a count [13](counts.md#sim2.gmwm.label_switched.SIN);
 not in any file: [145](#untraced "no per-replicate K readings"), [2.8](#untraced).
@@ -64,8 +64,8 @@ def test_cell_value_selectors_and_errors(tmp_path):
     wv = tmp_path / "t" / "wv.csv"
     assert cell_value(wv, "method=rdvg&level=15&col=ratio_to_equal") == pytest.approx(0.9376293)
     assert cell_value(wv, "level=15.0&col=ratio_to_equal&agg=max") == pytest.approx(0.9376293)
-    assert cell_value(wv, "col=share&agg=min&abs=1&scale=100") == pytest.approx(25.0)
-    assert cell_value(tmp_path / "s.json", "fig41/N/mc_mean&scale=2") == pytest.approx(2.000075)
+    assert cell_value(wv, "col=share&agg=min&abs=1&mul=100") == pytest.approx(25.0)
+    assert cell_value(tmp_path / "s.json", "fig41/N/mc_mean&mul=2") == pytest.approx(2.000075)
     for sel, msg in [("level=15&col=ratio_to_equal", "2 rows"), ("method=x&col=share", "no row"),
                      ("method=rdvg&level=15&col=nope", "no column"),
                      ("nokey=1&col=share", "no key column"),

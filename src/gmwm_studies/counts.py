@@ -23,9 +23,10 @@ target is the CSV or JSON file and the fragment selects the cell,
 * CSV: ``[0.9376](svo/case2/wv.csv#method=rdvg&level=15&col=ratio_to_equal)``: the rows whose
   ``<key>`` columns equal the values (as text, or as numbers when both parse), the ``col``
   column; exactly one row unless ``agg=min`` or ``agg=max`` (over the selected rows, for a quoted
-  range's ends); ``scale=100`` multiplies (a percentage), ``abs=1`` takes |x| before that;
+  range's ends); ``mul=100`` multiplies (a percentage), ``abs=1`` takes |x| before that; a
+  space or ``&`` in a value is written ``%20`` / ``%26`` (URL encoding);
 * JSON: ``[1.00004](allan/summary.json#fig41/N/mc_mean)``: keys separated by ``/``, with the same
-  ``&scale=`` and ``&abs=`` options.
+  ``&mul=`` and ``&abs=`` options.
 
 A number that no committed file holds (a time from an uncommitted run, a count over replicates
 whose per-replicate file is not committed) is marked ``[145](#untraced "why")``: the link goes to
@@ -43,6 +44,7 @@ import re
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
+from urllib.parse import unquote
 
 import numpy as np
 import pandas as pd
@@ -388,7 +390,7 @@ def check_markers(md_path: str | os.PathLike) -> tuple[int, list[Mismatch]]:
     return len(markers), bad
 
 
-_OPTIONS = ("col", "agg", "scale", "abs")
+_OPTIONS = ("col", "agg", "mul", "abs")
 
 
 def _same(cell: str, want: str) -> bool:
@@ -408,7 +410,7 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"table not found: {path}")
-    parts = selector.split("&")
+    parts = [unquote(p) for p in selector.split("&")]  # %20 for a space in a key's value
     opts: dict[str, str] = {}
     if path.suffix == ".json":
         keys, rest = parts[0].split("/"), parts[1:]
@@ -457,7 +459,7 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
     if agg not in ("min", "max"):
         raise InputError(f"agg={agg!r}: min or max")
     v = float(x.min() if agg == "min" else x.max())
-    return v * float(opts.get("scale", "1"))
+    return v * float(opts.get("mul", "1"))
 
 
 _CSV_CACHE: dict[tuple[Path, float], pd.DataFrame] = {}
