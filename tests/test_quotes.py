@@ -32,7 +32,8 @@ range [0.912](t/wv.csv#level=15&col=ratio_to_equal&agg=min)-\
 
 JSON: [1.00004](s.json#fig41/N/mc_mean); a count [13](counts.md#sim2.gmwm.label_switched.SIN);
 not in any file: [145](#untraced "no per-replicate K readings"), [2.8](#untraced).
-An example in code, `[1](t/wv.csv#col=nope)`, is no marker; nor is a plain [link](t/wv.csv).
+An example in code, `[1](t/wv.csv#col=nope)`, is no marker; nor is a plain [link](t/wv.csv) or
+a link to [the untraced list](#untraced).
 """
 
 
@@ -105,8 +106,12 @@ def test_committed_reproduction_quotes_match_their_tables():
                                 for b in bad)
     kinds = [q.kind for q in quotes]
     assert kinds.count("cell") > 0
-    if "untraced" in kinds:
-        assert '<a id="untraced"></a>' in md.read_text(encoding="utf-8")
+    if "untraced" in kinds:  # the list they link to exists and states their number
+        m = re.search(r'<a id="untraced"></a>(\d+) numbers on this page are marked not traceable',
+                      md.read_text(encoding="utf-8"))
+        assert m is not None, "no untraced section"
+        assert int(m.group(1)) == kinds.count("untraced"), (
+            f"the untraced section says {m.group(1)}, the page has {kinds.count('untraced')}")
 
 
 def test_a_changed_digit_in_a_committed_quote_fails(tmp_path):

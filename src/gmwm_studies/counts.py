@@ -89,8 +89,10 @@ CELL_MARKER = re.compile(r"\[(?P<quote>[^\]\[]+)\]"
                          r"\((?P<file>[^()\s#]+\.(?:csv|json))#(?P<selector>[^()\s]+)\)")
 """A table-cell marker: ``[<quoted number>](<path>.csv|.json#<selector>)`` (module docstring)."""
 
-UNTRACED_MARKER = re.compile(r"\[(?P<quote>[^\]\[]+)\]\(#untraced(?:\s+\"(?P<why>[^\"]*)\")?\)")
-"""A quoted number no committed file holds: ``[<number>](#untraced "<why>")``."""
+UNTRACED_MARKER = re.compile(r"\[(?P<quote>[+\-\u2212]?\.?\d[^\]\[]*)\]"
+                             r"\(#untraced(?:\s+\"(?P<why>[^\"]*)\")?\)")
+"""A quoted number no committed file holds: ``[<number>](#untraced "<why>")`` (a link with a
+text that is not a number, such as one to the list itself, is no marker)."""
 
 
 @dataclasses.dataclass(frozen=True)
