@@ -40,8 +40,8 @@ a link to [the untraced list](#untraced).
 def write_page(root: Path, page: str = PAGE) -> Path:
     (root / "t").mkdir(exist_ok=True)
     (root / "t" / "wv.csv").write_text(TABLE, encoding="utf-8")
-    (root / "s.json").write_text(json.dumps({"fig41": {"N": {"mc_mean": 1.000037518}}}),
-                                 encoding="utf-8")
+    (root / "s.json").write_text(json.dumps({"fig41": {"N": {"mc_mean": 1.000037518}},
+                                             "outage": [160.0, 210.0]}), encoding="utf-8")
     (root / "counts.json").write_text(json.dumps(
         {"counts": {"sim2.gmwm.label_switched.SIN": {"value": 13, "definition": "d",
                                                      "source": "x"}}}), encoding="utf-8")
@@ -73,6 +73,9 @@ def test_cell_value_selectors_and_errors(tmp_path):
                      ("col=share&agg=mean", "min or max"), ("col", "not key=value")]:
         with pytest.raises(InputError, match=msg):
             cell_value(wv, sel)
+    assert cell_value(tmp_path / "s.json", "outage/1") == 210.0
+    with pytest.raises(InputError, match="no key '2'"):
+        cell_value(tmp_path / "s.json", "outage/2")
     with pytest.raises(InputError, match="no key 'M'"):
         cell_value(tmp_path / "s.json", "fig41/M/mc_mean")
     with pytest.raises(InputError, match="table not found"):

@@ -25,8 +25,8 @@ target is the CSV or JSON file and the fragment selects the cell,
   column; exactly one row unless ``agg=min`` or ``agg=max`` (over the selected rows, for a quoted
   range's ends); ``mul=100`` multiplies (a percentage), ``abs=1`` takes |x| before that; a
   space or ``&`` in a value is written ``%20`` / ``%26`` (URL encoding);
-* JSON: ``[1.00004](allan/summary.json#fig41/N/mc_mean)``: keys separated by ``/``, with the same
-  ``&mul=`` and ``&abs=`` options.
+* JSON: ``[1.00004](allan/summary.json#fig41/N/mc_mean)``: keys (a list's index) separated by
+  ``/``, with the same ``&mul=`` and ``&abs=`` options.
 
 A number that no committed file holds (a time from an uncommitted run, a count over replicates
 whose per-replicate file is not committed) is marked ``[145](#untraced "why")``: the link goes to
@@ -431,9 +431,12 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
         with open(path, encoding="utf-8") as fh:
             node: Any = json.load(fh)
         for k in keys:
-            if not isinstance(node, dict) or k not in node:
+            if isinstance(node, list) and k.isdigit() and int(k) < len(node):
+                node = node[int(k)]  # a list's element by its index
+            elif isinstance(node, dict) and k in node:
+                node = node[k]
+            else:
                 raise InputError(f"{path.name}: no key {k!r} on the path {'/'.join(keys)}")
-            node = node[k]
         values = [node]
     else:
         df = _read_csv(path)
