@@ -22,8 +22,9 @@ target is the CSV or JSON file and the fragment selects the cell,
 
 * CSV: ``[0.9376](svo/case2/wv.csv#method=rdvg&level=15&col=ratio_to_equal)``: the rows whose
   ``<key>`` columns equal the values (as text, or as numbers when both parse), the ``col``
-  column; exactly one row unless ``agg=min`` or ``agg=max`` (over the selected rows, for a quoted
-  range's ends); ``mul=100`` multiplies (a percentage), ``abs=1`` takes |x| before that; a
+  column; exactly one row unless ``agg=min``, ``agg=max`` or ``agg=mean`` (over the selected
+  rows, e.g. for a quoted range's ends; ``<key><<number>`` and ``<key>>=<number>`` etc. select rows by a numeric key's
+  range); ``mul=100`` multiplies (a percentage), ``abs=1`` takes |x| before that; a
   space or ``&`` in a value is written ``%20`` / ``%26`` (URL encoding);
 * JSON: ``[1.00004](allan/summary.json#fig41/N/mc_mean)``: keys (a list's index) separated by
   ``/``, with the same ``&mul=`` and ``&abs=`` options.
@@ -419,7 +420,15 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
     else:
         keys, rest = [], parts
     filters: list[tuple[str, str]] = []
+    ranges: list[tuple[str, str, float]] = []
     for part in rest:
+        m = re.fullmatch(r"([^<>=]+)(<=|>=|<|>)([^<>=]+)", part)
+        if m:  # a numeric range of a key column, e.g. time_s<160
+            try:
+                ranges.append((m.group(1), m.group(2), float(m.group(3))))
+            except ValueError:
+                raise InputError(f"selector part {part!r}: not a number after {m.group(2)}") from None
+            continue
         k, sep, v = part.partition("=")
         if not sep:
             raise InputError(f"selector part {part!r} is not key=value")
@@ -448,12 +457,17 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
             if k not in df.columns:
                 raise InputError(f"{path.name}: no key column {k!r}")
             mask &= np.array([_same(c, v) for c in df[k]])
+        for k, op, bound in ranges:
+            if k not in df.columns:
+                raise InputError(f"{path.name}: no key column {k!r}")
+            x = pd.to_numeric(df[k], errors="coerce").to_numpy(float)
+            mask &= {"<": x < bound, ">": x > bound, "<=": x <= bound, ">=": x >= bound}[op]
         values = df.loc[mask, col].tolist()
         if not values:
             raise InputError(f"{path.name}: no row with {dict(filters)}")
         if len(values) > 1 and "agg" not in opts:
             raise InputError(f"{path.name}: {len(values)} rows with {dict(filters)} (add keys "
-                             "or agg=min|max)")
+                             "or agg=min|max|mean)")
     try:
         x = np.array([float(v) for v in values])
     except (TypeError, ValueError):
@@ -461,9 +475,9 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
     if opts.get("abs") == "1":
         x = np.abs(x)
     agg = opts.get("agg", "min")
-    if agg not in ("min", "max"):
-        raise InputError(f"agg={agg!r}: min or max")
-    v = float(x.min() if agg == "min" else x.max())
+    if agg not in ("min", "max", "mean"):
+        raise InputError(f"agg={agg!r}: min, max or mean")
+    v = float({"min": np.min, "max": np.max, "mean": np.mean}[agg](x))
     return v * float(opts.get("mul", "1"))
 
 
