@@ -13,8 +13,26 @@ Every count is over the converged fits (a non-converged fit is counted in ``not_
 Marker syntax in Markdown: a link whose text is the quoted number and whose target is a
 ``counts.md`` with the count's name as fragment, e.g.
 ``[37](counts.md#sim2.gmwm.SIN2.factor2_miss)`` (rendered: the number, linking to its row). The
-``counts.json`` beside the linked ``counts.md`` holds the value. A quoted number matches when the value rounded to the quoted number's significant
-digits equals it (``0.112`` matches 0.11234; ``37`` matches 37 only).
+``counts.json`` beside the linked ``counts.md`` holds the value. A quoted number matches when the
+value rounded to the quoted number's significant digits equals it (``0.112`` matches 0.11234;
+``37`` matches 37 only).
+
+The same link form marks a number quoted from any committed table (:func:`check_quotes`): the
+target is the CSV or JSON file and the fragment selects the cell,
+
+* CSV: ``[0.9376](svo/case2/wv.csv#method=rdvg&level=15&col=ratio_to_equal)``: the rows whose
+  ``<key>`` columns equal the values (as text, or as numbers when both parse), the ``col``
+  column; exactly one row unless ``agg=min``, ``agg=max`` or ``agg=mean`` (over the selected
+  rows, e.g. for a quoted range's ends; ``<key><<number>`` and ``<key>>=<number>`` etc. select rows by a numeric key's
+  range); ``mul=100`` multiplies (a percentage), ``abs=1`` takes |x| before that; a
+  space or ``&`` in a value is written ``%20`` / ``%26`` (URL encoding);
+* JSON: ``[1.00004](allan/summary.json#fig41/N/mc_mean)``: keys (a list's index) separated by
+  ``/``, with the same ``&mul=`` and ``&abs=`` options.
+
+A number that no committed file holds (a time from an uncommitted run, a count over replicates
+whose per-replicate file is not committed) is marked ``[145](#untraced "why")``: the link goes to
+the page's own list of such numbers, and the checker counts them. Rendered, every marker is the
+number as a link to its source (or to that list).
 """
 
 from __future__ import annotations
@@ -27,6 +45,7 @@ import re
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
+from urllib.parse import unquote
 
 import numpy as np
 import pandas as pd
@@ -35,15 +54,21 @@ from gmwm.atomic import write_json_atomic, write_text_atomic
 from gmwm.errors import InputError
 
 __all__ = [
+    "CELL_MARKER",
     "MARKER",
     "RIDGE_FACTOR",
+    "UNTRACED_MARKER",
     "WILD_ROBUST_SD",
     "Count",
     "Mismatch",
+    "Quote",
+    "cell_value",
     "check_markers",
+    "check_quotes",
     "draw_counts",
     "factor2_off",
     "find_markers",
+    "find_quotes",
     "quoted_matches",
     "read_counts",
     "render_counts_markdown",
@@ -60,6 +85,15 @@ WILD_ROBUST_SD = 100.0
 MARKER = re.compile(r"\[(?P<quote>[^\]\[]+)\]"
                     r"\((?P<file>(?:[^()\s#]*/)?counts\.md)#(?P<name>[A-Za-z0-9_.\-]+)\)")
 """A count marker: ``[<quoted number>](<path>/counts.md#<count name>)``."""
+
+CELL_MARKER = re.compile(r"\[(?P<quote>[^\]\[]+)\]"
+                         r"\((?P<file>[^()\s#]+\.(?:csv|json))#(?P<selector>[^()\s]+)\)")
+"""A table-cell marker: ``[<quoted number>](<path>.csv|.json#<selector>)`` (module docstring)."""
+
+UNTRACED_MARKER = re.compile(r"\[(?P<quote>[+\-\u2212]?\.?\d[^\]\[]*)\]"
+                             r"\(#untraced(?:\s+\"(?P<why>[^\"]*)\")?\)")
+"""A quoted number no committed file holds: ``[<number>](#untraced "<why>")`` (a link with a
+text that is not a number, such as one to the list itself, is no marker)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -357,6 +391,153 @@ def check_markers(md_path: str | os.PathLike) -> tuple[int, list[Mismatch]]:
         if values is None or name not in values or not quoted_matches(quote, value):
             bad.append(Mismatch(line, name, quote, value, str(json_path)))
     return len(markers), bad
+
+
+_OPTIONS = ("col", "agg", "mul", "abs")
+
+
+def _same(cell: str, want: str) -> bool:
+    if cell == want:
+        return True
+    try:
+        return float(cell) == float(want)
+    except ValueError:
+        return False
+
+
+def cell_value(path: str | os.PathLike, selector: str) -> float:
+    """The number a table-cell marker's ``selector`` picks in ``path`` (CSV or JSON).
+
+    Raises ``InputError`` naming the problem when the file, a key, the column or the row (exactly
+    one unless ``agg``) is missing or the cell is not a number."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"table not found: {path}")
+    parts = [unquote(p) for p in selector.split("&")]  # %20 for a space in a key's value
+    opts: dict[str, str] = {}
+    if path.suffix == ".json":
+        keys, rest = parts[0].split("/"), parts[1:]
+    else:
+        keys, rest = [], parts
+    filters: list[tuple[str, str]] = []
+    ranges: list[tuple[str, str, float]] = []
+    for part in rest:
+        m = re.fullmatch(r"([^<>=]+)(<=|>=|<|>)([^<>=]+)", part)
+        if m:  # a numeric range of a key column, e.g. time_s<160
+            try:
+                ranges.append((m.group(1), m.group(2), float(m.group(3))))
+            except ValueError:
+                raise InputError(f"selector part {part!r}: not a number after {m.group(2)}") from None
+            continue
+        k, sep, v = part.partition("=")
+        if not sep:
+            raise InputError(f"selector part {part!r} is not key=value")
+        if k in _OPTIONS:
+            opts[k] = v
+        else:
+            filters.append((k, v))
+    if path.suffix == ".json":
+        with open(path, encoding="utf-8") as fh:
+            node: Any = json.load(fh)
+        for k in keys:
+            if isinstance(node, list) and k.isdigit() and int(k) < len(node):
+                node = node[int(k)]  # a list's element by its index
+            elif isinstance(node, dict) and k in node:
+                node = node[k]
+            else:
+                raise InputError(f"{path.name}: no key {k!r} on the path {'/'.join(keys)}")
+        values = [node]
+    else:
+        df = _read_csv(path)
+        col = opts.get("col")
+        if col is None or col not in df.columns:
+            raise InputError(f"{path.name}: no column {col!r}")
+        mask = np.ones(len(df), dtype=bool)
+        for k, v in filters:
+            if k not in df.columns:
+                raise InputError(f"{path.name}: no key column {k!r}")
+            mask &= np.array([_same(c, v) for c in df[k]])
+        for k, op, bound in ranges:
+            if k not in df.columns:
+                raise InputError(f"{path.name}: no key column {k!r}")
+            x = pd.to_numeric(df[k], errors="coerce").to_numpy(float)
+            mask &= {"<": x < bound, ">": x > bound, "<=": x <= bound, ">=": x >= bound}[op]
+        values = df.loc[mask, col].tolist()
+        if not values:
+            raise InputError(f"{path.name}: no row with {dict(filters)}")
+        if len(values) > 1 and "agg" not in opts:
+            raise InputError(f"{path.name}: {len(values)} rows with {dict(filters)} (add keys "
+                             "or agg=min|max|mean)")
+    try:
+        x = np.array([float(v) for v in values])
+    except (TypeError, ValueError):
+        raise InputError(f"{path.name}#{selector}: not a number: {values[:3]}") from None
+    if opts.get("abs") == "1":
+        x = np.abs(x)
+    agg = opts.get("agg", "min")
+    if agg not in ("min", "max", "mean"):
+        raise InputError(f"agg={agg!r}: min, max or mean")
+    v = float({"min": np.min, "max": np.max, "mean": np.mean}[agg](x))
+    return v * float(opts.get("mul", "1"))
+
+
+_CSV_CACHE: dict[tuple[Path, float], pd.DataFrame] = {}
+
+
+def _read_csv(path: Path) -> pd.DataFrame:
+    key = (path.resolve(), path.stat().st_mtime)
+    if key not in _CSV_CACHE:
+        _CSV_CACHE[key] = pd.read_csv(path, dtype=str, keep_default_na=False)
+    return _CSV_CACHE[key]
+
+
+@dataclasses.dataclass(frozen=True)
+class Quote:
+    """One marked number of a Markdown page: kind ``count``, ``cell`` or ``untraced``; ``source``
+    the linked file (relative to the page) and ``selector`` the count name or cell selector
+    (for ``untraced``: the reason given)."""
+
+    line: int
+    kind: str
+    quote: str
+    source: str
+    selector: str
+
+
+def find_quotes(text: str) -> list[Quote]:
+    """Every marker of a Markdown text (count, table cell, untraced), in order of appearance.
+    Inline code spans are skipped (a marker shown as an example is not a quote)."""
+    out = []
+    for i, line in enumerate(text.splitlines(), start=1):
+        line = re.sub(r"`[^`]*`", "", line)
+        hits = [(m.start(), Quote(i, "count", m.group("quote"), m.group("file"), m.group("name")))
+                for m in MARKER.finditer(line)]
+        hits += [(m.start(), Quote(i, "cell", m.group("quote"), m.group("file"),
+                                   m.group("selector"))) for m in CELL_MARKER.finditer(line)]
+        hits += [(m.start(), Quote(i, "untraced", m.group("quote"), "", m.group("why") or ""))
+                 for m in UNTRACED_MARKER.finditer(line)]
+        out += [q for _, q in sorted(hits, key=lambda h: h[0])]
+    return out
+
+
+def check_quotes(md_path: str | os.PathLike) -> tuple[list[Quote], list[Mismatch]]:
+    """Check every count and table-cell marker of a Markdown file (untraced markers are listed,
+    not checked). Returns (all markers, mismatches); a mismatch's ``value`` is None when the
+    source or cell is missing (then ``counts_file`` says why)."""
+    md_path = Path(md_path)
+    quotes = find_quotes(md_path.read_text(encoding="utf-8"))
+    _, bad = check_markers(md_path)
+    for q in quotes:
+        if q.kind != "cell":
+            continue
+        try:
+            value: float | None = cell_value(md_path.parent / q.source, q.selector)
+            where = str(md_path.parent / q.source)
+        except InputError as e:
+            value, where = None, str(e)
+        if value is None or not quoted_matches(q.quote, value):
+            bad.append(Mismatch(q.line, q.selector, q.quote, value, where))
+    return quotes, sorted(bad, key=lambda b: b.line)
 
 
 def collect(tables: Iterable[tuple[str, pd.DataFrame, Mapping[str, Any], str, bool]]

@@ -1,0 +1,148 @@
+"""Numbers REPRODUCTION.md quotes from committed tables: the cell and untraced markers
+(gmwm_studies.counts.check_quotes) and the committed page checked against reports/."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+from gmwm.errors import InputError
+from gmwm_studies.counts import cell_value, check_quotes, find_quotes
+
+REPO = Path(__file__).resolve().parents[1]
+REPORTS = REPO / "reports"
+
+TABLE = """method,level,ratio_to_equal,share
+rdvg,14,1.0797508,0.808
+rdvg,15,0.9376293,0.25
+svo_w2,15,0.9123718,-0.75
+"""
+
+PAGE = """# Quotes
+
+| item | numbers |
+|---|---|
+| Fig 7 | RDVG [0.9376](t/wv.csv#method=rdvg&level=15&col=ratio_to_equal) at j = 15, \
+range [0.912](t/wv.csv#level=15&col=ratio_to_equal&agg=min)-\
+[0.938](t/wv.csv#level=15&col=ratio_to_equal&agg=max); lowest in [80.8](t/wv.csv#level=14&col=share&mul=100) %, |share| at least [25](t/wv.csv#col=share&agg=min&abs=1&mul=100) % |
+
+JSON: [1.00004](s.json#fig41/N/mc_mean); a count [13](counts.md#sim2.gmwm.label_switched.SIN);
+not in any file: [145](#untraced "no per-replicate K readings"), [2.8](#untraced).
+An example in code, `[1](t/wv.csv#col=nope)`, is no marker; nor is a plain [link](t/wv.csv) or
+a link to [the untraced list](#untraced).
+"""
+
+
+def write_page(root: Path, page: str = PAGE) -> Path:
+    (root / "t").mkdir(exist_ok=True)
+    (root / "t" / "wv.csv").write_text(TABLE, encoding="utf-8")
+    (root / "s.json").write_text(json.dumps({"fig41": {"N": {"mc_mean": 1.000037518}},
+                                             "outage": [160.0, 210.0]}), encoding="utf-8")
+    (root / "counts.json").write_text(json.dumps(
+        {"counts": {"sim2.gmwm.label_switched.SIN": {"value": 13, "definition": "d",
+                                                     "source": "x"}}}), encoding="utf-8")
+    md = root / "REPRODUCTION.md"
+    md.write_text(page, encoding="utf-8")
+    return md
+
+
+def test_find_quotes_kinds_in_order(tmp_path):
+    q = find_quotes(PAGE)
+    assert [(x.kind, x.quote) for x in q] == [
+        ("cell", "0.9376"), ("cell", "0.912"), ("cell", "0.938"), ("cell", "80.8"),
+        ("cell", "25"), ("cell", "1.00004"), ("count", "13"), ("untraced", "145"),
+        ("untraced", "2.8")]
+    assert q[7].selector == "no per-replicate K readings" and q[8].selector == ""
+    assert q[0].source == "t/wv.csv" and q[5].selector == "fig41/N/mc_mean"
+
+
+def test_cell_value_selectors_and_errors(tmp_path):
+    write_page(tmp_path)
+    wv = tmp_path / "t" / "wv.csv"
+    assert cell_value(wv, "method=rdvg&level=15&col=ratio_to_equal") == pytest.approx(0.9376293)
+    assert cell_value(wv, "level=15.0&col=ratio_to_equal&agg=max") == pytest.approx(0.9376293)
+    assert cell_value(wv, "col=share&agg=min&abs=1&mul=100") == pytest.approx(25.0)
+    assert cell_value(wv, "level<15&col=ratio_to_equal") == pytest.approx(1.0797508)
+    assert cell_value(wv, "col=share&agg=mean") == pytest.approx((0.808 + 0.25 - 0.75) / 3)
+    assert cell_value(wv, "level>=15&col=ratio_to_equal&agg=min") == pytest.approx(0.9123718)
+    with pytest.raises(InputError, match="not a number"):
+        cell_value(wv, "level<x&col=share")
+    assert cell_value(tmp_path / "s.json", "fig41/N/mc_mean&mul=2") == pytest.approx(2.000075)
+    for sel, msg in [("level=15&col=ratio_to_equal", "2 rows"), ("method=x&col=share", "no row"),
+                     ("method=rdvg&level=15&col=nope", "no column"),
+                     ("nokey=1&col=share", "no key column"),
+                     ("col=share&agg=median", "min, max or mean"), ("col", "not key=value")]:
+        with pytest.raises(InputError, match=msg):
+            cell_value(wv, sel)
+    assert cell_value(tmp_path / "s.json", "outage/1") == 210.0
+    with pytest.raises(InputError, match="no key '2'"):
+        cell_value(tmp_path / "s.json", "outage/2")
+    with pytest.raises(InputError, match="no key 'M'"):
+        cell_value(tmp_path / "s.json", "fig41/M/mc_mean")
+    with pytest.raises(InputError, match="table not found"):
+        cell_value(tmp_path / "none.csv", "col=share")
+
+
+def test_check_quotes_fails_on_a_changed_digit(tmp_path):
+    md = write_page(tmp_path)
+    quotes, bad = check_quotes(md)
+    assert len(quotes) == 9 and bad == []
+    for old, new in [("[0.9376]", "[0.9377]"), ("[80.8]", "[80.9]"), ("[1.00004]", "[1.00001]"),
+                     ("[13]", "[15]"), ("level=15&col=ratio", "level=16&col=ratio")]:
+        _, bad = check_quotes(write_page(tmp_path, PAGE.replace(old, new, 1)))
+        assert len(bad) == 1, (old, bad)
+    assert bad[0].value is None and "no row" in bad[0].counts_file
+
+
+def committed_md() -> Path:
+    md = REPORTS / "REPRODUCTION.md"
+    if not md.is_file():
+        pytest.skip("no reports/REPRODUCTION.md")
+    return md
+
+
+def test_committed_reproduction_quotes_match_their_tables():
+    """Every count and table-cell marker of reports/REPRODUCTION.md equals its committed value at
+    the quoted precision; every untraced marker is listed in the page's own section."""
+    md = committed_md()
+    quotes, bad = check_quotes(md)
+    assert bad == [], "\n".join(f"line {b.line}: [{b.quote}] {b.name} = {b.value} ({b.counts_file})"
+                                for b in bad)
+    kinds = [q.kind for q in quotes]
+    assert kinds.count("cell") > 0
+    if "untraced" in kinds:  # the list they link to exists and states their number
+        m = re.search(r'<a id="untraced"></a>(\d+) numbers on this page are marked not traceable',
+                      md.read_text(encoding="utf-8"))
+        assert m is not None, "no untraced section"
+        assert int(m.group(1)) == kinds.count("untraced"), (
+            f"the untraced section says {m.group(1)}, the page has {kinds.count('untraced')}")
+
+
+def test_a_changed_digit_in_a_committed_quote_fails(tmp_path):
+    """A copy of the committed page (beside copies of the tables it cites) with one digit of one
+    plain-text quote changed fails the check: the quoted-number test catches a stale number."""
+    md = committed_md()
+    text = md.read_text(encoding="utf-8")
+    cells = [q for q in find_quotes(text) if q.kind == "cell"]
+    if not cells:
+        pytest.skip("no cell markers yet")
+    for q in (cells[0], cells[len(cells) // 2], cells[-1]):
+        marker = f"[{q.quote}]({q.source}#{q.selector})"
+        assert marker in text
+        last = re.search(r"\d(?=\D*$)", q.quote)
+        assert last is not None
+        i = last.start()
+        changed = q.quote[:i] + str((int(q.quote[i]) + 1) % 10) + q.quote[i + 1:]
+        copy = tmp_path / "reports" / "REPRODUCTION.md"
+        copy.parent.mkdir(exist_ok=True)
+        dst = copy.parent / q.source
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(md.parent / q.source, dst)
+        copy.write_text(text.replace(marker, f"[{changed}]({q.source}#{q.selector})", 1),
+                        encoding="utf-8")
+        _, bad = check_quotes(copy)
+        assert any(b.quote == changed and b.value is not None for b in bad), (q, changed)
