@@ -200,30 +200,46 @@ def misfit(result: Any) -> Misfit:
 # -- identifiability at this length ------------------------------------------------------------------
 def identifiability(result: Any, n_samples: int | None = None) -> dict[str, float | None]:
     """Per component NOT identifiable at the length used (:func:`gmwm.plan.predict` at the
-    fitted values): the length [s] from which it would be (None: not within the plan's search
-    range). Identifiable components are absent. Components at the boundary 0 are left to the
-    fit's own flags (a zero scale has no length)."""
-    from gmwm.plan import make_plan, predict
+    fitted values, the rule of ``gmwm plan``): the length [s] from which it would be (to ~5 %:
+    doubling, then four bisection steps on the log scale; None: not within 30 days).
+    Identifiable components are absent. Components at the boundary 0 are left to the fit's own
+    flags (a zero scale has no length)."""
+    from gmwm.plan import MAX_SEARCH_S, predict
 
     model, theta = result.model, np.asarray(result.params, float)
     n = int(n_samples if n_samples is not None else result.wv.n_samples)
-    try:
-        pred = predict(model, theta, n)
-    except Exception:  # noqa: BLE001 - a plan that cannot be made flags nothing
+
+    def ok(m: int) -> dict[str, bool] | None:
+        try:
+            with np.errstate(all="ignore"):
+                return predict(model, theta, m).identifiable
+        except Exception:  # noqa: BLE001 - a plan that cannot be made flags nothing
+            return None
+
+    now = ok(n)
+    if now is None:
         return {}
+    weak = [c.name for c in model.components
+            if not now.get(c.name, True) and theta[c.start + c.process.scale_index] > 0]
     out: dict[str, float | None] = {}
-    weak = [c for c in model.components
-            if not pred.identifiable.get(c.name, True) and theta[c.start + c.process.scale_index] > 0]
-    if not weak:
-        return out
-    try:
-        plan = make_plan(model, theta, [n / model.freq])
-        lengths = getattr(plan, "min_length", {}) or {}
-    except Exception:  # noqa: BLE001
-        lengths = {}
-    for c in weak:
-        v = lengths.get(c.name)
-        out[c.name] = float(v) if v is not None and math.isfinite(v) else None
+    n_max = int(MAX_SEARCH_S * model.freq)
+    for name in weak:
+        lo, hi = n, None
+        while lo < n_max:
+            m = min(2 * lo, n_max)
+            got = ok(m)
+            if got is not None and got.get(name, False):
+                hi = m
+                break
+            lo = m
+        if hi is None:
+            out[name] = None
+            continue
+        for _ in range(4):
+            mid = round(math.sqrt(lo * hi))
+            got = ok(mid)
+            lo, hi = (lo, mid) if got is not None and got.get(name, False) else (mid, hi)
+        out[name] = hi / model.freq
     return out
 
 
