@@ -51,6 +51,8 @@ The rule
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import itertools
 import time
 from collections.abc import Callable
@@ -187,6 +189,22 @@ class Choice:
     seconds: float = 0.0
     dropped_terms: list[tuple[str, int]] = field(default_factory=list)
     slow: str = "GM"
+    #: what the calibration path knows beyond the WV (motion, temperature:
+    #: :class:`gmwm.verdict.Evidence`) for the "every candidate rejected" hint; None: the WV alone
+    evidence: Any = None
+
+    def with_evidence(self, evidence: Any) -> Choice:
+        """This choice with the calibration path's :class:`gmwm.verdict.Evidence` (motion flagged
+        in this channel, a bias following the temperature) for its rejection hint."""
+        return dataclasses.replace(self, evidence=evidence)
+
+    @functools.cached_property
+    def rejection_hint(self) -> str:
+        """Why every candidate may be rejected: the likely causes in the order the data show
+        them (:func:`gmwm.verdict.rejection_causes` on the chosen fit and :attr:`evidence`)."""
+        from .verdict import causes_text, rejection_causes
+
+        return causes_text(rejection_causes(self.result, evidence=self.evidence))
 
     # -- the result protocol, delegated to the chosen fit ---------------------------------------
     @property
@@ -258,8 +276,7 @@ class Choice:
                 f"every candidate model is rejected by the goodness-of-fit test at "
                 f"{self.alpha:g} ({len(self.ranking.ranked)} candidates, {best}): the reported "
                 f"model {self.result.model.spec} is only the best-ranked; its coefficients "
-                "describe a wrong model (motion, temperature drift or a process outside the "
-                "candidates?)")
+                f"describe a wrong model ({self.rejection_hint})")
         return out + list(self.result.warnings)
 
     def rows(self) -> list[dict[str, Any]]:

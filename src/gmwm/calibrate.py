@@ -1067,6 +1067,10 @@ def _axes(p: Prepared, got: Mapping[str, Any], sheet: Any, check: bool,
         if c in p.streamed:
             res = _streamed(res, p.streamed[c])
         page = page or {}
+        if choice is not None and not choice.passed:  # the rejection hint knows the motion
+            from gmwm.verdict import evidence
+
+            choice = choice.with_evidence(evidence(p.stationarity, c, p.motion_excluded))
         unit = p.units.get(c, "")
         chk = None
         if check:
