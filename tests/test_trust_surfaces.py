@@ -13,6 +13,7 @@ import pytest
 
 from conftest import load_benchmark
 from gmwm.cli import main
+from gmwm.cli.parser import EXIT_NO_CONFIGURATION
 
 bs = load_benchmark("bench_stationarity")
 EXTERNAL = bs.EXTERNAL
@@ -194,9 +195,40 @@ def test_motion_and_temperature_from_the_calibration_path():
 
 
 # ---- the real moving recordings ---------------------------------------------------------------
-REAL = {  # file -> what its verdict line names
-    "px4-pyulog-sample/sample.ulg": "8.4-68.88 s",
-    "ros1-rl-husky/test1.bag": None,
-    "ros1-imutools-phidgets/phidgets_imu_upside_down.bag": None,
-    "euroc-kimera-v101/mav0/imu0/data.csv": None,
+REAL = {  # file -> its longest static segment is long enough for a configuration
+    "px4-pyulog-sample/sample.ulg": True,  # handled 0.87-8.4 s, then still: 8.4-68.88 s
+    "ros1-rl-husky/test1.bag": False,  # 14.9 s at 30 Hz
+    "ros1-imutools-phidgets/phidgets_imu_upside_down.bag": False,  # 2.7 s
+    "euroc-kimera-v101/mav0/imu0/data.csv": False,  # 1.4 s
 }
+
+
+@needs_external
+@pytest.mark.slow
+@pytest.mark.parametrize("rel", bs.EXTERNAL_FILES)
+def test_a_real_moving_recording_gives_no_configuration_unless_allowed(capsys, tmp_path, rel):
+    """Each of the four moving recordings: by default the report but no configuration (exit
+    status 5) and one verdict line naming the longest static segment and, when it is long
+    enough for a configuration, how to calibrate it (else that it is too short); with
+    --allow-motion a configuration whose first comment lines say the recording moved."""
+    src = EXTERNAL / rel
+    code, err = _report(capsys, tmp_path / "default", src, "--export", "kalibr")
+    last = err.rstrip().splitlines()[-1]
+    assert code == EXIT_NO_CONFIGURATION, last
+    assert (tmp_path / "default" / "report.md").exists()
+    assert not (tmp_path / "default" / "imu.yaml").exists()
+    assert last.startswith("gmwm: verdict: configuration NOT written: the recording moved: ")
+    assert "padded by 1 s), more than the 5 % that may be excluded" in last
+    assert "the longest static segment is " in last and "--allow-motion" in last
+    assert ("--segment longest-static" in last) == REAL[rel], last
+    assert ("too short for a configuration" in last) != REAL[rel], last
+    code, err = _report(capsys, tmp_path / "allowed", src, "--export", "kalibr",
+                        "--allow-motion")
+    last = err.rstrip().splitlines()[-1]
+    assert code == 0, last
+    assert last.startswith("gmwm: verdict: configuration written with")
+    text = (tmp_path / "allowed" / "imu.yaml").read_text()
+    head = text.split("\n\n")[0]
+    assert head.startswith("# CAUTION") and "the recording MOVED" in head
+    assert "these values describe the motion, not the sensor at rest" in " ".join(
+        ln.strip("# ") for ln in head.splitlines())
