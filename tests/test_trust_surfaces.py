@@ -186,12 +186,30 @@ def test_motion_and_temperature_from_the_calibration_path():
         "not ruled out")
     hot = c.with_evidence(Evidence(temperature="its bias follows the temperature (r = 0.9)",
                                    checked=True, temperature_checked=True))
-    assert _causes(hot)[-1] == "temperature"
+    assert "temperature" in _causes(hot) and "motion" not in _causes(hot)
     assert "motion (none flagged)" in hot.rejection_hint
     # excluded motion is not a cause the data show any more
     out = evidence(st, ch, excluded=True)
     assert out.motion_excluded
     assert "motion" not in _causes(c.with_evidence(out))
+
+
+@pytest.mark.slow
+def test_the_calibration_path_gives_the_hint_the_motion_it_saw(capsys, tmp_path):
+    """gmwm report with the automatic model on a recording with a 20-s turn, written under
+    --allow-motion: every candidate is rejected and the hint names the motion the stationarity
+    check flagged first (a random walk the length cannot identify is weaker evidence)."""
+    x = bs.static_imu(0, FS, 164.0, np.random.default_rng([40, 25]))
+    bs.inject_turn(x, FS, 60.0, 20.0, 90.0)
+    src = _csv(tmp_path / "turn.csv", x)
+    code, err = _report(capsys, tmp_path / "rep", src, "--columns", "gz", "--allow-motion",
+                        "--export", "kalibr", model="auto")
+    assert code == 0, err
+    hint = next(ln for ln in err.splitlines() if "every candidate model is rejected" in ln)
+    assert "likely causes, in the order the data show them: 1. motion: flagged at " in hint
+    assert "inside the estimate" in hint and "not ruled out: on-board low-pass" in hint
+    md = (tmp_path / "rep" / "report.md").read_text()
+    assert "1. motion: flagged at" in md
 
 
 # ---- the real moving recordings ---------------------------------------------------------------

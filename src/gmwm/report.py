@@ -373,8 +373,9 @@ def _summary_tables(axes: Mapping[str, Mapping[str, Any]], exp: Any, refused: bo
             if not noise:
                 continue
             _, nu, ku = SI_UNITS[sensor]
-            headers = ["axis", "unit", "model", f"noise density written [{nu}]",
-                       "fit estimate [95% CI]", f"random walk written [{ku}]",
+            verb = "would be written" if refused else "written"
+            headers = ["axis", "unit", "model", f"noise density {verb} [{nu}]",
+                       "fit estimate [95% CI]", f"random walk {verb} [{ku}]",
                        "fit estimate [95% CI]", "warnings"]
             rows: list[tuple] = []
             for an in noise:
@@ -392,7 +393,7 @@ def _summary_tables(axes: Mapping[str, Mapping[str, Any]], exp: Any, refused: bo
                           "–" if c.value is None else how]
             rows.append((f"{sensor}_* keys", "SI", "–", *cells, "–"))
             legend = (f"Continuous-time densities in SI units, as the configuration files "
-                      f"write them (per axis before inflation; the last row is the value of "
+                      f"{'would ' if refused else ''}write them (per axis before inflation; the last row is the value of "
                       f"the files' {sensor} keys). {_BOUND_MARK}: the term is flagged (at the "
                       "boundary 0 or not identifiable at this length) and the value written "
                       "is its 95 % upper bound, not a measurement; the fit's estimate is "

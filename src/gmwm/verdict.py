@@ -405,10 +405,11 @@ class Cause:
 def rejection_causes(result: Any, *, n_samples: int | None = None,
                      evidence: Evidence | None = None) -> list[Cause]:
     """The likely causes of a fit the goodness-of-fit test rejects, those the data show first,
-    each group in the order: too short (below :data:`MIN_SAMPLES`, or a random walk or
-    Gauss-Markov term not identifiable at this length: :func:`identifiability`), on-board
-    low-pass filtering (:func:`short_scale_slope`), motion, temperature (``evidence``, from the
-    calibration path); last always "a process outside the candidates"."""
+    each group in the order: too short (below :data:`MIN_SAMPLES`; a random walk or
+    Gauss-Markov term not identifiable at this length, :func:`identifiability`, is weaker
+    evidence and comes after the other causes shown), on-board low-pass filtering
+    (:func:`short_scale_slope`), motion, temperature (``evidence``, from the calibration path);
+    last always "a process outside the candidates"."""
     ev = evidence or Evidence()
     wv = result.wv
     n = int(n_samples if n_samples is not None else getattr(wv, "n_samples", 0))
@@ -445,7 +446,10 @@ def rejection_causes(result: Any, *, n_samples: int | None = None,
         causes.append(Cause("temperature", False, "no link to the temperature found"
                             if ev.temperature_checked else
                             "not checked: the recording has no temperature"))
-    return ([c for c in causes if c.shown] + [c for c in causes if not c.shown]
+    # a term the length cannot identify is weaker evidence than the others: after them
+    lead = [] if short or not causes[0].shown else [causes.pop(0)]
+    shown = [c for c in causes if c.shown] + lead
+    return (shown + [c for c in causes if not c.shown]
             + [Cause("a process outside the candidates", False, "")])
 
 
