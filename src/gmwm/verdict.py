@@ -415,7 +415,8 @@ def rejection_causes(result: Any, *, n_samples: int | None = None,
     n = int(n_samples if n_samples is not None else getattr(wv, "n_samples", 0))
     causes: list[Cause] = []
     short = too_short(n)
-    weak = {} if short else identifiability(result, n)
+    with np.errstate(divide="ignore", invalid="ignore"):  # a term at 0 has no relative SE
+        weak = {} if short else identifiability(result, n)
     if short:
         causes.append(Cause("too short", True, short))
     elif weak:
@@ -428,7 +429,7 @@ def rejection_causes(result: Any, *, n_samples: int | None = None,
         causes.append(Cause("too short", False, f"{n} samples, {len(wv.scales)} scales"))
     slope, steep = short_scale_slope(wv)
     k = min(SLOPE_SCALES, len(wv.scales))
-    shape = (f"the WV falls as tau^{slope:.2f} over the first {k} scales (white noise: tau^-1)"
+    shape = (f"the WV falls as tau^{slope:.2f} over the first {k} scales, white noise as tau^-1"
              if math.isfinite(slope) else "too few scales to tell")
     causes.append(Cause("on-board low-pass filtering", steep,
                         shape + (": neighbouring samples are correlated as a filter on the "
