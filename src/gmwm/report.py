@@ -365,6 +365,8 @@ def _summary_tables(axes: Mapping[str, Mapping[str, Any]], exp: Any, refused: bo
     units (every axis, also those without a sensor unit). ``refused``: the verdict refused the
     configuration files (the captions say they were not written)."""
     from gmwm.exports import SENSORS, SI_UNITS
+    from gmwm.units import unit_system
+    from gmwm.verdict import white_equivalent
 
     out = []
     if exp is not None:
@@ -380,6 +382,12 @@ def _summary_tables(axes: Mapping[str, Mapping[str, Any]], exp: Any, refused: bo
             rows: list[tuple] = []
             for an in noise:
                 nw, ne = _written_cells(an.noise_density)
+                we = white_equivalent(axes[an.axis]["result"])
+                if we is not None and we.changed:  # the file folds fast GM/AR1 terms in
+                    si = unit_system(an.unit).si
+                    nw += (f" (WN {num(we.white * si)} + "
+                           + ", ".join(f"{t.component} {num(t.density * si)}" for t in we.folded)
+                           + " in quadrature)")
                 kw, ke = _written_cells(an.random_walk)
                 rows.append((an.axis, an.unit, an.model, nw, ne, kw, ke,
                              len(_axis_warnings(axes[an.axis]))))
@@ -397,7 +405,9 @@ def _summary_tables(axes: Mapping[str, Mapping[str, Any]], exp: Any, refused: bo
                       f"the files' {sensor} keys). {_BOUND_MARK}: the term is flagged (at the "
                       "boundary 0 or not identifiable at this length) and the value written "
                       "is its 95 % upper bound, not a measurement; the fit's estimate is "
-                      "beside it.")
+                      "beside it. A noise density with terms in parentheses includes the "
+                      "Gauss-Markov/AR1 terms white at the sampling rate (their "
+                      "white-noise-equivalent densities added in quadrature to the WN term's).")
             what = ("the values a configuration file would carry; NONE written (see the "
                     "verdict)" if refused else "the values the configuration files carry")
             out.append((f"{sensor.capitalize()}: {what}",
