@@ -223,6 +223,31 @@ def test_motion_and_temperature_from_the_calibration_path():
     assert "motion" not in _causes(c.with_evidence(out))
 
 
+def test_a_bias_following_the_temperature_is_named():
+    """A warm-up (10 degC over the first minutes) the gx bias follows at 2e-3 rad/s per degC:
+    the stationarity check links them, gmwm.verdict.evidence passes it on and the hint names the
+    temperature among the causes the data show, ahead of those it does not."""
+    import gmwm
+    from gmwm.stationarity import check_stationarity
+    from gmwm.verdict import causes_text, evidence, rejection_causes
+
+    x = bs.static_imu(0, FS, 600.0, np.random.default_rng([40, 27]))
+    n = x["gx"].size
+    temp = 25.0 + 10.0 * (1 - np.exp(-np.arange(n) / (FS * 200.0)))
+    x["gx"] += 2e-3 * (temp - 25.0)
+    st = check_stationarity(x, freq=FS, units=dict(bs.UNITS), temperature=temp)
+    ev = evidence(st, "gx")
+    assert ev.temperature_checked and ev.temperature is not None
+    assert "follows the temperature" in ev.temperature
+    fit = gmwm.fit(x["gx"], "WN+RW", freq=FS)
+    assert fit.gof.rejected()
+    text = causes_text(rejection_causes(fit, evidence=ev))
+    assert text.startswith("likely causes, in the order the data show them: 1. temperature: "
+                           "its bias follows the temperature (")
+    assert "motion (none flagged)" in text
+    assert evidence(st, "gy").temperature is None  # gy does not follow it
+
+
 @pytest.mark.slow
 def test_the_calibration_path_gives_the_hint_the_motion_it_saw(capsys, tmp_path):
     """gmwm report with the automatic model on a recording with a 20-s turn, written under
