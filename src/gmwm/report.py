@@ -2,7 +2,10 @@
 
 First the stationarity check of the recording (``docs/METHODS.md`` §16): a warning naming the
 time ranges that moved, the part of the recording used and a timeline figure with the flagged
-ranges. Per axis: the empirical WV with the fitted model and its components (PNG), the
+ranges. A summary: per sensor the values the configuration files carry (continuous-time SI
+densities, a flagged term's 95 % upper bound marked, the fit's estimate beside it; one unit per
+column), and the fits' estimates in datasheet units in tables of their own. Per axis: the
+empirical WV with the fitted model and its components (PNG), the
 goodness-of-fit line (:mod:`gmwm.gof`), the datasheet coefficients with 95 % CIs
 (:func:`gmwm.datasheet.datasheet`), the IEEE 952 Allan-deviation readings of the same data (bias
 instability included) and the fit's warnings (a rejected model among them); for a model chosen
