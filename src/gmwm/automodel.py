@@ -44,7 +44,11 @@ The rule
    WIC with k = 2). The chosen model is the best-ranked one whose goodness-of-fit p-value is at
    least ``alpha`` (5 %); a candidate whose test cannot be computed does not pass. When every
    candidate is rejected, the best-ranked one is returned with a warning saying so
-   (:attr:`Choice.warnings`); its fit carries the test's own rejection warning too. The chosen
+   (:attr:`Choice.warnings`) and naming the likely causes in the order the data show them
+   (:attr:`Choice.rejection_hint`, :func:`gmwm.verdict.rejection_causes`: too short, on-board
+   low-pass filtering, and -- from what the calibration path passes in
+   (:meth:`Choice.with_evidence`) -- motion and temperature); its fit carries the test's own
+   rejection warning too. The chosen
    model is refitted with :func:`gmwm.fit`'s default standard errors, so ``Choice.result`` is
    what ``gmwm.fit(x, choice.model)`` returns.
 """
