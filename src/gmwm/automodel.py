@@ -44,13 +44,19 @@ The rule
    WIC with k = 2). The chosen model is the best-ranked one whose goodness-of-fit p-value is at
    least ``alpha`` (5 %); a candidate whose test cannot be computed does not pass. When every
    candidate is rejected, the best-ranked one is returned with a warning saying so
-   (:attr:`Choice.warnings`); its fit carries the test's own rejection warning too. The chosen
+   (:attr:`Choice.warnings`) and naming the likely causes in the order the data show them
+   (:attr:`Choice.rejection_hint`, :func:`gmwm.verdict.rejection_causes`: too short, on-board
+   low-pass filtering, and -- from what the calibration path passes in
+   (:meth:`Choice.with_evidence`) -- motion and temperature); its fit carries the test's own
+   rejection warning too. The chosen
    model is refitted with :func:`gmwm.fit`'s default standard errors, so ``Choice.result`` is
    what ``gmwm.fit(x, choice.model)`` returns.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import itertools
 import time
 from collections.abc import Callable
@@ -187,6 +193,22 @@ class Choice:
     seconds: float = 0.0
     dropped_terms: list[tuple[str, int]] = field(default_factory=list)
     slow: str = "GM"
+    #: what the calibration path knows beyond the WV (motion, temperature:
+    #: :class:`gmwm.verdict.Evidence`) for the "every candidate rejected" hint; None: the WV alone
+    evidence: Any = None
+
+    def with_evidence(self, evidence: Any) -> Choice:
+        """This choice with the calibration path's :class:`gmwm.verdict.Evidence` (motion flagged
+        in this channel, a bias following the temperature) for its rejection hint."""
+        return dataclasses.replace(self, evidence=evidence)
+
+    @functools.cached_property
+    def rejection_hint(self) -> str:
+        """Why every candidate may be rejected: the likely causes in the order the data show
+        them (:func:`gmwm.verdict.rejection_causes` on the chosen fit and :attr:`evidence`)."""
+        from .verdict import causes_text, rejection_causes
+
+        return causes_text(rejection_causes(self.result, evidence=self.evidence))
 
     # -- the result protocol, delegated to the chosen fit ---------------------------------------
     @property
@@ -258,8 +280,7 @@ class Choice:
                 f"every candidate model is rejected by the goodness-of-fit test at "
                 f"{self.alpha:g} ({len(self.ranking.ranked)} candidates, {best}): the reported "
                 f"model {self.result.model.spec} is only the best-ranked; its coefficients "
-                "describe a wrong model (motion, temperature drift or a process outside the "
-                "candidates?)")
+                f"describe a wrong model ({self.rejection_hint})")
         return out + list(self.result.warnings)
 
     def rows(self) -> list[dict[str, Any]]:

@@ -250,19 +250,25 @@ def _motion(st: Any, i0: int, i1: int, freq: float | None, share_max: float,
     n = max(i1 - i0, 1)
     share = sum(b - a for a, b in ranges) / n
     where = spans(st, segs)
+    padded = f", padded by {MOTION_PAD_S:g} s" if pad else ""  # the share counts the padding
     if allow:
         return [], [], [(f"the recording MOVED: {100 * share:.3g} % of the samples used are "
-                        f"flagged as motion ({where}); written anyway (allow_motion): these "
+                        f"flagged as motion ({where}{padded}); written anyway (allow_motion): these "
                         "values describe the motion, not the sensor at rest")]
     if share > share_max:
+        from gmwm.verdict import MIN_SAMPLES
+
         a, b = st.clean_segment(i0, i1)
         longest = ("no static stretch" if b <= a else
                    f"the longest static segment is {st.span(st.time_at(a), st.time_at(b))} "
                    f"({(st.time_at(b) - st.time_at(a)):.4g}{' s' if st.freq else ' samples'}, {b - a} "
-                   "samples): calibrate it with `segment` longest-static")
+                   "samples)" + (": calibrate it with `segment` longest-static"
+                                 if b - a >= MIN_SAMPLES else
+                                 f", too short for a configuration (fewer than {MIN_SAMPLES} "
+                                 "samples): record the sensor at rest"))
         return [], [(f"the recording moved: {100 * share:.3g} % of the samples used are flagged "
-                    f"as motion ({where}), more than the {100 * share_max:g} % that may be "
-                    f"excluded; {longest} (or give `allow_motion`)")], []
+                    f"as motion ({where}{padded}), more than the {100 * share_max:g} % that may "
+                    f"be excluded; {longest} (or give `allow_motion`)")], []
     excluded = [(a - i0, b - i0) for a, b in ranges]
     return excluded, [], [(f"motion excluded: {100 * share:.3g} % of the samples used "
                           f"({where}, padded by {MOTION_PAD_S:g} s) are flagged as moving and "
@@ -1067,6 +1073,10 @@ def _axes(p: Prepared, got: Mapping[str, Any], sheet: Any, check: bool,
         if c in p.streamed:
             res = _streamed(res, p.streamed[c])
         page = page or {}
+        if choice is not None and not choice.passed:  # the rejection hint knows the motion
+            from gmwm.verdict import evidence
+
+            choice = choice.with_evidence(evidence(p.stationarity, c, p.motion_excluded))
         unit = p.units.get(c, "")
         chk = None
         if check:

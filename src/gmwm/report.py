@@ -2,7 +2,10 @@
 
 First the stationarity check of the recording (``docs/METHODS.md`` §16): a warning naming the
 time ranges that moved, the part of the recording used and a timeline figure with the flagged
-ranges. Per axis: the empirical WV with the fitted model and its components (PNG), the
+ranges. A summary: per sensor the values the configuration files carry (continuous-time SI
+densities, a flagged term's 95 % upper bound marked, the fit's estimate beside it; one unit per
+column), and the fits' estimates in datasheet units in tables of their own. Per axis: the
+empirical WV with the fitted model and its components (PNG), the
 goodness-of-fit line (:mod:`gmwm.gof`), the datasheet coefficients with 95 % CIs
 (:func:`gmwm.datasheet.datasheet`), the IEEE 952 Allan-deviation readings of the same data (bias
 instability included) and the fit's warnings (a rejected model among them); for a model chosen
@@ -340,6 +343,103 @@ def _verdict_lines(verdict: Any) -> tuple[list[str], list[str]]:
     return md, body
 
 
+_BOUND_MARK = "≤"  # a flagged term's value: its 95 % upper bound, not a measurement
+
+
+def _written_cells(t: Any) -> tuple[str, str]:
+    """(value written, fit estimate with its 95 % CI) cells of one
+    :class:`gmwm.exports.AxisTerm` (continuous-time SI)."""
+    if t.value is None:
+        written = "not written" if t.estimate is not None else "–"
+    else:
+        written = (f"{_BOUND_MARK} " if t.flag is not None and t.value != t.estimate else "") \
+            + num(t.value)
+    est = "–" if t.estimate is None else (num(t.estimate) + (f" {interval(t.ci95)}"
+                                                              if t.ci95 else ""))
+    return written, est
+
+
+def _summary_tables(axes: Mapping[str, Mapping[str, Any]], exp: Any, refused: bool = False
+                    ) -> list[tuple[str, list[str], list[tuple], str]]:
+    """(caption, headers, rows, legend) of the summary tables, one unit system per table: per
+    sensor the values the configuration files carry (continuous-time SI densities before
+    inflation, a flagged term's 95 % upper bound marked, the fit's estimate beside it; last row
+    the file's key, one value per sensor), then the fits' datasheet coefficients in datasheet
+    units (every axis, also those without a sensor unit). ``refused``: the verdict refused the
+    configuration files (the captions say they were not written)."""
+    from gmwm.exports import SENSORS, SI_UNITS
+    from gmwm.units import unit_system
+    from gmwm.verdict import white_equivalent
+
+    out = []
+    if exp is not None:
+        for sensor in SENSORS:
+            noise = exp.sensor_axes(sensor)
+            if not noise:
+                continue
+            _, nu, ku = SI_UNITS[sensor]
+            verb = "would be written" if refused else "written"
+            headers = ["axis", "unit", "model", f"noise density {verb} [{nu}]",
+                       "fit estimate [95% CI]", f"random walk {verb} [{ku}]",
+                       "fit estimate [95% CI]", "warnings"]
+            rows: list[tuple] = []
+            for an in noise:
+                nw, ne = _written_cells(an.noise_density)
+                we = white_equivalent(axes[an.axis]["result"])
+                if we is not None and we.changed:  # the file folds fast GM/AR1 terms in
+                    si = unit_system(an.unit).si
+                    nw += (f" (WN {num(we.white * si)} + "
+                           + ", ".join(f"{t.component} {num(t.density * si)}" for t in we.folded)
+                           + " in quadrature)")
+                kw, ke = _written_cells(an.random_walk)
+                rows.append((an.axis, an.unit, an.model, nw, ne, kw, ke,
+                             len(_axis_warnings(axes[an.axis]))))
+            comb = exp.combined[sensor]
+            cells = []
+            for term in ("noise_density", "random_walk"):
+                c = comb[term]
+                how = (f"axis {c.axis}" if c.axis is not None else "rms of the axes") + (
+                    "" if c.inflation == 1.0 else f", x{c.inflation:g} inflation")
+                cells += ["not written" if c.value is None else num(c.value),
+                          "–" if c.value is None else how]
+            rows.append((f"{sensor}_* keys", "SI", "–", *cells, "–"))
+            legend = (f"Continuous-time densities in SI units, as the configuration files "
+                      f"{'would ' if refused else ''}write them (per axis before inflation; the last row is the value of "
+                      f"the files' {sensor} keys). {_BOUND_MARK}: the term is flagged (at the "
+                      "boundary 0 or not identifiable at this length) and the value written "
+                      "is its 95 % upper bound, not a measurement; the fit's estimate is "
+                      "beside it. A noise density with terms in parentheses includes the "
+                      "Gauss-Markov/AR1 terms white at the sampling rate (their "
+                      "white-noise-equivalent densities added in quadrature to the WN term's).")
+            what = ("the values a configuration file would carry; NONE written (see the "
+                    "verdict)" if refused else "the values the configuration files carry")
+            out.append((f"{sensor.capitalize()}: {what}",
+                        headers, rows, legend))
+    groups: dict[tuple[str, str], list[tuple]] = {}  # one table per pair of units
+    for name, a in axes.items():
+        ds = a["datasheet"]
+        white = next((v for k, v in ds.items() if k.split("[")[0] in ("ARW", "VRW", "WN")), None)
+        rw = next((v for k, v in ds.items() if k.split("[")[0] in ("RRW", "AccRW", "RW")), None)
+        cell = (lambda e: "–" if e is None else f"{num(e['value'])} {interval(e.get('ci95'))}")
+        units = tuple("–" if e is None else e["unit"] for e in (white, rw))
+        groups.setdefault(units, []).append(
+            (name, a["units"] or "–", a["result"].model.spec, cell(white), cell(rw),
+             len(_axis_warnings(a))))
+    si = {u[1:] for u in SI_UNITS.values()}
+    for (wu, ku), rows in groups.items():
+        if exp is not None and (wu, ku) in si:  # the same numbers as the SI table above
+            continue
+        headers = ["axis", "unit", "model", f"white noise [{wu}] [95% CI]",
+                   f"random walk [{ku}] [95% CI]", "warnings"]
+        caption = ("The fits' estimates" if exp is None else "In datasheet units") + (
+            f" ({wu}; {ku})" if len(groups) > 1 or exp is not None else "")
+        legend = ("The fits' estimates in the datasheet units of these axes (gmwm.units), for "
+                  "comparison with a sensor's datasheet; the configuration files carry the SI "
+                  "values above." if exp is not None else "")
+        out.append((caption, headers, rows, legend))
+    return out
+
+
 def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
                  timing: Sequence[str] | None, stationarity: Any, lv: int = 2, prefix: str = "",
                  config_dir: str | None = None, refused: Sequence[str] = ()
@@ -371,19 +471,13 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
         md += smd
         body += sbody
         figures += sfigs
-    summary = []
-    for name, a in axes.items():
-        res = a["result"]
-        ds = a["datasheet"]
-        white = next((v for k, v in ds.items() if k.split("[")[0] in ("ARW", "VRW", "WN")), None)
-        rw = next((v for k, v in ds.items() if k.split("[")[0] in ("RRW", "AccRW", "RW")), None)
-        summary.append((name, a["units"] or "–", res.model.spec,
-                        "–" if white is None else f"{num(white['value'])} {white['unit']}",
-                        "–" if rw is None else f"{num(rw['value'])} {rw['unit']}",
-                        len(_axis_warnings(a))))
-    headers = ["axis", "unit", "model", "white noise", "random walk", "warnings"]
-    md += [f"{h} Summary", "", *md_table(headers, summary), ""]
-    body += [f"<h{lv}>Summary</h{lv}>", html_table(headers, summary)]
+    md += [f"{h} Summary", ""]
+    body.append(f"<h{lv}>Summary</h{lv}>")
+    for caption, headers, summary, legend in _summary_tables(axes, exp, bool(refused)):
+        md += [f"**{caption}**", "", *md_table(headers, summary), "",
+               *([legend, ""] if legend else [])]
+        body += [f"<p><strong>{html.escape(caption)}</strong></p>", html_table(headers, summary),
+                 *([f"<p>{html.escape(legend)}</p>"] if legend else [])]
     for name, a in axes.items():
         res = a["result"]
         png = wv_figure_path(out, name, prefix)

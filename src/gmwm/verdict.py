@@ -25,6 +25,11 @@ Rules (each a function below, each with its constant):
   WV from the estimated WV, and the scale where it occurs.
 * **Units** (:func:`unit_warning`): a white-noise density beyond any known sensor of its class
   names the likely mix-up (deg/s read as rad/s, g or mg read as m/s^2).
+* **Why every candidate is rejected** (:func:`rejection_causes`): the likely causes in the order
+  the data show them: too short, on-board low-pass filtering (the WV falls slower than white
+  noise's ``1/tau`` over the shortest scales, :func:`short_scale_slope`), motion and a bias
+  following the temperature (what the calibration path's stationarity check found,
+  :class:`Evidence`); then those the data do not show.
 """
 
 from __future__ import annotations
@@ -36,9 +41,11 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["FAST_TAU_SAMPLES", "FLAGGED", "MAX_DENSITY", "MIN_SAMPLES", "NOT_WRITTEN", "WRITTEN",
-           "FastTerm", "Misfit", "Verdict", "WhiteEquivalent", "decide", "identifiability",
-           "misfit", "too_short", "unit_warning", "white_equivalent"]
+__all__ = ["FAST_TAU_SAMPLES", "FLAGGED", "LOWPASS_SLOPE", "MAX_DENSITY", "MIN_SAMPLES",
+           "NOT_WRITTEN", "WRITTEN", "Cause", "Evidence", "FastTerm", "Misfit", "Verdict",
+           "WhiteEquivalent", "causes_text", "decide", "evidence", "identifiability", "misfit",
+           "rejection_causes", "short_scale_slope", "too_short", "unit_warning",
+           "white_equivalent"]
 
 #: shortest record for a configuration [samples]: 2^12 gives 11 dyadic scales, the white-noise
 #: variance to ~3 % (relative SE sqrt(2 / T) at the first scale's ~T/2 coefficients) and a
@@ -335,3 +342,140 @@ def decide(axes: Mapping[str, Any], *, n_samples: int,
         return Verdict(NOT_WRITTEN, tuple(reasons), tuple(lines), unidentified=unidentified)
     return Verdict(FLAGGED if lines else WRITTEN, (), tuple(lines), unidentified=unidentified)
 
+
+
+# -- why every candidate is rejected -------------------------------------------------------------
+#: the WV's log-log slope over the shortest scales above which (with the intervals agreeing)
+#: the samples are correlated as an on-board low-pass filter makes them: white noise falls as
+#: ``tau^-1``, quantisation noise as ``tau^-2``; a one-pole filter of pole ``phi`` makes it
+#: flatter (``phi`` 0.3: -0.42 between the first two scales, 0.5: -0.09, 0.8: +0.33)
+LOWPASS_SLOPE = -0.8
+#: how many of the shortest scales the slope spans
+SLOPE_SCALES = 3
+
+
+def short_scale_slope(wv: Any, n_scales: int = SLOPE_SCALES) -> tuple[float, bool]:
+    """(log-log slope of the WV between its first and ``n_scales``-th scale, whether it falls
+    significantly slower than white noise's ``tau^-1``: above :data:`LOWPASS_SLOPE` and the
+    longer scale's lower 95 % bound times its scale above the first's upper bound times its
+    scale). NaN and False with fewer than two positive scales."""
+    nu = np.asarray(wv.variance, float)
+    tau = np.asarray(wv.scales, float)
+    k = min(n_scales, nu.size) - 1
+    if k < 1 or not (nu[0] > 0 and nu[k] > 0):
+        return math.nan, False
+    slope = float(math.log(nu[k] / nu[0]) / math.log(tau[k] / tau[0]))
+    lo = np.asarray(getattr(wv, "ci_low", nu), float)
+    hi = np.asarray(getattr(wv, "ci_high", nu), float)
+    sure = bool(lo[k] * tau[k] > hi[0] * tau[0])
+    return slope, bool(slope > LOWPASS_SLOPE and sure)
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """What the calibration path knows of one channel beyond its WV: where the stationarity
+    check flagged motion in the part used (``motion``; None: none flagged) and whether it was
+    excluded from the estimate, how the bias follows the temperature (``temperature``; None:
+    it does not); ``checked``/``temperature_checked``: whether each was looked at (a WV alone,
+    or a recording without temperature, cannot say)."""
+
+    motion: str | None = None
+    motion_excluded: bool = False
+    temperature: str | None = None
+    checked: bool = False
+    temperature_checked: bool = False
+
+
+def evidence(stationarity: Any, channel: str, excluded: bool = False) -> Evidence:
+    """The :class:`Evidence` of ``channel`` in a :class:`gmwm.stationarity.StationarityReport`
+    (its ``used`` range; None: nothing checked); ``excluded``: the flagged motion was left out
+    of the estimate."""
+    st = stationarity
+    if st is None or not getattr(st, "tested", True):
+        return Evidence()
+    from gmwm.formatting import spans
+
+    a, b = st.used or (0, st.n)
+    segs = [s for s in st.segments_in(a, b) if channel in s.channels]
+    t = getattr(st, "temperature", None)
+    temp = None
+    if t is not None and channel in t.following:
+        r, slope, _, _ = t.channels[channel]
+        unit = (getattr(st, "units", None) or {}).get(channel) or "units"
+        temp = (f"its bias follows the temperature ({slope:.3g} {unit}/degC, r = {r:.2f}, "
+                f"{t.range_c[0]:.3g}-{t.range_c[1]:.3g} degC)")
+    return Evidence(spans(st, segs) if segs else None, bool(segs) and excluded, temp, True,
+                    t is not None)
+
+
+@dataclass(frozen=True)
+class Cause:
+    """One likely cause of a rejected fit: ``name``, whether the data ``shown`` it, and the
+    ``reason`` (what in the data shows it, or why it is not ruled out)."""
+
+    name: str
+    shown: bool
+    reason: str
+
+
+def rejection_causes(result: Any, *, n_samples: int | None = None,
+                     evidence: Evidence | None = None) -> list[Cause]:
+    """The likely causes of a fit the goodness-of-fit test rejects, those the data show first,
+    each group in the order: too short (below :data:`MIN_SAMPLES`; a random walk or
+    Gauss-Markov term not identifiable at this length, :func:`identifiability`, is weaker
+    evidence and comes after the other causes shown), on-board low-pass filtering
+    (:func:`short_scale_slope`), motion, temperature (``evidence``, from the calibration path);
+    last always "a process outside the candidates"."""
+    ev = evidence or Evidence()
+    wv = result.wv
+    n = int(n_samples if n_samples is not None else getattr(wv, "n_samples", 0))
+    causes: list[Cause] = []
+    short = too_short(n)
+    with np.errstate(divide="ignore", invalid="ignore"):  # a term at 0 has no relative SE
+        weak = {} if short else identifiability(result, n)
+    if short:
+        causes.append(Cause("too short", True, short))
+    elif weak:
+        from gmwm.plan import format_duration
+
+        names = ", ".join(f"{c} (from {format_duration(v)})" if v else c for c, v in weak.items())
+        causes.append(Cause("too short", True, f"{names} not identifiable at this length "
+                            f"({n} samples, {len(wv.scales)} scales)"))
+    else:
+        causes.append(Cause("too short", False, f"{n} samples, {len(wv.scales)} scales"))
+    slope, steep = short_scale_slope(wv)
+    k = min(SLOPE_SCALES, len(wv.scales))
+    shape = (f"the WV falls as tau^{slope:.2f} over the first {k} scales, white noise as tau^-1"
+             if math.isfinite(slope) else "too few scales to tell")
+    causes.append(Cause("on-board low-pass filtering", steep,
+                        shape + (": neighbouring samples are correlated as a filter on the "
+                                 "sensor makes them" if steep else "")))
+    if ev.motion is not None:
+        causes.append(Cause("motion", not ev.motion_excluded,
+                            f"flagged at {ev.motion}" + (" and excluded; what the check could not "
+                                                         "see may remain" if ev.motion_excluded
+                                                         else ", inside the estimate")))
+    else:
+        causes.append(Cause("motion", False, "none flagged" if ev.checked else "not checked"))
+    if ev.temperature is not None:
+        causes.append(Cause("temperature", True, ev.temperature))
+    else:
+        causes.append(Cause("temperature", False, "no link to the temperature found"
+                            if ev.temperature_checked else
+                            "not checked: the recording has no temperature"))
+    # a term the length cannot identify is weaker evidence than the others: after them
+    lead = [] if short or not causes[0].shown else [causes.pop(0)]
+    shown = [c for c in causes if c.shown] + lead
+    return (shown + [c for c in causes if not c.shown]
+            + [Cause("a process outside the candidates", False, "")])
+
+
+def causes_text(causes: Sequence[Cause]) -> str:
+    """One phrase for a warning: the causes the data show, numbered, then the others."""
+    shown = [c for c in causes if c.shown]
+    rest = [c for c in causes if not c.shown]
+    part = "; ".join(f"{i}. {c.name}: {c.reason}" for i, c in enumerate(shown, 1))
+    other = ", ".join(f"{c.name} ({c.reason})" if c.reason else c.name for c in rest)
+    if not shown:
+        return f"no likely cause shows in the data; not ruled out: {other}"
+    return f"likely causes, in the order the data show them: {part}; not ruled out: {other}"
