@@ -305,6 +305,8 @@ def decide(axes: Mapping[str, Any], *, n_samples: int,
     (ranges excluded, motion allowed). Adds: too short (refusal), every candidate rejected with
     the misfit, terms not identifiable at this length, fast terms folded into the noise density,
     unit mix-ups."""
+    from gmwm.gof import fmt_p
+
     reasons = list(refusals)
     short = too_short(n_samples)
     if short:
@@ -317,7 +319,7 @@ def decide(axes: Mapping[str, Any], *, n_samples: int,
         gof = getattr(res, "gof", None)
         if gof is not None and gof.rejected():
             lines.append(f"{ch}: model {res.model.spec} REJECTED by the goodness-of-fit test "
-                         f"(p {gof.p_value:.2g}): {misfit(res).describe()}")
+                         f"(p {fmt_p(gof.p_value)}): {misfit(res).describe()}")
         weak = identifiability(res, n_samples) if n_samples >= MIN_SAMPLES else {}
         for comp, need in weak.items():
             from gmwm.plan import format_duration
