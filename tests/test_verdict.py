@@ -46,6 +46,9 @@ def test_fast_gm_is_folded_into_the_noise_density_by_hand() -> None:
     slow = _fake("WN+GM", {"WN[1].sigma2": 1e-4, "GM[1].beta": 0.01, "GM[1].sigma2": 4e-4}, f)
     assert not white_equivalent(slow).changed
     assert white_equivalent(slow).density == pytest.approx(math.sqrt(1e-4 / f))
+    # a GM whose beta is at 0 (phi = 1 in double precision) is a bias, not white: no crash
+    flat = _fake("WN+GM", {"WN[1].sigma2": 1e-4, "GM[1].beta": 1e-300, "GM[1].sigma2": 4e-4}, f)
+    assert not white_equivalent(flat).changed
     # the threshold itself
     edge = _fake("AR1+WN", {"WN[1].sigma2": 1.0, "AR1[1].phi": math.exp(-1 / FAST_TAU_SAMPLES),
                             "AR1[1].sigma2": 1.0}, 1.0)

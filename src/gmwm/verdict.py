@@ -111,14 +111,17 @@ def _ar1_lrv(process: str, p: np.ndarray, freq: float) -> tuple[float, float, np
     """(phi, long-run variance per sample, its gradient in the component's parameters)."""
     if process == "GM":
         beta, s2 = float(p[0]), float(p[1])
-        a = beta / freq
-        phi = math.exp(-a)
-        lrv = s2 * (1 + phi) / (1 - phi) if phi < 1 else math.inf
+        phi = math.exp(-beta / freq)
+        if not phi < 1:  # beta at 0 (or below double precision): a bias, never white
+            return phi, math.inf, np.zeros(2)
+        lrv = s2 * (1 + phi) / (1 - phi)
         # d lrv / d beta = s2 * d/dphi[(1+phi)/(1-phi)] * dphi/dbeta = s2 * 2/(1-phi)^2 * (-phi/f)
         g = np.array([s2 * 2 / (1 - phi) ** 2 * (-phi / freq), (1 + phi) / (1 - phi)])
         return phi, lrv, g
     phi, s2 = float(p[0]), float(p[1])
-    lrv = s2 / (1 - phi) ** 2 if phi < 1 else math.inf
+    if not abs(phi) < 1:  # a unit root: a random walk, never white
+        return phi, math.inf, np.zeros(2)
+    lrv = s2 / (1 - phi) ** 2
     g = np.array([2 * s2 / (1 - phi) ** 3, 1 / (1 - phi) ** 2])
     return phi, lrv, g
 
@@ -300,7 +303,8 @@ def decide(axes: Mapping[str, Any], *, n_samples: int,
            refusals: Sequence[str] = (), caveats: Sequence[str] = ()) -> Verdict:
     """The verdict for the per-axis fits ``axes`` (channel -> result or choice) of a record of
     ``n_samples`` used samples; ``kinds``: channel -> sensor kind, ``to_si``: channel -> factor
-    from its signal unit to SI (for the unit check; 1 when absent). ``refusals``: reasons the caller already has for not writing
+    from its signal unit to SI (for the unit check; 1 when absent). ``refusals``: reasons the
+    caller already has for not writing
     (motion beyond the excluded share, an ambiguous rate); ``caveats``: lines it already has
     (ranges excluded, motion allowed). Adds: too short (refusal), every candidate rejected with
     the misfit, terms not identifiable at this length, fast terms folded into the noise density,
@@ -315,31 +319,36 @@ def decide(axes: Mapping[str, Any], *, n_samples: int,
     kinds = dict(kinds or {})
     unidentified: dict[str, dict[str, float | None]] = {}
     for ch, obj in axes.items():
-        res = getattr(obj, "result", obj)
-        gof = getattr(res, "gof", None)
-        if gof is not None and gof.rejected():
-            lines.append(f"{ch}: model {res.model.spec} REJECTED by the goodness-of-fit test "
-                         f"(p {fmt_p(gof.p_value)}): {misfit(res).describe()}")
-        weak = identifiability(res, n_samples) if n_samples >= MIN_SAMPLES else {}
-        for comp, need in weak.items():
-            from gmwm.plan import format_duration
+        try:
+            res = getattr(obj, "result", obj)
+            gof = getattr(res, "gof", None)
+            if gof is not None and gof.rejected():
+                lines.append(f"{ch}: model {res.model.spec} REJECTED by the goodness-of-fit test "
+                             f"(p {fmt_p(gof.p_value)}): {misfit(res).describe()}")
+            weak = identifiability(res, n_samples) if n_samples >= MIN_SAMPLES else {}
+            for comp, need in weak.items():
+                from gmwm.plan import format_duration
 
-            lines.append(f"{ch}: {comp} not identifiable at this length ("
-                         f"{format_duration(n_samples / res.model.freq)}); "
-                         + (f"identifiable from {format_duration(need)}" if need else
-                            "not within 30 days") + ": a filter term it gives is written as its "
-                         "95 % upper bound, not as a measurement")
-        if weak:
-            unidentified[ch] = dict(weak)
-        we = white_equivalent(res)
-        if we is not None and we.changed:
-            parts = ", ".join(f"{t.component} (correlation time {t.tau_samples:.2g} samples)"
-                              for t in we.folded)
-            lines.append(f"{ch}: noise density includes {parts}: {we.rule()}")
-        if we is not None:
-            warn = unit_warning(kinds.get(ch), we.density * float((to_si or {}).get(ch, 1.0)))
-            if warn:
-                lines.append(f"{ch}: {warn}")
+                lines.append(f"{ch}: {comp} not identifiable at this length ("
+                             f"{format_duration(n_samples / res.model.freq)}); "
+                             + (f"identifiable from {format_duration(need)}" if need else
+                                "not within 30 days") + ": a filter term it gives is written as its "
+                             "95 % upper bound, not as a measurement")
+            if weak:
+                unidentified[ch] = dict(weak)
+            we = white_equivalent(res)
+            if we is not None and we.changed:
+                parts = ", ".join(f"{t.component} (correlation time {t.tau_samples:.2g} samples)"
+                                  for t in we.folded)
+                lines.append(f"{ch}: noise density includes {parts}: {we.rule()}")
+            if we is not None:
+                warn = unit_warning(kinds.get(ch), we.density * float((to_si or {}).get(ch, 1.0)))
+                if warn:
+                    lines.append(f"{ch}: {warn}")
+        except Exception as exc:  # noqa: BLE001 - a check that fails must say so, not crash
+            lines.append(f"{ch}: the configuration checks failed ({type(exc).__name__}: "
+                         f"{str(exc).strip().splitlines()[0] if str(exc).strip() else exc!r}): "
+                         "treat its values with care and report this")
     if reasons:
         return Verdict(NOT_WRITTEN, tuple(reasons), tuple(lines), unidentified=unidentified)
     return Verdict(FLAGGED if lines else WRITTEN, (), tuple(lines), unidentified=unidentified)
