@@ -10,7 +10,6 @@ ignores); the random numbers are others. For Monte Carlo studies of the WV and o
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
@@ -43,40 +42,10 @@ class _Plan:
                  boundary_ok: bool = False) -> None:
         theta = np.asarray(theta, dtype=float)
         model.check(theta, boundary_ok=boundary_ok)
-        sigma2 = gamma2 = 0.0
-        self.omega = 0.0
-        self.ar1: list[list[float]] = []  # [phi, innovation sd, state]
-        self.qn: list[list[float]] = []  # [q, previous uniform]
-        self.sines: list[tuple[float, float, float]] = []  # (alpha, beta, phase)
-        for c in model.components:
-            kind, *v = c.process.primitive(theta[c.slice], model.freq)
-            if kind == "wn":
-                sigma2 += v[0]
-            elif kind == "rw":
-                gamma2 += v[0]
-            elif kind == "dr":
-                self.omega += v[0]
-            elif kind == "ar1":
-                phi, _, s2 = v
-                s = math.sqrt(s2)
-                self.ar1.append([phi, s, s * rng.standard_normal() / math.sqrt(1.0 - phi * phi)])
-            elif kind == "qn":
-                self.qn.append([math.sqrt(12.0 * v[0]), rng.random()])
-            elif kind == "sin":
-                self.sines.append((v[0], v[1], rng.uniform(0.0, 2 * np.pi)))
-            else:  # a process added to PROCESSES without a kernel here
-                raise ModelError(f"the fused simulator has no kernel for process "
-                                 f"{c.process.name!r}")
-        self.walk = sigma2 > 0 or gamma2 > 0
-        self.a_w = self.b_w = self.level = 0.0
-        if self.walk:
-            # x_t = a z_t + b sum_{k<t} z_k: increments MA(1) with the variance and lag-1
-            # covariance of the increments of WN + RW (derivation: Model.simulate_fast)
-            c0 = 2 * sigma2 + gamma2
-            g = math.sqrt(gamma2 * (4 * sigma2 + gamma2))
-            theta_ma = -2 * sigma2 / (c0 + g)
-            self.a_w = math.sqrt(c0 / (1 + theta_ma * theta_ma))
-            self.b_w = self.a_w * (gamma2 + g) / (c0 + g)
+        plan = model.simulation_plan(theta, rng)
+        self.walk, self.a_w, self.b_w, self.omega = plan.walk, plan.a_w, plan.b_w, plan.omega
+        self.ar1, self.qn, self.sines = plan.ar1, plan.qn, plan.sines
+        self.level = 0.0
         self.state = seed_state(rng)
 
     def fill(self, xb: np.ndarray, t0: int, z: np.ndarray, u: np.ndarray) -> None:

@@ -75,6 +75,23 @@ def parse_model(spec: str) -> dict[str, int]:
     return counts
 
 
+
+@dataclass
+class SimulationPlan:
+    """A model's components in the block simulators' primitive form
+    (:meth:`Model.simulation_plan`): the walk-plus-noise stream (``walk``, coefficients ``a_w``,
+    ``b_w``), the drift per sample ``omega``, and the AR1 ``[phi, innovation sd, state]``, QN
+    ``[q, previous uniform]`` and SIN ``(alpha, beta, phase)`` entries (states are updated in
+    place by the simulators)."""
+
+    walk: bool
+    a_w: float
+    b_w: float
+    omega: float
+    ar1: list[list[float]]
+    qn: list[list[float]]
+    sines: list[tuple[float, float, float]]
+
 class Model:
     """A sum of independent processes with flat, named parameters.
 
@@ -276,37 +293,9 @@ class Model:
         if n < 1:
             raise ModelError(f"number of samples must be positive, got {n}")
         rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
-        sigma2 = gamma2 = omega = 0.0
-        ar1: list[list[float]] = []  # [phi, innovation sd, state]
-        qn: list[list[float]] = []  # [q, previous uniform]
-        sines: list[tuple[float, float, float]] = []  # (alpha, beta, phase)
-        for c in self.components:
-            # the primitive form (GM: an AR1; WN and RW: one walk-plus-noise stream)
-            kind, *v = c.process.primitive(theta[c.slice], self.freq)
-            if kind == "wn":
-                sigma2 += v[0]
-            elif kind == "rw":
-                gamma2 += v[0]
-            elif kind == "dr":
-                omega += v[0]
-            elif kind == "ar1":
-                phi, _, s2 = v
-                s = math.sqrt(s2)
-                ar1.append([phi, s, s * rng.standard_normal() / math.sqrt(1.0 - phi * phi)])
-            elif kind == "qn":
-                qn.append([math.sqrt(12.0 * v[0]), rng.random()])
-            elif kind == "sin":
-                sines.append((v[0], v[1], rng.uniform(0.0, 2 * np.pi)))
-            else:  # a process added to PROCESSES without a kernel here
-                raise ModelError(f"simulate_fast has no kernel for process {c.process.name!r}")
-        walk = sigma2 > 0 or gamma2 > 0
-        if walk:
-            c0 = 2 * sigma2 + gamma2
-            g = math.sqrt(gamma2 * (4 * sigma2 + gamma2))
-            theta_ma = -2 * sigma2 / (c0 + g)  # invertible root of theta / (1 + theta^2) = -sigma2/c0
-            a_w = math.sqrt(c0 / (1 + theta_ma * theta_ma))
-            b_w = a_w * (gamma2 + g) / (c0 + g)  # a (1 + theta), free of cancellation
-            level = 0.0
+        plan = self.simulation_plan(theta, rng)
+        walk, omega, ar1, qn, sines = plan.walk, plan.omega, plan.ar1, plan.qn, plan.sines
+        a_w, b_w, level = plan.a_w, plan.b_w, 0.0
         n_normal = int(walk) + len(ar1)
         z = np.empty((n_normal, min(block, n)))
         u = np.empty((len(qn), min(block, n)))
@@ -333,6 +322,47 @@ class Model:
             for alpha, beta, phase in sines:
                 k.add_sinusoid(xb, alpha, beta, phase, start + 1)
         return x
+
+    def simulation_plan(self, theta: np.ndarray, rng: np.random.Generator) -> SimulationPlan:
+        """The components at ``theta`` in the primitive form the block simulators take
+        (:meth:`simulate_fast`, :mod:`gmwm.fused`): WN and RW as one walk-plus-noise stream
+        x_t = a z_t + b sum_{k<t} z_k, AR1/GM with their stationary start, QN with its first
+        level, SIN with its phase; the start states drawn from ``rng`` in component order (one
+        normal per AR1/GM, one uniform per QN and per SIN). ``theta`` is checked by the caller."""
+        sigma2 = gamma2 = omega = 0.0
+        ar1: list[list[float]] = []  # [phi, innovation sd, state]
+        qn: list[list[float]] = []  # [q, previous uniform]
+        sines: list[tuple[float, float, float]] = []  # (alpha, beta, phase)
+        for c in self.components:
+            kind, *v = c.process.primitive(theta[c.slice], self.freq)
+            if kind == "wn":
+                sigma2 += v[0]
+            elif kind == "rw":
+                gamma2 += v[0]
+            elif kind == "dr":
+                omega += v[0]
+            elif kind == "ar1":
+                phi, _, s2 = v
+                s = math.sqrt(s2)
+                ar1.append([phi, s, s * rng.standard_normal() / math.sqrt(1.0 - phi * phi)])
+            elif kind == "qn":
+                qn.append([math.sqrt(12.0 * v[0]), rng.random()])
+            elif kind == "sin":
+                sines.append((v[0], v[1], rng.uniform(0.0, 2 * np.pi)))
+            else:  # a process added to PROCESSES without a kernel here
+                raise ModelError(f"the block simulators have no kernel for process "
+                                 f"{c.process.name!r}")
+        walk = sigma2 > 0 or gamma2 > 0
+        a_w = b_w = 0.0
+        if walk:
+            # increments a z_t + (b - a) z_{t-1}: an MA(1) with the variance (2 sigma2 + gamma2)
+            # and lag-1 covariance (-sigma2) of the increments of WN + RW
+            c0 = 2 * sigma2 + gamma2
+            g = math.sqrt(gamma2 * (4 * sigma2 + gamma2))
+            theta_ma = -2 * sigma2 / (c0 + g)  # invertible root of theta/(1 + theta^2) = -sigma2/c0
+            a_w = math.sqrt(c0 / (1 + theta_ma * theta_ma))
+            b_w = a_w * (gamma2 + g) / (c0 + g)  # a (1 + theta), free of cancellation
+        return SimulationPlan(walk, a_w, b_w, omega, ar1, qn, sines)
 
     # -- unconstrained parametrisation ----------------------------------------------------------
     def to_free(self, theta: np.ndarray) -> np.ndarray:
