@@ -212,8 +212,6 @@ class Prepared:
     caveats: tuple[str, ...] = ()
     #: samples the estimate uses (after gaps and excluded motion); None: not known (a table)
     n_used: int | None = None
-    #: the flagged motion was left out of the estimate (the axes' warnings say so)
-    motion_excluded: bool = False
 
     @property
     def rostopic(self) -> str | None:
@@ -229,11 +227,13 @@ class Prepared:
 
 
 def _motion(st: Any, i0: int, i1: int, freq: float | None, share_max: float,
-            allow: bool) -> tuple[list[tuple[int, int]], list[str], list[str]]:
+            allow: bool, cut: bool = True) -> tuple[list[tuple[int, int]], list[str], list[str]]:
     """The flagged ranges of ``[i0, i1)`` to exclude (padded by :data:`MOTION_PAD_S`, merged;
     relative to ``i0``), the refusals and the caveats of the motion policy (docs/recordings.md):
     a share up to ``share_max`` is excluded; beyond it the configuration is refused, naming the
-    longest static segment, unless ``allow`` (then the caveat says the values describe motion)."""
+    longest static segment, unless ``allow`` (then the caveat says the values describe motion).
+    ``cut=False``: an input that cannot be cut (a streamed file): the same share rule, and within
+    it a caveat that the motion is included."""
     from gmwm.formatting import spans
 
     segs = st.segments_in(i0, i1)
@@ -269,10 +269,15 @@ def _motion(st: Any, i0: int, i1: int, freq: float | None, share_max: float,
         return [], [(f"the recording moved: {100 * share:.3g} % of the samples used are flagged "
                     f"as motion ({where}{padded}), more than the {100 * share_max:g} % that may "
                     f"be excluded; {longest} (or give `allow_motion`)")], []
+    if not cut:
+        return [], [], [(f"motion NOT excluded: {100 * share:.3g} % of the samples used "
+                         f"({where}{padded}) are flagged as moving, but a streamed input is not "
+                         "cut, so the values include that motion; read the file whole "
+                         "(GMWM_STREAM_MIN_BYTES) or give `start_s`/`end_s`")]
     excluded = [(a - i0, b - i0) for a, b in ranges]
     return excluded, [], [(f"motion excluded: {100 * share:.3g} % of the samples used "
-                          f"({where}, padded by {MOTION_PAD_S:g} s) are flagged as moving and "
-                          "left out; the estimate pools the clean parts")]
+                          f"({where}{padded}) are flagged as moving and left out; the estimate "
+                          "pools the clean parts")]
 
 
 #: largest |mean| of a static gyroscope axis that a real bias explains [rad/s] (20 deg/s: MEMS
@@ -309,13 +314,7 @@ def _streamed_motion(p: Prepared, share_max: float, allow: bool) -> Prepared:
     if st is None or not getattr(st, "tested", False) or p.refusals or p.caveats:
         return p
     a, b = st.used or (0, st.n)
-    excluded, refusals, caveats = _motion(st, a, b, st.freq, share_max, allow)
-    if excluded:
-        caveats = [c.replace("motion excluded:", "motion NOT excluded:").replace(
-                       "are flagged as moving and left out; the estimate pools the clean parts", "are flagged as moving and NOT left out: a streamed input "
-                             "is not cut, so the values include that motion; read the file "
-                             "whole (GMWM_STREAM_MIN_BYTES) or give `start_s`/`end_s`")
-                   for c in caveats]
+    _, refusals, caveats = _motion(st, a, b, st.freq, share_max, allow, cut=False)
     return dataclasses.replace(p, refusals=tuple(refusals), caveats=tuple(caveats),
                                messages=(*p.messages, *(f"note: {c}" for c in caveats)))
 
@@ -379,14 +378,13 @@ def prepare(rec: Any, *, units: str | Sequence[str] | Mapping[str, str | None] |
     i0, i1 = (0, rec.n) if start_s is None and end_s is None else \
         sample_range(rec, start_s, end_s)
     st, i0, i1 = choose_part(st, i0, i1, segment=segment, strict=strict, where=where)
-    messages += part_messages(st)
     if not 0 <= motion_share < 1:
         raise InputError(f"`motion_share` must lie in [0, 1), got {motion_share}")
     excluded, refusals, caveats = _motion(st, i0, i1, freq if rec.time is not None else None,
                                           motion_share, allow_motion)
-    if excluded:  # the stationarity warning's "the estimate includes them" no longer holds
-        messages = [m.split("; the estimate uses")[0] + "; they are excluded from the estimate"
-                    if "turns motion into noise" in m else m for m in messages]
+    if excluded:
+        st = dataclasses.replace(st, excluded=True)
+    messages += part_messages(st)
     used = rec if (i0, i1) == (0, rec.n) else select_samples(rec, i0, i1)
     decision = used.gaps(gaps)
     if decision.message:
@@ -411,8 +409,7 @@ def prepare(rec: Any, *, units: str | Sequence[str] | Mapping[str, str | None] |
     data = {c: signal_for_wv(x, decision, levels, freq) for c, x in used.channels.items()}
     return Prepared(data, freq, u, used, st, decision, timing=None if timing is None
                     else tuple(timing), messages=tuple(messages), topic=rec.topic,
-                    refusals=tuple(refusals), caveats=tuple(caveats), n_used=decision.used,
-                    motion_excluded=bool(excluded))
+                    refusals=tuple(refusals), caveats=tuple(caveats), n_used=decision.used)
 
 
 # -- results --------------------------------------------------------------------------------------
@@ -1047,6 +1044,11 @@ def _run_jobs(jobs: Sequence[_Job], *, several: bool, workers: int | None, kind:
     return out
 
 
+def _excluded(p: Prepared) -> bool:
+    """Whether the flagged motion of ``p``'s part used was left out of its estimate."""
+    return bool(getattr(p.stationarity, "excluded", False))
+
+
 def _verdict(p: Prepared, axes: Mapping[str, AxisCalibration]) -> Any:
     """The configuration verdict of one topic (:func:`gmwm.verdict.decide`)."""
     from gmwm.units import unit_system
@@ -1076,7 +1078,7 @@ def _axes(p: Prepared, got: Mapping[str, Any], sheet: Any, check: bool,
         if choice is not None and not choice.passed:  # the rejection hint knows the motion
             from gmwm.verdict import evidence
 
-            choice = choice.with_evidence(evidence(p.stationarity, c, p.motion_excluded))
+            choice = choice.with_evidence(evidence(p.stationarity, c, _excluded(p)))
         unit = p.units.get(c, "")
         chk = None
         if check:
@@ -1093,7 +1095,7 @@ def _axes(p: Prepared, got: Mapping[str, Any], sheet: Any, check: bool,
                 verdict = judge(res, sheet, unit)
         axes[c] = AxisCalibration(res, unit, page.get("datasheet") or datasheet(res, unit or None),
                                   tuple(_axis_warnings(res, p.stationarity, c,
-                                                       p.motion_excluded)), choice,
+                                                       _excluded(p))), choice,
                                   page.get("readings"), verdict, chk, tuple(files))
     return axes
 

@@ -181,6 +181,9 @@ class StationarityReport:
     time_s: np.ndarray | None = field(default=None, repr=False)
     used: tuple[int, int] | None = None
     used_how: str = "the whole recording"
+    #: the flagged ranges inside the part used are left out of the estimate (the calibration's
+    #: motion policy, gmwm.calibrate); what every surface then says about them
+    excluded: bool = False
 
     # ---- queries ---------------------------------------------------------------------------
 
@@ -279,7 +282,8 @@ class StationarityReport:
 
     def warnings(self, limit: int = 5) -> list[str]:
         """One line per flagged range (the ``limit`` most severe, by time), the temperature
-        warning and the alerts; what the estimate uses is said whenever something is flagged."""
+        warning and the alerts; what the estimate uses is said whenever something is flagged
+        (and, :attr:`excluded`, that the flagged ranges inside it are left out)."""
         out: list[str] = []
         if self.segments:
             a, b = self.used or (0, self.n)
@@ -289,7 +293,9 @@ class StationarityReport:
             share = sum(s.i1 - s.i0 for s in self.segments) / max(self.n, 1)
             head = (f"the recording is not static: {len(self.segments)} flagged range(s), "
                     f"{100 * share:.3g} % of the samples")
-            if inside:
+            if inside and self.excluded:
+                head += "; they are excluded from the estimate"
+            elif inside:
                 head += (f"; the estimate uses {self.used_text()}, which includes "
                          f"{len(inside)} of them: a static noise model turns motion into noise "
                          "(use --segment longest-static or --start/--end)")
