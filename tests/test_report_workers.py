@@ -186,3 +186,21 @@ def test_calibrate_and_report_import_no_cycle_and_no_private_names():
             if isinstance(node, ast.Import):
                 assert not (f.name == "calibrate.py"
                             and any(a.name == "gmwm.report" for a in node.names)), f
+
+
+@pytest.mark.slow
+def test_identifiability_from_the_workers_equals_the_verdicts_own(imu_csv, two_cores):
+    # the workers search each axis's identifiable length beside its fit; the verdict must be the
+    # one it computes itself when every fit runs in this process
+    from gmwm.verdict import decide
+
+    kw = dict(columns="all", units={"gx": "deg/s", "gy": "deg/s", "ax": "m/s^2"},
+              require_time=None)
+    par = calibrate.calibrate(str(imu_csv), "auto", workers=2, **kw).only()
+    alone = calibrate.calibrate(str(imu_csv), "auto", workers=1, **kw).only()
+    assert par.verdict.unidentified  # the case has terms this length cannot identify
+    assert par.verdict == alone.verdict
+    own = decide({c: a.choice for c, a in par.axes.items()}, n_samples=2 ** 13,
+                 kinds={"gx": "gyroscope", "gy": "gyroscope", "ax": "accelerometer"},
+                 to_si={"gx": np.pi / 180, "gy": np.pi / 180, "ax": 1.0})
+    assert own.unidentified == par.verdict.unidentified

@@ -196,6 +196,9 @@ class Choice:
     #: what the calibration path knows beyond the WV (motion, temperature:
     #: :class:`gmwm.verdict.Evidence`) for the "every candidate rejected" hint; None: the WV alone
     evidence: Any = None
+    #: (samples, :func:`gmwm.verdict.identifiability` of the chosen fit at that length) where the
+    #: calibration path computed it beside the fit; None: the hint computes it
+    identified: tuple[int, Any] | None = None
 
     def with_evidence(self, evidence: Any) -> Choice:
         """This choice with the calibration path's :class:`gmwm.verdict.Evidence` (motion flagged
@@ -208,7 +211,9 @@ class Choice:
         them (:func:`gmwm.verdict.rejection_causes` on the chosen fit and :attr:`evidence`)."""
         from .verdict import causes_text, rejection_causes
 
-        return causes_text(rejection_causes(self.result, evidence=self.evidence))
+        n = int(getattr(self.result.wv, "n_samples", 0))
+        weak = self.identified[1] if self.identified and self.identified[0] == n else None
+        return causes_text(rejection_causes(self.result, evidence=self.evidence, weak=weak))
 
     # -- the result protocol, delegated to the chosen fit ---------------------------------------
     @property

@@ -21,6 +21,7 @@ import multiprocessing
 import os
 import signal
 import threading
+import time
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -497,6 +498,12 @@ class CalibrationResult:
     source: str
     topics: dict[str, TopicCalibration]
     several: bool = False
+    #: where the time went [s, wall of this process]: ``read``, ``check`` (stationarity and the
+    #: rest of the preparation), ``fits`` (waiting for every axis's work), ``verdict``; and
+    #: ``axes`` [s, summed over the axes, in whichever process ran them]: ``choose`` (the
+    #: automatic choice, or the given model's fit), ``page`` (datasheet and readings), ``draw``
+    #: (the figures drawn beside the fits), ``identifiability`` (the verdict's length search)
+    seconds: dict[str, Any] = field(default_factory=dict)
 
     @property
     def calibrated(self) -> dict[str, TopicCalibration]:
@@ -659,6 +666,23 @@ class _Job:
     page: bool  # compute the datasheet (and with readings the IEEE 952 readings) beside the fit
     readings: bool
     draw: Any = None  # callable(topic, name, result, unit) -> files drawn, or None
+    #: samples the estimate used, for the verdict's identifiability search beside the fit
+    #: (:func:`gmwm.verdict.identifiability`); None: left to the verdict
+    n_used: int | None = None
+
+
+def _drawn_here(draw: Callable[..., Sequence[Any]], key: tuple[str, str], got: Any) -> Any:
+    """``got`` of :func:`_fit_job` with the figure ``draw`` drew here (as the job would have)."""
+    res, choice, _, page = got
+    if page is None or "datasheet" not in page:  # a job without a page draws nothing
+        return got
+    started = time.perf_counter()
+    try:
+        drawn = list(draw(key[0], key[1], res, page.get("unit", "")))
+    except Exception:  # noqa: BLE001 - the report draws it again and reports a failure then
+        drawn = []
+    page.setdefault("seconds", {})["draw"] = time.perf_counter() - started
+    return res, choice, drawn, page
 
 
 def _kind(unit: str) -> str | None:
@@ -673,6 +697,15 @@ def _fit_job(job: _Job, progress: Callable[[str], None] | None = None
     drawn, None or ``{"datasheet": ..., "readings": ...}`` computed beside the fit so that they
     overlap the other workers' fits and the calling process needs no fitting kernels)."""
     s = job.settings
+    clock = time.perf_counter()
+    spent: dict[str, float] = {}
+
+    def lap(what: str) -> None:
+        nonlocal clock
+        now = time.perf_counter()
+        spent[what] = now - clock
+        clock = now
+
     choice = None
     if _is_auto(job.spec):
         from gmwm.automodel import choose_model
@@ -694,18 +727,37 @@ def _fit_job(job: _Job, progress: Callable[[str], None] | None = None
         if progress is not None:
             progress(f"fitting {job.spec} to {job.name}")
         res = gmwm.fit(job.data, Model(job.spec, freq=job.freq), settings=s, freq=job.freq)
+    lap("choose")
     if not job.page:
-        return res, choice, [], None
+        return res, choice, [], {"seconds": spent}
     from gmwm.datasheet import datasheet, fit_readings
 
-    page = {"datasheet": datasheet(res, job.unit or None),
-            "readings": fit_readings(res, job.unit or None) if job.readings else None}
+    page: dict[str, Any] = {
+        "datasheet": datasheet(res, job.unit or None),
+        "readings": fit_readings(res, job.unit or None) if job.readings else None,
+        "seconds": spent, "unit": job.unit or ""}
+    lap("page")
+    if job.n_used is not None:
+        # the verdict's costliest check (a recording plan per candidate length), done here so
+        # that it runs in the workers beside the other axes' fits, with their kernels loaded
+        from gmwm.verdict import MIN_SAMPLES, identifiability
+
+        if job.n_used < MIN_SAMPLES:
+            page["identifiability"] = {}
+        else:
+            with contextlib.suppress(Exception):  # a failed check is the verdict's to report
+                page["identifiability"] = identifiability(res, job.n_used)
+                if choice is not None:  # its rejection hint reads it too
+                    choice = dataclasses.replace(
+                        choice, identified=(job.n_used, page["identifiability"]))
+        lap("identifiability")
     drawn: list[Any] = []
     if job.draw is not None:
         try:
             drawn = list(job.draw(job.topic, job.name, res, job.unit or ""))
         except Exception:  # noqa: BLE001 - the report draws it again and reports a failure then
             drawn = []
+        lap("draw")
     return res, choice, drawn, page
 
 
@@ -834,6 +886,15 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
     settings = FitSettings.of(**options)  # bad options before the input is read
     explicit_starts = "n_starts" in options
     label = name or (str(source) if isinstance(source, str | os.PathLike) else "the recording")
+    seconds: dict[str, Any] = {}
+    clock = time.perf_counter()
+
+    def lap(what: str) -> None:
+        nonlocal clock
+        now = time.perf_counter()
+        seconds[what] = now - clock
+        clock = now
+
     # -- the inputs, topic -> Recording | Prepared | exception
     several = False
     if isinstance(source, str | os.PathLike):
@@ -872,6 +933,7 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
             msg = f"{kind}: {topic}: {text}"
         say(msg)
 
+    lap("read")
     # -- preparation, per topic (a failure stays with its topic)
     prepared: dict[str, Prepared] = {}
     failed: dict[str, BaseException] = {}
@@ -901,6 +963,7 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
         for m in prep.messages:
             tell(topic, m)
         prepared[topic] = prep
+    lap("check")
     # -- settings checked against every topic before any fit
     specs = {t: models_for(model, list(p.data)) for t, p in prepared.items()}
     jobs: list[_Job] = []
@@ -922,13 +985,15 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
             s = settings if isinstance(d, np.ndarray) else settings.replace(levels=None)
             jobs.append(_Job(t, c, d, spec, p.freq, p.units.get(c, ""), s, explicit_starts,
                              page=c not in p.streamed, readings=readings,
-                             draw=draw if c not in p.streamed else None))
+                             draw=draw if c not in p.streamed else None,
+                             n_used=p.n_used if c not in p.streamed else None))
     if sheet is not None:
         _check_sheet(sheet, prepared, tell)
     # -- the fits: automatic choices in worker processes, given models too for several topics
     results = _run_jobs(jobs, several=len(prepared) > 1, workers=workers, kind=worker_kind,
                         progress=say,
                         prepared=prepared, while_waiting=while_waiting)
+    lap("fits")
     # -- per topic: the axes, their datasheets, verdicts and checks
     out: dict[str, TopicCalibration] = {}
     for topic in inputs:
@@ -950,11 +1015,20 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
             tell(topic, f"warning: not calibrated: {_reason(bad)}")
             continue
         axes = _axes(p, got, sheet, check, say)
+        known = {c: g[3]["identifiability"] for c, g in got.items()
+                 if g[3] and "identifiability" in g[3]}
         out[topic] = TopicCalibration(topic, "calibrated", axes, freq=p.freq,
                                       timing=p.timing, stationarity=p.stationarity,
                                       gaps=p.gaps, rostopic=p.rostopic, label=p.label,
-                                      messages=p.messages, verdict=_verdict(p, axes))
-    result = CalibrationResult(label, out, several)
+                                      messages=p.messages, verdict=_verdict(p, axes, known))
+    lap("verdict")
+    spent: dict[str, float] = {}
+    for r in results.values():
+        if not isinstance(r, BaseException) and r[3]:
+            for k, v in r[3].get("seconds", {}).items():
+                spent[k] = spent.get(k, 0.0) + v
+    seconds["axes"] = spent
+    result = CalibrationResult(label, out, several, seconds)
     if not result.calibrated:
         fails = result.failed
         if len(fails) == 1:
@@ -1004,12 +1078,17 @@ def _run_jobs(jobs: Sequence[_Job], *, several: bool, workers: int | None, kind:
     if pooled:
         progress(f"fitting {len(pooled)} axes in {n} parallel "
                  + ("processes" if kind == "process" else "threads"))
+        # worker processes fit; this process, idle meanwhile and with the plotting library
+        # already loaded for the stationarity figure, draws each axis's figure as its fit
+        # arrives (the workers then never load matplotlib)
+        here = {(j.topic, j.name): j.draw for j in pooled} if kind == "process" else {}
         with executor(kind, n, warm=True) as pool:
             futures: dict[tuple[str, str], Any] = {}
 
             def submit() -> None:
                 for j in pooled:
-                    futures[(j.topic, j.name)] = pool.submit(_fit_job, j)
+                    futures[(j.topic, j.name)] = pool.submit(
+                        _fit_job, dataclasses.replace(j, draw=None) if here else j)
 
             if warm_server_running() and while_waiting is not None:
                 # the warm server answers the first submission once it has loaded the fitting
@@ -1032,6 +1111,8 @@ def _run_jobs(jobs: Sequence[_Job], *, several: bool, workers: int | None, kind:
                     continue
                 if out[key][1] is not None:
                     progress(f"{key[1]}: {out[key][1].headline()}")
+                if here.get(key) is not None:
+                    out[key] = _drawn_here(here[key], key, out[key])
     for j in jobs:
         if (j.topic, j.name) in out:
             continue
@@ -1049,8 +1130,10 @@ def _excluded(p: Prepared) -> bool:
     return bool(getattr(p.stationarity, "excluded", False))
 
 
-def _verdict(p: Prepared, axes: Mapping[str, AxisCalibration]) -> Any:
-    """The configuration verdict of one topic (:func:`gmwm.verdict.decide`)."""
+def _verdict(p: Prepared, axes: Mapping[str, AxisCalibration],
+             known: Mapping[str, Mapping[str, float | None]] | None = None) -> Any:
+    """The configuration verdict of one topic (:func:`gmwm.verdict.decide`); ``known``:
+    channel -> its identifiability at ``p.n_used`` already computed beside its fit."""
     from gmwm.units import unit_system
     from gmwm.verdict import decide
 
@@ -1061,7 +1144,8 @@ def _verdict(p: Prepared, axes: Mapping[str, AxisCalibration]) -> Any:
     return decide({c: a.choice if a.choice is not None else a.result for c, a in axes.items()},
                   n_samples=n, kinds={c: u.sensor for c, u in systems.items()},
                   to_si={c: u.si or 1.0 for c, u in systems.items()},
-                  refusals=p.refusals, caveats=p.caveats)
+                  refusals=p.refusals, caveats=p.caveats,
+                  identified=known if p.n_used is not None else None)
 
 
 def _axes(p: Prepared, got: Mapping[str, Any], sheet: Any, check: bool,

@@ -300,13 +300,15 @@ class Verdict:
 def decide(axes: Mapping[str, Any], *, n_samples: int,
            kinds: Mapping[str, str | None] | None = None,
            to_si: Mapping[str, float] | None = None,
-           refusals: Sequence[str] = (), caveats: Sequence[str] = ()) -> Verdict:
+           refusals: Sequence[str] = (), caveats: Sequence[str] = (),
+           identified: Mapping[str, Mapping[str, float | None]] | None = None) -> Verdict:
     """The verdict for the per-axis fits ``axes`` (channel -> result or choice) of a record of
     ``n_samples`` used samples; ``kinds``: channel -> sensor kind, ``to_si``: channel -> factor
     from its signal unit to SI (for the unit check; 1 when absent). ``refusals``: reasons the
     caller already has for not writing
     (motion beyond the excluded share, an ambiguous rate); ``caveats``: lines it already has
-    (ranges excluded, motion allowed). Adds: too short (refusal), every candidate rejected with
+    (ranges excluded, motion allowed); ``identified``: channel -> :func:`identifiability` at
+    ``n_samples`` where the caller already has it (computed beside the fit). Adds: too short (refusal), every candidate rejected with
     the misfit, terms not identifiable at this length, fast terms folded into the noise density,
     unit mix-ups."""
     from gmwm.gof import fmt_p
@@ -325,7 +327,10 @@ def decide(axes: Mapping[str, Any], *, n_samples: int,
             if gof is not None and gof.rejected():
                 lines.append(f"{ch}: model {res.model.spec} REJECTED by the goodness-of-fit test "
                              f"(p {fmt_p(gof.p_value)}): {misfit(res).describe()}")
-            weak = identifiability(res, n_samples) if n_samples >= MIN_SAMPLES else {}
+            if identified is not None and ch in identified:
+                weak = dict(identified[ch])
+            else:
+                weak = identifiability(res, n_samples) if n_samples >= MIN_SAMPLES else {}
             for comp, need in weak.items():
                 from gmwm.plan import format_duration
 
@@ -430,20 +435,23 @@ class Cause:
 
 
 def rejection_causes(result: Any, *, n_samples: int | None = None,
-                     evidence: Evidence | None = None) -> list[Cause]:
+                     evidence: Evidence | None = None,
+                     weak: Mapping[str, float | None] | None = None) -> list[Cause]:
     """The likely causes of a fit the goodness-of-fit test rejects, those the data show first,
     each group in the order: too short (below :data:`MIN_SAMPLES`; a random walk or
     Gauss-Markov term not identifiable at this length, :func:`identifiability`, is weaker
     evidence and comes after the other causes shown), on-board low-pass filtering
     (:func:`short_scale_slope`), motion, temperature (``evidence``, from the calibration path);
-    last always "a process outside the candidates"."""
+    last always "a process outside the candidates". ``weak``: :func:`identifiability` at this
+    length where the caller already has it."""
     ev = evidence or Evidence()
     wv = result.wv
     n = int(n_samples if n_samples is not None else getattr(wv, "n_samples", 0))
     causes: list[Cause] = []
     short = too_short(n)
     with np.errstate(divide="ignore", invalid="ignore"):  # a term at 0 has no relative SE
-        weak = {} if short else identifiability(result, n)
+        weak = {} if short else (dict(weak) if weak is not None
+                                 else identifiability(result, n))
     if short:
         causes.append(Cause("too short", True, short))
     elif weak:

@@ -7,6 +7,7 @@ cannot be calibrated is listed with its reason while the others are; exit status
 from __future__ import annotations
 
 import argparse
+import time
 from typing import Any, TextIO
 
 from gmwm.cli.commands.fit import calibrate_input, calibration_status, choice_json
@@ -35,9 +36,11 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         draw=FigureDrawer(str(report_dir(args.output))) if in_workers else None,
         while_waiting=while_waiting)
     args.progress(f"writing the report to {args.output}")
+    started = time.perf_counter()
     files = write_calibration(args.output, result, title=args.title, targets=targets,
                               inflation=inflation, drawn=drawn,
                               rostopic=getattr(args, "rostopic", None))
+    result.seconds["write"] = time.perf_counter() - started
     if args.json:
         out.write(json_text(_json(args, result, files)))
     else:
@@ -85,7 +88,7 @@ def _json(args: argparse.Namespace, result: Any, files: Any) -> dict[str, Any]:
     """``--json``: per axis the fit, its datasheet and choice; several topics: per topic (the
     failed ones under ``"failed"``, topic -> reason)."""
     obj: dict[str, Any] = {"command": "report", "input": args.input,
-                           "files": [str(p) for p in files]}
+                           "files": [str(p) for p in files], "seconds": result.seconds}
     if not result.several:
         sec = result.only()
         obj["fits"] = _fits(args, sec.axes)
