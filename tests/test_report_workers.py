@@ -194,8 +194,8 @@ def test_identifiability_from_the_workers_equals_the_verdicts_own(imu_csv, two_c
     # one it computes itself when every fit runs in this process
     from gmwm.verdict import decide
 
-    kw = dict(columns="all", units={"gx": "deg/s", "gy": "deg/s", "ax": "m/s^2"},
-              require_time=None)
+    kw = {"columns": "all", "units": {"gx": "deg/s", "gy": "deg/s", "ax": "m/s^2"},
+          "require_time": None}
     par = calibrate.calibrate(str(imu_csv), "auto", workers=2, **kw).only()
     alone = calibrate.calibrate(str(imu_csv), "auto", workers=1, **kw).only()
     assert par.verdict.unidentified  # the case has terms this length cannot identify
