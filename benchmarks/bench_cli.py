@@ -1,7 +1,10 @@
 """End-to-end CLI timings: `gmwm --help` and `gmwm wv x.npy --json` on 1e7 samples against a plain
-NumPy script computing a naive cumulative-sum WV of the same file.
+NumPy script computing a naive cumulative-sum WV of the same file; with `--latency`, the three
+answers issue 39 sets goals for instead (`gmwm report` of the README's one-hour 200 Hz bag and of
+the EuRoC V101 file, `gmwm plan`'s README example), each with the report's own breakdown.
 
     python benchmarks/bench_cli.py [--n 10000000] [--runs 5] [--workdir /tmp/gmwm_bench_cli]
+    python benchmarks/bench_cli.py --latency [--runs 5] [--euroc PATH]
 
 Whole processes are timed from outside with `farm-bench` (paired A/B runs, median of --runs) when it
 is installed, else with `subprocess` wall and child CPU times (median). The signal and the NumPy
@@ -75,6 +78,68 @@ def _import_seconds(module: str) -> float:
     return statistics.median(vals)
 
 
+#: the latency goals of issue 39 [s wall, 2-core VM]
+GOALS = {"report_bag": 3.0, "report_euroc": 2.0, "plan": 1.0}
+PLAN = ["plan", "--datasheet", "mti-1", "--sensor", "gyroscope", "--freq", "100",
+        "--target", "BI=10%"]
+
+
+def _breakdown(runs: list[dict]) -> dict[str, float]:
+    """Medians over runs of the report's ``seconds`` (``gmwm report --json``): this process's
+    phases (read, check, fits = waiting for the axes, verdict, write) and, summed over the
+    axes in whichever process ran them, choose, page, identifiability, draw."""
+    keys = [k for k, v in runs[0].items() if not isinstance(v, dict)]
+    out = {k: statistics.median(r[k] for r in runs) for k in keys}
+    for k in runs[0].get("axes", {}):
+        out[f"axes.{k}"] = statistics.median(r["axes"][k] for r in runs)
+    return out
+
+
+def latency(args: argparse.Namespace, gmwm: str) -> None:
+    """``--latency``: wall and CPU (this command and its worker processes) of each answer, median
+    of ``--runs`` after a warm-up run, and the report's breakdown."""
+    work = Path(args.workdir)
+    repo = Path(__file__).resolve().parent.parent
+    bag = work / "imu.bag"
+    if not bag.exists():
+        subprocess.run([sys.executable, str(repo / "examples" / "make_imu_bag.py"), str(bag)],
+                       check=True, stdout=subprocess.DEVNULL)
+    cases = {"report_bag": ([gmwm, "report", str(bag), "-o", str(work / "calib_bag"),
+                             "--json"], "one-hour 200 Hz bag (README quickstart)")}
+    euroc = Path(args.euroc)
+    if euroc.exists():
+        cases["report_euroc"] = ([gmwm, "report", str(euroc), "-o", str(work / "calib_euroc"),
+                                  "--json"], "EuRoC V101 imu0 (146 s, 200 Hz)")
+    else:
+        print(f"# {euroc} absent: the EuRoC case is skipped")
+    cases["plan"] = ([gmwm, *PLAN], "README plan example")
+    print(f"# load average {' '.join(f'{v:.2f}' for v in os.getloadavg())} before, "
+          f"{os.cpu_count()} cores, {args.runs} runs after a warm-up")
+    print("| command | wall median [min, max] s | CPU median s | goal s | breakdown (medians, s) |")
+    print("|---|---|---|---|---|")
+    for key, (cmd, what) in cases.items():
+        timed, parts = [], []
+        for i in range(args.runs + 1):
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            t0 = time.perf_counter()
+            run = subprocess.run(cmd, capture_output=True, text=True, check=False)
+            wall = time.perf_counter() - t0
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            if run.returncode not in (0, 4, 5):
+                raise SystemExit(f"{' '.join(cmd)} failed ({run.returncode}): {run.stderr[-500:]}")
+            if i == 0:
+                continue  # the warm-up: file cache, Numba's cache files
+            timed.append((wall, (after.ru_utime - before.ru_utime)
+                          + (after.ru_stime - before.ru_stime)))
+            if "--json" in cmd:
+                parts.append(json.loads(run.stdout)["seconds"])
+        walls = [w for w, _ in timed]
+        split = ", ".join(f"{k} {v:.2f}" for k, v in _breakdown(parts).items()) if parts else ""
+        print(f"| {what} | {statistics.median(walls):.2f} [{min(walls):.2f}, {max(walls):.2f}] "
+              f"| {statistics.median(c for _, c in timed):.2f} | {GOALS[key]:g} | {split} |")
+    print(f"# load average {' '.join(f'{v:.2f}' for v in os.getloadavg())} after")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=10_000_000)
@@ -83,16 +148,28 @@ def main() -> None:
     ap.add_argument("--cli", default=None,
                     help="command that runs the CLI (default: the installed 'gmwm'); e.g. a wrapper "
                          "running another checkout")
+    ap.add_argument("--latency", action="store_true",
+                    help="time the report of the one-hour bag and of EuRoC V101, and gmwm plan")
+    ap.add_argument("--euroc", default=str(Path(__file__).resolve().parent.parent.parent / "shared"
+                                            / "data" / "external" / "euroc-kimera-v101" / "mav0"
+                                            / "imu0" / "data.csv"))
     args = ap.parse_args()
     import numpy as np
 
     work = Path(args.workdir)
     work.mkdir(parents=True, exist_ok=True)
+    gmwm = args.cli or shutil.which("gmwm") or "gmwm"
+    if args.latency:
+        import gmwm as _pkg
+
+        subprocess.run([sys.executable, "-m", "compileall", "-q",
+                        str(Path(_pkg.__file__).parent)], check=True)
+        latency(args, gmwm)
+        return
     x_path, naive = work / f"x{args.n}.npy", work / "naive_wv.py"
     if not x_path.exists():
         np.save(x_path, np.random.default_rng(1).standard_normal(args.n))
     naive.write_text(NAIVE)
-    gmwm = args.cli or shutil.which("gmwm") or "gmwm"
     cli = [gmwm, "wv", str(x_path), "--json", "--quiet"]
     base = [sys.executable, str(naive), str(x_path)]
     # an installed package has its bytecode; an editable checkout run with PYTHONDONTWRITEBYTECODE
