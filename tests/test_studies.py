@@ -260,6 +260,20 @@ def test_git_commit_is_dirty_only_for_changes_outside_the_runs_outputs(tmp_path)
     assert archive.git_commit(tmp_path) == sha + "-dirty"  # not declared as an output
     code.write_text("x = 2")
     assert archive.git_commit(tmp_path, outputs=[report]) == sha + "-dirty"
+    code.write_text("x = 1")
+    # an output the run writes but does not archive (make_archive's ``produced``)
+    design = tmp_path / "reports" / "d.md"
+    design.write_text("v1")
+    git("add", ".")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "d")
+    sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=tmp_path, check=True,
+                         capture_output=True, text=True).stdout.strip()
+    design.write_text("v2")
+    report.write_text("again")
+    arch = archive.make_archive(tmp_path / "arch", {"a": 1}, [report], pd.DataFrame(),
+                                repo=tmp_path, base=tmp_path, produced=[design])
+    assert (arch / "git.txt").read_text().strip() == sha
+    assert not (arch / "reports" / "d.md").exists()
 
 
 def test_archived_summary_takes_each_study_from_its_newest_archive(tmp_path):

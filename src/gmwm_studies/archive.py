@@ -226,13 +226,15 @@ def make_archive(
     bench: pd.DataFrame,
     repo: str | os.PathLike = ".",
     base: str | os.PathLike = ".",
+    produced: Iterable[str | os.PathLike] = (),
 ) -> Path:
     """Copy a run's reports into a new ``<archive_root>/<UTC timestamp>-<config hash>/``.
 
     Never overwrites: if the directory exists a numeric suffix is added. The archive holds the
     files (paths kept relative to ``base``), ``config.json``, ``versions.json``, ``git.txt`` (the
     commit of ``repo``, ``-dirty`` only when a tracked file other than ``files`` was changed: see
-    :func:`git_commit`) and ``timings.csv`` (one row per job). It is assembled under a hidden
+    :func:`git_commit`; ``produced``: the run's other outputs, written but not archived, which
+    do not make it dirty either) and ``timings.csv`` (one row per job). It is assembled under a hidden
     temporary name and renamed into place, so a partial archive never looks complete.
     """
     files = list(files)
@@ -254,7 +256,8 @@ def make_archive(
             shutil.copy2(src, dst)
         write_json_atomic(tmp / "config.json", dict(config))
         write_json_atomic(tmp / "versions.json", package_versions())
-        write_text_atomic(tmp / "git.txt", git_commit(repo, outputs=files) + "\n")
+        write_text_atomic(tmp / "git.txt",
+                          git_commit(repo, outputs=[*files, *produced]) + "\n")
         write_text_atomic(tmp / "timings.csv", bench.to_csv(index=False))
         target = root / name
         k = 1

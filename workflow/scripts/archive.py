@@ -10,7 +10,7 @@ snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)
 bench = read_benchmarks(snakemake.params.benchmarks)
 target = make_archive(snakemake.params.archive_root, snakemake.config, snakemake.input.files,
-                      bench, repo=snakemake.scriptdir)
+                      bench, repo=snakemake.scriptdir, produced=snakemake.params.produced)
 write_json_atomic(snakemake.output[0], {"archive": str(target), "config_hash":
                                         config_hash(snakemake.config), "jobs": len(bench)})
 log.info("archived %d files and %d job timings to %s", len(snakemake.input.files), len(bench),
