@@ -213,6 +213,8 @@ class Prepared:
     caveats: tuple[str, ...] = ()
     #: samples the estimate uses (after gaps and excluded motion); None: not known (a table)
     n_used: int | None = None
+    #: seconds the command spent reading it (the CLI's ``--json``)
+    seconds: float = 0.0
 
     @property
     def rostopic(self) -> str | None:

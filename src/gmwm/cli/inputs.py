@@ -14,36 +14,20 @@ this module calls them and prints their warnings.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
 from gmwm.cli.parser import STREAM_MIN_BYTES, UsageError
 from gmwm.errors import InputError
 
-
-@dataclass(frozen=True)
-class Inputs:
-    """What a command works on. ``data``: per channel a 1-D float signal or a
-    :class:`~gmwm.wv.WaveletVariance` (a table, a streamed channel, or a recording's pooled clean
-    segments); ``freq`` [Hz] (1 for a signal without time stamps or unit); ``units`` per channel
-    ('' unknown); ``recording``, ``stationarity`` (its ``used`` range set) and ``gaps`` (the gap
-    decision) for a recording read whole; ``streamed``: per channel the
-    :class:`gmwm.stream.ChannelWV` when the input was streamed; ``seconds`` spent reading."""
-
-    data: dict[str, Any]
-    freq: float
-    units: dict[str, str]
-    recording: Any = None
-    stationarity: Any = None
-    gaps: Any = None
-    streamed: dict[str, Any] = field(default_factory=dict)
-    seconds: float = 0.0
+if TYPE_CHECKING:  # what a command works on is the library's record (gmwm.calibrate.Prepared)
+    from gmwm.calibrate import Prepared
 
 
 def model_theta(spec: str, params: Sequence[tuple[str, float]], freq: float) -> tuple[Any, Any]:
@@ -77,12 +61,12 @@ def check_levels(n: int, levels: int | None) -> None:
 
 # -- signals ------------------------------------------------------------------------------------
 def read_signals(args: argparse.Namespace, err: TextIO, *, allow_wv: bool = False,
-                 require_time: str | None = None) -> Inputs:
+                 require_time: str | None = None) -> Prepared:
     """The requested channels, read whole (:func:`gmwm.calibrate.prepare`: stationarity, part
     used, gaps): signals, or with ``allow_wv`` the pooled WV of the clean segments where the gap
     policy combines them. A channel with a unit, or ``require_time`` (what needs the rate),
     makes a recording without time stamps or ``--freq`` an error, never 1 Hz."""
-    from gmwm.calibrate import prepare
+    from gmwm.calibrate import MOTION_SHARE, prepare
     from gmwm.readers.recording import read_recording
 
     args.progress(f"reading {args.input}")
@@ -100,10 +84,10 @@ def read_signals(args: argparse.Namespace, err: TextIO, *, allow_wv: bool = Fals
                    start_s=getattr(args, "start", None), end_s=getattr(args, "end", None),
                    segment=getattr(args, "segment", "all"),
                    strict=getattr(args, "strict", False), require_time=require_time,
-                   where=args.input)
+                   where=args.input, motion_share=getattr(args, "motion_share", MOTION_SHARE),
+                   allow_motion=getattr(args, "allow_motion", False))
     tell(err, prep.messages)
-    return Inputs(prep.data, prep.freq, prep.units, prep.recording, prep.stationarity,
-                  prep.gaps, seconds=time.perf_counter() - t0)
+    return dataclasses.replace(prep, seconds=time.perf_counter() - t0)
 
 
 def tell(err: TextIO, messages: Sequence[str]) -> None:
@@ -111,7 +95,9 @@ def tell(err: TextIO, messages: Sequence[str]) -> None:
     err.writelines(f"gmwm: {m}\n" for m in messages)
 
 
-def _read_raw(args: argparse.Namespace, require_time: str | None, t0: float) -> Inputs:
+def _read_raw(args: argparse.Namespace, require_time: str | None, t0: float) -> Prepared:
+    from gmwm.calibrate import Prepared
+
     with raw_source(args) as src:
         rows = src.read(0, src.n_samples)
         signals = {n: np.ascontiguousarray(rows[:, i], dtype=np.float64)
@@ -123,7 +109,7 @@ def _read_raw(args: argparse.Namespace, require_time: str | None, t0: float) -> 
         if bad.any():
             raise InputError(f"{args.input} ({name}) contains a non-finite value at sample "
                              f"{int(np.argmax(bad))}; clean or interpolate it first")
-    return Inputs(signals, freq, units, seconds=time.perf_counter() - t0)
+    return Prepared(signals, freq, units, seconds=time.perf_counter() - t0)
 
 
 def wanted_columns(args: argparse.Namespace) -> Any:
@@ -180,7 +166,7 @@ def stream_min_bytes() -> int:
 
 
 def stream_wvs(args: argparse.Namespace, err: TextIO, require_time: str | None = None
-               ) -> Inputs | None:
+               ) -> Prepared | None:
     """The WV per channel of a streamed input (raw binary; .npy / HDF5 from
     :func:`stream_min_bytes` on, in a layout the stream reads) with ``--levels``/``--alpha``, or
     None when the input is read whole. The robust WV needs the whole signal: never streamed."""
@@ -209,7 +195,10 @@ def stream_wvs(args: argparse.Namespace, err: TextIO, require_time: str | None =
         freq = resolve_freq(args, src.freq, src.freq_source, units, require_time)
         _warn(err, src.notes)
         got, st = _stream_checked(args, src, units, freq, err)
-    return Inputs({c: v.wv for c, v in got.items()}, freq, units, stationarity=st, streamed=got)
+    from gmwm.calibrate import Prepared
+
+    return Prepared({c: v.wv for c, v in got.items()}, freq, units, stationarity=st,
+                    streamed=got)
 
 
 def _stream_checked(args: argparse.Namespace, src: Any, units: Mapping[str, str],
@@ -251,7 +240,7 @@ def _stream_checked(args: argparse.Namespace, src: Any, units: Mapping[str, str]
 
 # -- what fit and report fit --------------------------------------------------------------------
 def read_fit_data(args: argparse.Namespace, err: TextIO, require_time: str | None = None
-                  ) -> Inputs | None:
+                  ) -> Prepared | None:
     """What ``gmwm fit`` and ``gmwm report`` fit when it is not a recording read whole: the
     channels of a WV (or AV) table, cut to ``--levels``; of a streamed input, their WVs; of raw
     binary (``--dtype``) read whole, its signals. None for a recording, which
@@ -289,7 +278,9 @@ def read_fit_data(args: argparse.Namespace, err: TextIO, require_time: str | Non
                                  f"{wv.n_levels} scales")
             wv = wv.subset(np.arange(1, args.levels + 1))
         data[p.stem if c is None else c] = wv
-    return Inputs(data, next(iter(data.values())).freq, units_by_column(args, list(data), {}))
+    from gmwm.calibrate import Prepared
+
+    return Prepared(data, next(iter(data.values())).freq, units_by_column(args, list(data), {}))
 
 
 # -- per-column options -------------------------------------------------------------------------

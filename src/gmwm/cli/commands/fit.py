@@ -73,7 +73,7 @@ def calibrate_input(args: argparse.Namespace, err: TextIO, *, require_time: str 
     recording, or a WV table / streamed input / raw binary as :func:`gmwm.cli.inputs.
     read_fit_data` gives it) and its options passed to :func:`gmwm.calibrate.calibrate`; its
     messages printed. ``readings``, ``draw``, ``while_waiting``: as ``calibrate`` takes them."""
-    from gmwm.calibrate import Prepared, calibrate, start_warm_server, stop_warm_server
+    from gmwm.calibrate import calibrate, start_warm_server, stop_warm_server
 
     options = fit_options(args)
     sheet = load_datasheet(args)
@@ -89,9 +89,7 @@ def calibrate_input(args: argparse.Namespace, err: TextIO, *, require_time: str 
         start_warm_server()  # loads the fitting stack while this process reads the input
     try:  # the server is stopped whatever happens: no process outlives the command
         got = None if topics else read_fit_data(args, err, require_time)
-        source: Any = args.input if got is None else Prepared(
-            got.data, got.freq, got.units, stationarity=got.stationarity, gaps=got.gaps,
-            streamed=got.streamed)
+        source: Any = args.input if got is None else got
         return calibrate(
             source, args.model,
             topics=("all" if topics == ["all"] else list(topics)) if topics else args.topic,

@@ -8,12 +8,15 @@ import contextlib
 import importlib
 import threading
 import time
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
-from gmwm.cli.inputs import Inputs, check_levels, read_signals, stream_wvs
+from gmwm.cli.inputs import check_levels, read_signals, stream_wvs
 from gmwm.cli.outputs import plot_channels, write_table
 from gmwm.cli.parser import EXIT_OK
 from gmwm.formatting import WV_HEADERS, json_text, table, wv_channel_table, wv_channel_text, wv_rows
+
+if TYPE_CHECKING:
+    from gmwm.calibrate import Prepared
 
 #: samples of the warm-up call that loads the compiled WV kernel (reported as the first-call cost)
 WARMUP_SAMPLES = 1024
@@ -49,7 +52,7 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
 
 
 def channel_wvs(args: argparse.Namespace, err: TextIO
-                ) -> tuple[Inputs, dict[str, Any], dict[str, float], dict[str, Any]]:
+                ) -> tuple[Prepared, dict[str, Any], dict[str, float], dict[str, Any]]:
     """The input, its WV per channel (``--levels``, ``--alpha``, ``--robust``), the seconds of
     each, and the costs reported in ``--json``: ``seconds_read``, ``seconds_first_call``
     (loading the compiled kernel), ``seconds_import_scipy``, ``wv_kernel`` ("c" or "numba") and
@@ -68,7 +71,7 @@ def channel_wvs(args: argparse.Namespace, err: TextIO
     return got, wvs, seconds, {"seconds_read": got.seconds, **costs, "streamed": False}
 
 
-def _compute_wvs(args: argparse.Namespace, got: Inputs, **options: Any
+def _compute_wvs(args: argparse.Namespace, got: Prepared, **options: Any
                  ) -> tuple[dict[str, Any], dict[str, float], dict[str, Any]]:
     """WV per signal of ``got``, the seconds of each (the WV and its CI, wall; the first
     signal's includes waiting for the end of scipy.special's import, which runs beside it) and
