@@ -216,14 +216,42 @@ def _level_wv(j: int) -> np.ndarray:
 
 @lru_cache(maxsize=128)
 def _level_near(j: int, lt_sel: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
-    """Lattice points of level ``j`` below the overlap ``2m`` (the same in every lag grid
+    """Lattice points of level ``j`` up to the overlap ``2m`` (the same in every lag grid
     reaching beyond ``2m``: :func:`_lag_grid`) and the autocovariances there of the power laws
     and of the AR1 atoms ``lt_sel``, where the e3 series make them costly. Read-only."""
     m = 1 << (j - 1)
-    h = _lattice([0, m, 2 * m])[0][:-1]
+    h = _lattice([0, m, 2 * m])[0]
     S = _atom_acvs(m, np.asarray(lt_sel, dtype=np.float64), h)
     h.flags.writeable = S.flags.writeable = False
     return h, S
+
+
+#: the geometric steps of :func:`_lattice` (dense 16, ratio 1.08), far enough for any length
+_GEO = np.unique(np.round(16 * 1.08 ** np.arange(420))).astype(np.int64)
+
+
+def _far_grid(m: int, M: int, h_near: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_lag_grid` (same points, same weights) from its part up to ``2m``, ``h_near``,
+    when the last lag ``M - 1`` lies beyond ``2m + 64``: only the part beyond is built."""
+    a, b = 2 * m, M - 1
+    g = _GEO[_GEO < (a + b) // 2 - a]
+    near = np.arange(17)
+    far = np.unique(np.concatenate([a + near, b - near, a + g, b - g]))
+    h = np.concatenate([h_near[:-1], far.astype(np.float64)])
+    w = np.ones(h.size)
+    gaps = np.diff(h) - 1.0
+    w[1:] += 0.5 * gaps
+    w[:-1] += 0.5 * gaps
+    return h, w
+
+
+def _far_acvs(m: int, lt_sel: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """:func:`_atom_acvs` at lags ``h > 2m``, where the finite power-law filters no longer
+    overlap (QN, WN and RW exactly 0) and the AR1 atoms are in their product form."""
+    out = np.zeros((_NP + lt_sel.size, h.size))
+    out[_POWER_LAWS.index("FN")] = _acvs_power("FN", m, h)
+    out[_NP:] = _acvs_ar1(2.0**-lt_sel, m, h)
+    return out
 
 
 def _atom_acvs(m: int, lt_sel: np.ndarray, h: np.ndarray) -> np.ndarray:
@@ -256,11 +284,11 @@ def _tables(n_samples: int, levels: tuple[int, ...]
             sel = np.concatenate([np.arange(_NP), _NP + np.flatnonzero(np.abs(lt - j) <= _HALF)])
             lt_sel = lt[sel[_NP:] - _NP]
             h_near, S_near = _level_near(j, tuple(lt_sel.tolist()))
-            h, w = _lag_grid(m, M)
-            k = h_near.size
-            if M - 1 > 2 * m and np.array_equal(h[:k], h_near):
-                S = np.hstack([S_near, _atom_acvs(m, lt_sel, h[k:])])
-            else:  # the lattice ends before the overlap does
+            if M - 1 > 2 * m + 64:
+                h, w = _far_grid(m, M, h_near)
+                S = np.hstack([S_near, _far_acvs(m, lt_sel, h[h_near.size:])])
+            else:  # the lattice ends at or soon after the overlap
+                h, w = _lag_grid(m, M)
                 S = _atom_acvs(m, lt_sel, h)
             S = S * np.sign(S[:, :1])        # FN's K has the opposite sign convention
             wt = w * (1.0 - h / M)
