@@ -28,7 +28,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares, leastsq
 
 from .diagnostics import VANISH_SHARE, condition_number, free_jacobian
 from .errors import InputError
@@ -73,6 +72,8 @@ def _lm(fun: Any, jac: Any, x0: np.ndarray, *, ftol: float, xtol: float, gtol: f
     """MINPACK's lmder with Jacobian-norm scaling: the iterates of ``least_squares(method="lm",
     x_scale="jac")`` without its per-call wrappers and its final extra Jacobian (about a third
     of a small solve's time). Status and message follow ``least_squares``."""
+    from scipy.optimize import leastsq  # lazily: ~0.3 s of imports that `gmwm plan` does not use
+
     x, _, info, _, ier = leastsq(fun, x0, Dfun=jac, full_output=True, ftol=ftol, xtol=xtol,
                                  gtol=gtol, maxfev=max_nfev, factor=100.0, diag=None)
     f = info["fvec"]
@@ -362,6 +363,8 @@ class Problem:
         else:
             sol = None
         if sol is None:
+            from scipy.optimize import least_squares
+
             try:
                 with np.errstate(all="ignore"):
                     sol = least_squares(self.free_residual, x0, method="trf", bounds=(lo, hi),

@@ -104,7 +104,10 @@ class Prediction:
     ``se`` / ``rse``: standard error and relative SE of each parameter (names as in
     :func:`gmwm.fit`); ``cov``: the sandwich covariance behind them (parameter order of
     ``se``; for joint statements about several parameters); ``coefficients``: datasheet coefficients (``value``, ``unit``, ``rse``,
-    ``ci95``); ``identifiable``: per component, the rule of the module docstring."""
+    ``ci95``); ``identifiable``: per component, the rule of the module docstring; ``margin``: per
+    component, the largest relative SE of its parameters (an AR1's time constant for its phi)
+    over :data:`IDENTIFIABLE_RSE` (identifiable when <= 1; ``inf`` when an SE is not finite; a
+    continuous measure for length searches, not part of :meth:`to_dict`)."""
 
     n_samples: int
     seconds: float
@@ -115,6 +118,7 @@ class Prediction:
     identifiable: dict[str, bool]
     condition_number: float
     cov: np.ndarray | None = field(default=None, repr=False)
+    margin: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         return {"seconds": self.seconds, "duration": format_duration(self.seconds),
@@ -185,7 +189,8 @@ def _coefficients(model: Any, theta: np.ndarray, cov: np.ndarray, wv: Any, unit:
     return out
 
 
-def _identifiable(model: Any, theta: np.ndarray, se: np.ndarray) -> dict[str, bool]:
+def _component_rse(model: Any, theta: np.ndarray, se: np.ndarray) -> dict[str, np.ndarray]:
+    """Per component, the relative SEs the identifiability rule reads (module docstring)."""
     out = {}
     for c in model.components:
         p, s = theta[c.slice], se[c.slice]
@@ -193,8 +198,18 @@ def _identifiable(model: Any, theta: np.ndarray, se: np.ndarray) -> dict[str, bo
         if c.process.name == "AR1":  # the time constant -1/ln(phi), not phi itself
             phi = abs(p[0])
             rel[0] = s[0] / (phi * abs(math.log(phi))) if 0 < phi < 1 else np.inf
-        out[c.name] = bool(np.all(np.isfinite(rel)) and np.all(rel <= IDENTIFIABLE_RSE))
+        out[c.name] = rel
     return out
+
+
+def _identifiable(rels: Mapping[str, np.ndarray]) -> dict[str, bool]:
+    return {k: bool(np.all(np.isfinite(rel)) and np.all(rel <= IDENTIFIABLE_RSE))
+            for k, rel in rels.items()}
+
+
+def _margin(rels: Mapping[str, np.ndarray]) -> dict[str, float]:
+    return {k: float(np.max(rel)) / IDENTIFIABLE_RSE if np.all(np.isfinite(rel)) else math.inf
+            for k, rel in rels.items()}
 
 
 def predict(model: Any, theta: Any, n_samples: int, *, unit: str | None = None,
@@ -229,9 +244,11 @@ def predict(model: Any, theta: Any, n_samples: int, *, unit: str | None = None,
     with np.errstate(all="ignore"):
         rse = np.abs(se / theta)
     coefs = _coefficients(model, theta, cov, wv, unit, bi)
+    with np.errstate(all="ignore"):
+        rels = _component_rse(model, theta, se)
     return Prediction(n, n / model.freq, wv.n_levels, dict(zip(names, map(float, se), strict=True)),
                       dict(zip(names, map(float, rse), strict=True)), coefs,
-                      _identifiable(model, theta, se), float(cond), cov)
+                      _identifiable(rels), float(cond), cov, _margin(rels))
 
 
 # --------------------------------------------------------------------------------------------------

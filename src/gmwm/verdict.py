@@ -211,45 +211,133 @@ def misfit(result: Any) -> Misfit:
 def identifiability(result: Any, n_samples: int | None = None) -> dict[str, float | None]:
     """Per component NOT identifiable at the length used (:func:`gmwm.plan.predict` at the
     fitted values, the rule of ``gmwm plan``): the length [s] from which it would be (to ~5 %:
-    doubling, then four bisection steps on the log scale; None: not within 30 days).
-    Identifiable components are absent. Components at the boundary 0 are left to the fit's own
-    flags (a zero scale has no length)."""
+    the returned length is identifiable and one 2**(1/16) below it is not; None: not within 30
+    days). Identifiable components are absent. Components at the boundary 0 are left to the fit's
+    own flags (a zero scale has no length).
+
+    The search (:func:`_identifiable_from`) steps up the lengths once for all weak components
+    (each prediction tells every component's identifiability), then closes each bracket by a
+    safeguarded interpolation of the log of :attr:`gmwm.plan.Prediction.margin` against the log
+    length (the relative SE is close to a power law in the length)."""
     from gmwm.plan import MAX_SEARCH_S, predict
 
     model, theta = result.model, np.asarray(result.params, float)
     n = int(n_samples if n_samples is not None else result.wv.n_samples)
+    at = _Predictions(lambda m: predict(model, theta, m))
 
-    def ok(m: int) -> dict[str, bool] | None:
-        try:
-            with np.errstate(all="ignore"):
-                return predict(model, theta, m).identifiable
-        except Exception:  # noqa: BLE001 - a plan that cannot be made flags nothing
-            return None
-
-    now = ok(n)
+    now = at(n)
     if now is None:
         return {}
     weak = [c.name for c in model.components
-            if not now.get(c.name, True) and theta[c.start + c.process.scale_index] > 0]
-    out: dict[str, float | None] = {}
-    n_max = int(MAX_SEARCH_S * model.freq)
-    for name in weak:
-        lo, hi = n, None
-        while lo < n_max:
-            m = min(2 * lo, n_max)
-            got = ok(m)
-            if got is not None and got.get(name, False):
-                hi = m
+            if not now.identifiable.get(c.name, True) and theta[c.start + c.process.scale_index] > 0]
+    found = _identifiable_from(at, weak, n, int(MAX_SEARCH_S * model.freq))
+    return {k: None if v is None else v / model.freq for k, v in found.items()}
+
+
+#: bracket ratio at which a length search stops (four bisections of an octave, 4.4 %)
+_ID_RATIO = 2.0 ** (1.0 / 16.0)
+
+
+class _Predictions:
+    """Predictions by sample count, each made once (None where none can be made)."""
+
+    def __init__(self, fn: Any):
+        self.fn, self.store = fn, {}
+
+    def __call__(self, m: int) -> Any:
+        if m not in self.store:
+            try:
+                with np.errstate(all="ignore"):
+                    self.store[m] = self.fn(m)
+            except Exception:  # noqa: BLE001 - a plan that cannot be made flags nothing
+                self.store[m] = None
+        return self.store[m]
+
+    def known(self) -> list[int]:
+        return sorted(self.store)
+
+
+def _log_root(margin: Any, c: str, a: int, b: int, known: Sequence[int]) -> float:
+    """log of the length where ``margin(., c)`` crosses 1 between ``a`` and ``b``: quadratic in
+    log-log through a, b and the nearest other known length with a finite margin, else linear."""
+    def pt(m: int) -> tuple[float, float]:
+        return math.log(m), math.log(max(margin(m, c), 1e-300))
+
+    (xa, ga), (xb, gb) = pt(a), pt(b)
+    lin = xa + (xb - xa) * ga / (ga - gb) if math.isfinite(ga) and ga > gb else 0.5 * (xa + xb)
+    others = [m for m in known if m not in (a, b) and math.isfinite(margin(m, c))]
+    if not math.isfinite(ga) or not others:
+        return lin
+    xc, gc = pt(min(others, key=lambda m: min(abs(math.log(m) - xa), abs(math.log(m) - xb))))
+    # Newton form through the three points; its root in (xa, xb) nearest the secant's
+    d1 = (gb - ga) / (xb - xa)
+    d2 = ((gc - gb) / (xc - xb) - d1) / (xc - xa)
+    # g(x) = ga + d1 (x - xa) + d2 (x - xa)(x - xb) = d2 u^2 + (d1 - d2 (xb - xa)) u + ga, u = x - xa
+    qa, qb = d2, d1 - d2 * (xb - xa)
+    if abs(qa) < 1e-12:
+        return lin if qb == 0 else xa - ga / qb
+    disc = qb * qb - 4 * qa * ga
+    if disc < 0:
+        return lin
+    roots = [xa + (-qb + sgn * math.sqrt(disc)) / (2 * qa) for sgn in (1.0, -1.0)]
+    inside = [r for r in roots if xa < r < xb]
+    return min(inside, key=lambda r: abs(r - lin)) if inside else lin
+
+
+def _identifiable_from(at: Any, weak: Sequence[str], n: int, n_max: int) -> dict[str, int | None]:
+    """For each component of ``weak`` (not identifiable at ``n`` samples), the smallest sample
+    count, to a ratio :data:`_ID_RATIO`, at which it is (``at(m)``: the prediction at m, or None
+    where none can be made, which counts as not identifiable; ``at.known()``: the sample counts
+    predicted so far); None if not within ``n_max``."""
+
+    def margin(m: int, name: str) -> float:
+        p = at(m)
+        return math.inf if p is None else p.margin.get(name, math.inf)
+
+    def ok(m: int, name: str) -> bool:
+        p = at(m)
+        return p is not None and p.identifiable.get(name, False)
+
+    # 1. step up the lengths once for every weak component: by the factor a relative SE ~ 1/sqrt(T)
+    #    would need (the worst margin squared, 2x to 16x), until every one is bracketed
+    lo = dict.fromkeys(weak, n)
+    hi: dict[str, int] = {}
+    m, pending = n, list(weak)
+    while pending and m < n_max:
+        worst = max(margin(m, c) for c in pending)
+        step = min(max(2.0, 1.2 * worst**2), 16.0) if math.isfinite(worst) else 2.0
+        m = min(round(m * step), n_max)
+        for c in pending:
+            if ok(m, c):
+                hi[c] = m
+            else:
+                lo[c] = m
+        pending = [c for c in pending if c not in hi]
+    out: dict[str, int | None] = dict.fromkeys(weak)
+    # 2. per component, shrink [lo (not identifiable), hi (identifiable)] to the ratio _ID_RATIO:
+    #    the root of log(margin) against log(length), interpolated through the two ends and the
+    #    nearest other length known (quadratic; a secant with two), evaluated half a ratio above
+    #    and then half a ratio below (the bracket is closed when the root was right to ~2 %)
+    half = 0.5 * math.log(_ID_RATIO)
+    for c, b in hi.items():
+        a = lo[c]
+        for _ in range(12):
+            if b / a <= _ID_RATIO * (1 + 1e-9) or b - a <= 1:
                 break
-            lo = m
-        if hi is None:
-            out[name] = None
-            continue
-        for _ in range(4):
-            mid = round(math.sqrt(lo * hi))
-            got = ok(mid)
-            lo, hi = (lo, mid) if got is not None and got.get(name, False) else (mid, hi)
-        out[name] = hi / model.freq
+            xa, xb = math.log(a), math.log(b)
+            guard = 0.05 * (xb - xa)   # stay inside the bracket: every step shrinks it
+            x = min(max(_log_root(margin, c, a, b, at.known()), xa + guard), xb - guard)
+            p = round(math.exp(min(x + half, xb - guard)))
+            if not a < p < b:
+                break
+            if not ok(p, c):
+                a = p
+                continue
+            b = p
+            q = round(math.exp(max(x - half, xa + guard)))
+            if a < q < b:
+                a, b = (a, q) if ok(q, c) else (q, b)
+        out[c] = b
     return out
 
 

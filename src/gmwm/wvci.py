@@ -198,26 +198,98 @@ def _ar_times(levels: tuple[int, ...]) -> np.ndarray:
     return np.arange(np.floor(lo / _AR_STEP), np.ceil(hi / _AR_STEP) + 1) * _AR_STEP
 
 
+#: correlation-time exponents of the AR1 atoms whose WV at each level is tabulated once
+_LT_TABLE = np.arange(-16.0, 65.0)
+
+
+@lru_cache(maxsize=128)
+def _level_wv(j: int) -> np.ndarray:
+    """WV at level ``j`` of the power laws and of the AR1 atoms ``_LT_TABLE`` (read-only)."""
+    m = 1 << (j - 1)
+    zero = np.zeros(1)
+    with np.errstate(all="ignore"):
+        out = np.concatenate([[_acvs_power(k, m, zero)[0] for k in _POWER_LAWS],
+                              _acvs_ar1(2.0**-_LT_TABLE, m, zero)[:, 0]])
+    out.flags.writeable = False
+    return out
+
+
+@lru_cache(maxsize=128)
+def _level_near(j: int, lt_sel: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Lattice points of level ``j`` up to the overlap ``2m`` (the same in every lag grid
+    reaching beyond ``2m``: :func:`_lag_grid`) and the autocovariances there of the power laws
+    and of the AR1 atoms ``lt_sel``, where the e3 series make them costly. Read-only."""
+    m = 1 << (j - 1)
+    h = _lattice([0, m, 2 * m])[0]
+    S = _atom_acvs(m, np.asarray(lt_sel, dtype=np.float64), h)
+    h.flags.writeable = S.flags.writeable = False
+    return h, S
+
+
+#: the geometric steps of :func:`_lattice` (dense 16, ratio 1.08), far enough for any length
+_GEO = np.unique(np.round(16 * 1.08 ** np.arange(420))).astype(np.int64)
+
+
+def _far_grid(m: int, M: int, h_near: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_lag_grid` (same points, same weights) from its part up to ``2m``, ``h_near``,
+    when the last lag ``M - 1`` lies beyond ``2m + 64``: only the part beyond is built."""
+    a, b = 2 * m, M - 1
+    g = _GEO[_GEO < (a + b) // 2 - a]
+    near = np.arange(17)
+    far = np.unique(np.concatenate([a + near, b - near, a + g, b - g]))
+    h = np.concatenate([h_near[:-1], far.astype(np.float64)])
+    w = np.ones(h.size)
+    gaps = np.diff(h) - 1.0
+    w[1:] += 0.5 * gaps
+    w[:-1] += 0.5 * gaps
+    return h, w
+
+
+def _far_acvs(m: int, lt_sel: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """:func:`_atom_acvs` at lags ``h > 2m``, where the finite power-law filters no longer
+    overlap (QN, WN and RW exactly 0) and the AR1 atoms are in their product form."""
+    out = np.zeros((_NP + lt_sel.size, h.size))
+    out[_POWER_LAWS.index("FN")] = _acvs_power("FN", m, h)
+    out[_NP:] = _acvs_ar1(2.0**-lt_sel, m, h)
+    return out
+
+
+def _atom_acvs(m: int, lt_sel: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Autocovariances at lags ``h`` of the power laws and the AR1 atoms ``lt_sel`` (rows)."""
+    return np.vstack([np.array([_acvs_power(k, m, h) for k in _POWER_LAWS]),
+                      _acvs_ar1(2.0**-lt_sel, m, h)])
+
+
 @lru_cache(maxsize=32)
 def _tables(n_samples: int, levels: tuple[int, ...]
             ) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray], np.ndarray]:
     """Per level: the WV of every atom (``nu[j, k]``), the atoms used at level j (``sel[j]``) and
-    ``B[j]`` (their lag sums, finite-M weights); the correlation-time exponents of the AR1 atoms."""
+    ``B[j]`` (their lag sums, finite-M weights); the correlation-time exponents of the AR1 atoms.
+    The length-free parts are tabulated once (:func:`_level_wv`, :func:`_level_near`): a plan
+    evaluates many lengths."""
     lt = _ar_times(levels)
     n_atoms = _NP + lt.size
     nu = np.empty((len(levels), n_atoms))
     sels, bs = [], []
-    zero = np.zeros(1)
     with np.errstate(over="ignore", under="ignore"):
         for i, j in enumerate(levels):
             m = 1 << (j - 1)
             M = n_samples - 2 * m + 1
-            nu[i, :_NP] = [_acvs_power(k, m, zero)[0] for k in _POWER_LAWS]
-            nu[i, _NP:] = _acvs_ar1(2.0**-lt, m, zero)[:, 0]
+            lo = int(lt[0] - _LT_TABLE[0])
+            if lo >= 0 and lt[-1] <= _LT_TABLE[-1]:
+                nu[i] = _level_wv(j)[np.r_[:_NP, _NP + lo:_NP + lo + lt.size]]
+            else:
+                nu[i, :_NP] = _level_wv(j)[:_NP]
+                nu[i, _NP:] = _acvs_ar1(2.0**-lt, m, np.zeros(1))[:, 0]
             sel = np.concatenate([np.arange(_NP), _NP + np.flatnonzero(np.abs(lt - j) <= _HALF)])
-            h, w = _lag_grid(m, M)
-            S = np.vstack([np.array([_acvs_power(k, m, h) for k in _POWER_LAWS]),
-                           _acvs_ar1(2.0**-lt[sel[_NP:] - _NP], m, h)])
+            lt_sel = lt[sel[_NP:] - _NP]
+            h_near, S_near = _level_near(j, tuple(lt_sel.tolist()))
+            if M - 1 > 2 * m + 64:
+                h, w = _far_grid(m, M, h_near)
+                S = np.hstack([S_near, _far_acvs(m, lt_sel, h[h_near.size:])])
+            else:  # the lattice ends at or soon after the overlap
+                h, w = _lag_grid(m, M)
+                S = _atom_acvs(m, lt_sel, h)
             S = S * np.sign(S[:, :1])        # FN's K has the opposite sign convention
             wt = w * (1.0 - h / M)
             wt[1:] *= 2.0                    # lags +h and -h
