@@ -1,6 +1,7 @@
 """The fleet table's statistics by simulation (gmwm.fleet.core), and its time at scale.
 
     python benchmarks/bench_fleet.py [--reps 2000] [--seed 1] [--table-units 10000] [--json F]
+    python benchmarks/bench_fleet.py --units 1000 [--minutes 5] [--cores 2]   # + the overhead
 
 Coverage. Fleets of ``k`` units drawn from the random-effects model on the log scale:
 ``y_i = mu + u_i + e_i``, ``u_i ~ N(0, tau^2)``, ``e_i ~ N(0, s_i^2)`` with ``s_i`` uniform on
@@ -11,7 +12,7 @@ interval), and of the 95 % prediction interval for one new unit drawn from the s
 its Monte Carlo SE ``sqrt(p (1 - p) / R)``. The designs include tau = 0 (every lower end is 0, the
 interval covers whenever Q's upper end does).
 
-Overhead (``--overhead N``, off by default): a synthetic fleet of ``N`` static units written by
+Overhead (``--units N``, alias ``--overhead N``, off by default): a synthetic fleet of ``N`` static units written by
 ``examples/make_fleet.py`` (``--minutes`` each, CSV, six axes), calibrated once by ``gmwm fleet``
 (model WN+RW, ``--cores``) and once by ``N`` separate ``gmwm report`` runs with the same options;
 reported: CPU seconds (user + system of every child process) and wall time of each, and their
@@ -125,7 +126,7 @@ def main() -> None:
     ap.add_argument("--reps", type=int, default=2000)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--table-units", type=int, default=10000)
-    ap.add_argument("--overhead", type=int, default=0, metavar="N",
+    ap.add_argument("--overhead", "--units", type=int, default=0, metavar="N", dest="overhead",
                     help="also time a fleet of N units against N gmwm report runs")
     ap.add_argument("--minutes", type=float, default=5.0)
     ap.add_argument("--cores", type=int, default=2)
