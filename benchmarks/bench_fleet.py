@@ -121,6 +121,37 @@ def overhead(n_units: int, minutes: float, cores: int) -> dict[str, float]:
             "cpu_ratio": fleet_cpu / rep_cpu}
 
 
+def _markdown(a: argparse.Namespace, rows: list[dict[str, float]], t_big: float,
+              t_loo: float, over: dict[str, float] | None, load_before: str, cpu: float,
+              where: str) -> str:
+    """The generated block of benchmarks/README.md."""
+    from readme_section import load
+
+    out = [f"`python benchmarks/bench_fleet.py --reps {a.reps}"
+           + (f" --units {a.overhead} --minutes {a.minutes:g} --cores {a.cores}"
+              if a.overhead else "") + " --readme`: " + where + f"; 1-minute load average "
+           f"{load_before} before, {load()} after; {cpu:.0f} s CPU in this process"
+           + (" (plus the fleet's and the reports' child processes)" if a.overhead else "")
+           + ".", "",
+           (f"Coverage of nominal 95 % intervals, R = {a.reps} simulated fleets per design (MC SE "
+           "in brackets; 95 % +- 2 MC SE is the target):"), "",
+           ("| units k | tau | unit SE range | tau^2 (Q-profile) | typical value mu "
+           "(PM, mod. HK) | new unit (prediction) |"), "|---|---|---|---|---|---|"]
+    for r in rows:
+        out.append(f"| {r['k']} | {r['tau']:g} | {r['s_lo']:g}-{r['s_hi']:g} | "
+                   + " | ".join(f"{r[n]:.3f} ({r[n + '_mcse']:.3f})"
+                                for n in ("tau2_qprofile", "mu", "prediction")) + " |")
+    out += ["", (f"`fleet_table` CPU: {a.table_units} units x 1 coefficient {t_big:.2f} s "
+            f"(whole-fleet band); 500 units {t_loo:.2f} s (leave-one-out band).")]
+    if over:
+        out += ["", (f"Overhead: {over['recordings']:.0f} recordings; `gmwm fleet` "
+                f"{over['fleet_cpu_s']:.1f} CPU s ({over['fleet_wall_s']:.1f} s wall, "
+                f"{a.cores} cores) against {over['recordings']:.0f} `gmwm report` runs "
+                f"{over['reports_cpu_s']:.1f} CPU s ({over['reports_wall_s']:.1f} s wall, "
+                f"serial): {over['cpu_ratio']:.2f}x the CPU per recording.")]
+    return "\n".join(out)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--reps", type=int, default=2000)
@@ -131,7 +162,12 @@ def main() -> None:
     ap.add_argument("--minutes", type=float, default=5.0)
     ap.add_argument("--cores", type=int, default=2)
     ap.add_argument("--json", default=None, help="also write the numbers to this JSON file")
+    ap.add_argument("--readme", action="store_true",
+                    help="also rewrite the generated bench_fleet block of benchmarks/README.md")
     a = ap.parse_args()
+    from readme_section import load
+
+    load_before, cpu0 = load(), time.process_time()
     rows = []
     print(f"coverage of nominal 95 % intervals, R = {a.reps} fleets per design (MC SE)")
     print(f"{'k':>4} {'tau':>5} {'s range':>12} {'tau2 Q-prof':>14} {'mu (mod. HK)':>14} "
@@ -153,6 +189,11 @@ def main() -> None:
               f"CPU s ({over['fleet_wall_s']:.1f} s wall, {a.cores} cores) vs gmwm report "
               f"{over['reports_cpu_s']:.1f} CPU s ({over['reports_wall_s']:.1f} s wall, serial):"
               f" {over['cpu_ratio']:.2f}x CPU per recording")
+    if a.readme:
+        from readme_section import machine, update_section
+
+        update_section("bench_fleet", _markdown(a, rows, t_big, t_loo, over, load_before,
+                                                time.process_time() - cpu0, machine()))
     if a.json:
         with open(a.json, "w") as fh:
             json.dump({"reps": a.reps, "seed": a.seed, "coverage": rows,

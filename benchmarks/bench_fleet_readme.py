@@ -60,6 +60,16 @@ def _truth(truth: list[dict[str, Any]], recording: str, coefficient: str) -> str
                   else "accel_noise_density"])
 
 
+def _generator() -> Any:
+    """examples/make_fleet.py as a module (its typical values and between-unit spread)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("make_fleet", ROOT / MAKE[0])
+    mod = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+    spec.loader.exec_module(mod)  # type: ignore[union-attr]
+    return mod
+
+
 def render(tmp: Path, made: dict[str, Any], ran: dict[str, Any]) -> str:
     """The README block from the fleet's files in ``tmp``."""
     fleet = json.loads((tmp / "fleet" / "fleet.json").read_text())
@@ -82,6 +92,11 @@ def render(tmp: Path, made: dict[str, Any], ran: dict[str, Any]) -> str:
               "exp(tau)), and the 95 % prediction interval of a new unit."), "",
               _table(["coefficient", "unit", "units", "typical [95 %]", "tau [95 %]",
                       "factor", "new unit, 95 %"], rows), ""]
+    gen = _generator()
+    parts += [(f"The generator draws the static units' densities with tau = {gen.SPREAD:g} "
+               f"around {gen.GYRO_ND:g} rad/s/sqrt(Hz) and {gen.ACCEL_ND:g} m/s^2/sqrt(Hz); the "
+               "fleet's estimate includes every unit, `odd0` and `aging` too (the gyroscope's "
+               "tau), while each unit's out-of-family test leaves that unit out."), ""]
     left = [c["coefficient"] for c in coefs if c.get("typical") is None]
     if left:
         parts += [f"Not estimated for the fleet ({len(left)} coefficients: "
@@ -94,6 +109,19 @@ def render(tmp: Path, made: dict[str, Any], ran: dict[str, Any]) -> str:
     parts += [("**Out of family** (the unit's 95 % interval outside the fleet's prediction "
               "interval computed without it), beside the generator's true value:"), "",
               _table(["unit", "coefficient", "why", "true value"], rows), ""]
+    for unit in sorted({u["unit"] for u in out if not u["unit"].startswith("odd")}):
+        t = next(t for t in truth if t["unit"] == unit)
+        z = [math.log(t[k] / ref) / gen.SPREAD for k, ref in
+             (("gyro_noise_density", gen.GYRO_ND), ("accel_noise_density", gen.ACCEL_ND))]
+        parts += [(f"`{unit}` is not one of the generator's odd units: its true densities lie "
+                   f"{z[0]:+.1f} (gyroscope) and {z[1]:+.1f} (accelerometer) between-unit "
+                   "standard deviations from the typical values (a tail draw of the "
+                   "generator)."), ""]
+    moved = [json.loads(p.read_text()) for p in (tmp / "fleet" / "units" / "moved").glob(
+        "*/status.json")]
+    for st in moved:
+        parts += [(f"`moved` (a log that turns after its first 40 %) was calibrated on its "
+                   f"{st['used']}: {st['used_s']:.0f} s of {made['minutes'] * 60:.0f} s."), ""]
     drift = [d for d in fleet["drift"] if d["flagged"]]
     rows = [[d["unit"], f"`{d['coefficient']}`", str(d["n"]), f"{d['first']} to {d['last']}",
              (f"{d['percent_per_year'][0]:+.1f} % [{d['percent_per_year'][1]:+.1f}, "
@@ -124,6 +152,7 @@ def main(argv: list[str] | None = None) -> int:
         made = run_measured([sys.executable, str(ROOT / MAKE[0]), *MAKE[1:]], env=env, cwd=d)
         if made["code"] != 0:
             sys.exit(f"make_fleet.py failed: {made['err']}")
+        made["minutes"] = float(MAKE[MAKE.index("--minutes") + 1])
         made["n"] = sum(1 for p in (tmp / "fleet_in").iterdir() if p.name != "truth.json")
         before = load()
         ran = run_measured([sys.executable, "-m", "gmwm", *FLEET], env=env, cwd=d)
