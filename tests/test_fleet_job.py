@@ -63,3 +63,22 @@ def test_usage_error_of_a_report_argument_is_exit_status_2(tmp_path):
     s = FleetSettings(model="WN", report_args=("--gaps", "nonsense"))
     code, obj, err = report(s.report_argv(str(rec), str(tmp_path / "o")))
     assert code == 2 and obj is None and "--gaps" in err
+
+
+def test_python_warnings_reach_the_status_after_the_error(tmp_path, monkeypatch):
+    import warnings
+
+    import gmwm.calibrate
+    from gmwm.errors import InputError
+    from gmwm.fleet.job import report
+    from gmwm.fleet.run import FleetSettings
+
+    def fake(*_a, **_k):
+        warnings.warn("a reader's caveat", UserWarning, stacklevel=1)
+        raise InputError("too short")
+
+    monkeypatch.setattr(gmwm.calibrate, "calibrate", fake)
+    rec = _recording(tmp_path / "r.csv", n=500)
+    code, obj, err = report(FleetSettings(model="WN").report_argv(str(rec), str(tmp_path / "o")))
+    assert (code, obj) == (1, None)
+    assert err.splitlines() == ["gmwm: error: too short", "gmwm: warning: a reader's caveat"]

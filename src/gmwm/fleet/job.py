@@ -42,22 +42,24 @@ def report(argv: list[str]) -> tuple[int, dict[str, Any] | None, str]:
     except SystemExit as exc:
         return (exc.code if isinstance(exc.code, int) else EXIT_USAGE), None, err.getvalue()
     args.progress = lambda _msg: None  # the job is quiet: Snakemake's log shows the jobs
+    obj: dict[str, Any] | None = None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
             check_args(args)
-            return _calibrate(args, err)
+            code, obj = _calibrate(args, err)
         except UsageError as exc:
             err.write(f"gmwm: error: {as_flags(one_line(exc))} (see 'gmwm report --help')\n")
-            return EXIT_USAGE, None, err.getvalue()
+            code = EXIT_USAGE
         except (GMWMError, OSError) as exc:
             err.write(f"gmwm: error: {as_flags(one_line(exc))}\n")
-            return EXIT_ERROR, None, err.getvalue()
-        finally:
+            code = EXIT_ERROR
+        finally:  # as the command line prints them: after the command's own lines
             _python_warnings(caught, err, False)
+    return code, obj, err.getvalue()
 
 
-def _calibrate(args: argparse.Namespace, err: io.StringIO) -> tuple[int, dict[str, Any], str]:
+def _calibrate(args: argparse.Namespace, err: io.StringIO) -> tuple[int, dict[str, Any]]:
     """What ``gmwm report`` does with a recording (gmwm.cli.commands.report.run and
     gmwm.cli.commands.fit.calibrate_input), the same arguments passed to the same calls."""
     from gmwm.calibrate import calibrate, start_warm_server, stop_warm_server
@@ -119,7 +121,7 @@ def _calibrate(args: argparse.Namespace, err: io.StringIO) -> tuple[int, dict[st
                               inflation=inflation, drawn=drawn,
                               rostopic=getattr(args, "rostopic", None))
     status = _verdicts(result, err, calibration_status(result, err, True))
-    return status, _json(args, result, files), err.getvalue()
+    return status, _json(args, result, files)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
