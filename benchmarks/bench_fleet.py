@@ -16,7 +16,8 @@ Overhead (``--units N``, alias ``--overhead N``, off by default): a synthetic fl
 ``examples/make_fleet.py`` (``--minutes`` each, CSV, six axes), calibrated once by ``gmwm fleet``
 (model WN+RW, ``--cores``) and once by ``N`` separate ``gmwm report`` runs with the same options;
 reported: CPU seconds (user + system of every child process) and wall time of each, and their
-ratio per recording (the fleet's includes Snakemake and the table job).
+ratio per recording (the fleet's includes Snakemake and the table job), and the peak resident
+memory of the largest single process of each (GNU time, when /usr/bin/time exists).
 
 Scale. :func:`gmwm.fleet.core.fleet_table` for ``--table-units`` units x 1 coefficient (the
 whole-fleet band above 500 units, gmwm.fleet.core.LOO_MAX_UNITS) and for 500 units (leave-one-out
@@ -79,11 +80,12 @@ def table_time(n_units: int, seed: int) -> float:
 
 def overhead(n_units: int, minutes: float, cores: int) -> dict[str, float]:
     import os
-    import resource
     import subprocess
     import sys
     import tempfile
     from pathlib import Path
+
+    from readme_section import run_measured
 
     root = Path(__file__).resolve().parents[1]
     env = dict(os.environ, MPLBACKEND="Agg")
@@ -91,9 +93,11 @@ def overhead(n_units: int, minutes: float, cores: int) -> dict[str, float]:
     opts = ["WN+RW", "--columns", "all", "--units", "gx,gy,gz=rad/s", "--units",
             "ax,ay,az=m/s^2"]
 
-    def cpu() -> float:
-        r = resource.getrusage(resource.RUSAGE_CHILDREN)
-        return r.ru_utime + r.ru_stime
+    def run(cmd: list[str]) -> dict[str, object]:
+        got = run_measured(cmd, env=env)
+        if got["code"] != 0:
+            raise SystemExit(f"{' '.join(cmd[:4])} ... failed ({got['code']}): {got['err']}")
+        return got
 
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp)
@@ -103,22 +107,24 @@ def overhead(n_units: int, minutes: float, cores: int) -> dict[str, float]:
                        capture_output=True)
         (d / "in" / "moved_2026-01-05.csv").unlink()
         files = sorted((d / "in").glob("*.csv"))
-        c0, t0 = cpu(), time.perf_counter()
-        subprocess.run([sys.executable, "-m", "gmwm", "fleet", str(d / "in"), "-o",
-                        str(d / "fleet"), "--model", *opts, "--cores", str(cores), "-q"],
-                       check=True, env=env, capture_output=True)
-        fleet_cpu, fleet_wall = cpu() - c0, time.perf_counter() - t0
-        c0, t0 = cpu(), time.perf_counter()
+        # CPU of the whole process tree; peak RSS: the largest single process of it
+        fleet = run([sys.executable, "-m", "gmwm", "fleet", str(d / "in"), "-o",
+                     str(d / "fleet"), "--model", *opts, "--cores", str(cores), "-q"])
+        rep_cpu = rep_wall = rep_rss = 0.0
         for f in files:
-            subprocess.run([sys.executable, "-m", "gmwm", "report", str(f), *opts, "-o",
-                            str(d / "rep" / f.stem), "--segment", "longest-static",
-                            "--export", "kalibr,json", "-q"], check=True, env=env,
-                           capture_output=True)
-        rep_cpu, rep_wall = cpu() - c0, time.perf_counter() - t0
+            got = run([sys.executable, "-m", "gmwm", "report", str(f), *opts, "-o",
+                       str(d / "rep" / f.stem), "--segment", "longest-static",
+                       "--export", "kalibr,json", "-q"])
+            rep_cpu += float(got["cpu"])  # type: ignore[arg-type]
+            rep_wall += float(got["wall"])  # type: ignore[arg-type]
+            rep_rss = max(rep_rss, float(got["rss_mb"]))  # type: ignore[arg-type]
     n = len(files)
-    return {"recordings": n, "fleet_cpu_s": fleet_cpu, "fleet_wall_s": fleet_wall,
+    fleet_cpu = float(fleet["cpu"])  # type: ignore[arg-type]
+    return {"recordings": n, "fleet_cpu_s": fleet_cpu,
+            "fleet_wall_s": float(fleet["wall"]),  # type: ignore[arg-type]
+            "fleet_peak_rss_mb": float(fleet["rss_mb"]),  # type: ignore[arg-type]
             "reports_cpu_s": rep_cpu, "reports_wall_s": rep_wall,
-            "cpu_ratio": fleet_cpu / rep_cpu}
+            "reports_peak_rss_mb": rep_rss, "cpu_ratio": fleet_cpu / rep_cpu}
 
 
 def _markdown(a: argparse.Namespace, rows: list[dict[str, float]], t_big: float,
@@ -148,7 +154,9 @@ def _markdown(a: argparse.Namespace, rows: list[dict[str, float]], t_big: float,
                 f"{over['fleet_cpu_s']:.1f} CPU s ({over['fleet_wall_s']:.1f} s wall, "
                 f"{a.cores} cores) against {over['recordings']:.0f} `gmwm report` runs "
                 f"{over['reports_cpu_s']:.1f} CPU s ({over['reports_wall_s']:.1f} s wall, "
-                f"serial): {over['cpu_ratio']:.2f}x the CPU per recording.")]
+                f"serial): {over['cpu_ratio']:.2f}x the CPU per recording. Peak resident "
+                f"memory of the largest process: {over['fleet_peak_rss_mb']:.0f} MB in the "
+                f"fleet, {over['reports_peak_rss_mb']:.0f} MB in a report.")]
     return "\n".join(out)
 
 
@@ -188,7 +196,9 @@ def main() -> None:
         print(f"overhead: {over['recordings']} recordings, gmwm fleet {over['fleet_cpu_s']:.1f} "
               f"CPU s ({over['fleet_wall_s']:.1f} s wall, {a.cores} cores) vs gmwm report "
               f"{over['reports_cpu_s']:.1f} CPU s ({over['reports_wall_s']:.1f} s wall, serial):"
-              f" {over['cpu_ratio']:.2f}x CPU per recording")
+              f" {over['cpu_ratio']:.2f}x CPU per recording; peak RSS "
+              f"{over['fleet_peak_rss_mb']:.0f} MB (fleet) vs {over['reports_peak_rss_mb']:.0f} "
+              "MB (report)")
     if a.readme:
         from readme_section import machine, update_section
 
