@@ -3,6 +3,7 @@ folders, the written tables and page, the missing-extra message."""
 
 from __future__ import annotations
 
+import csv
 import datetime as dt
 import io
 import json
@@ -122,3 +123,21 @@ def test_missing_extra_is_one_line(monkeypatch, tmp_path):
     assert main(["fleet", str(tmp_path), "-o", str(tmp_path / "out")]) == 1
     assert err.getvalue() == ("gmwm: error: gmwm fleet needs snakemake: install the pipeline "
                               "extra (pip install 'gmwm[pipeline]')\n")
+
+
+def test_manifest_temperature_is_carried_beside_each_value(tmp_path):
+    from gmwm.fleet.collect import Recording
+    from gmwm.fleet.output import TEMPERATURE_NOTE
+
+    ests = [Estimate(f"u{i}", f"u{i}_0", "gx.noise_density", v, (v / 1.03, v * 1.03),
+                     "rad/s/sqrt(Hz)", "gyroscope", None)
+            for i, v in enumerate([1.0e-4, 1.05e-4, 0.97e-4])]
+    recs = [Recording(tmp_path / "a.csv", "u0", "u0_0", None, None, None, 21.5),
+            Recording(tmp_path / "b.csv", "u1", "u1_0", None, None, None, None)]
+    write_fleet(tmp_path, fleet_table(ests), recordings=recs)
+    obj = json.loads((tmp_path / "fleet.json").read_text())
+    assert {u["unit"]: u["temperature_c"] for u in obj["units"]} == {"u0": 21.5, "u1": None,
+                                                                     "u2": None}
+    assert TEMPERATURE_NOTE in obj["notes"]
+    rows = list(csv.DictReader(io.StringIO((tmp_path / "fleet.csv").read_text())))
+    assert [r["temperature_c"] for r in rows] == ["21.5", "", ""]

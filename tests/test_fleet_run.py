@@ -113,6 +113,19 @@ def test_table_written_and_corrupt_file_listed(fleet):
     assert "fleet of 4 units" in proc.stdout
 
 
+def test_a_units_configuration_is_that_of_gmwm_report(fleet, tmp_path):
+    from gmwm.cli import main
+    from gmwm.fleet.run import FleetSettings
+
+    _, inputs, out, _, _ = fleet
+    rec = inputs / "imu0_2026-01-01.csv"
+    s = FleetSettings(model="WN+RW", columns="gx,gy", units=("rad/s",))  # OPTS
+    assert main(s.report_argv(str(rec), str(tmp_path / "cli"))) == 0
+    unit = out / "units" / "imu0" / "imu0_2026-01-01"
+    for name in ("imu.yaml", "imu_noise.json"):
+        assert (unit / name).read_bytes() == (tmp_path / "cli" / name).read_bytes()
+
+
 def test_adding_one_recording_reruns_one_job_and_the_table(fleet):
     base, inputs, out, _, _ = fleet
     proc = gmwm_fleet(str(inputs), "-o", str(out), *OPTS, "-n")

@@ -10,7 +10,7 @@ import csv
 import html
 import io
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -20,8 +20,12 @@ from gmwm.fleet.core import Fleet, fleet_table
 
 __all__ = ["archive", "build_and_write", "build_fleet", "write_compare", "write_fleet"]
 
-_UNIT_COLUMNS = ("unit", "recording", "date", "coefficient", "sensor", "value_unit", "value",
-                 "ci95_low", "ci95_high", "status", "reason", "datasheet_verdict")
+_UNIT_COLUMNS = ("unit", "recording", "date", "temperature_c", "coefficient", "sensor",
+                 "value_unit", "value", "ci95_low", "ci95_high", "status", "reason",
+                 "datasheet_verdict")
+#: said in fleet.json (and the notes) when the manifest gives temperatures
+TEMPERATURE_NOTE = ("temperature_c: the manifest's temperature of each recording [deg C], "
+                    "recorded beside its values; the fleet estimates do not model it")
 #: fleets up to this many units get one named row per unit in the figures
 _LABELLED_UNITS = 60
 _SUMMARY_COLUMNS = ("coefficient", "sensor", "value_unit", "n_units", "typical",
@@ -49,13 +53,23 @@ def _g(x: float | None) -> str:
     return "" if x is None or not math.isfinite(x) else f"{x:.4g}"
 
 
-def _unit_rows(fleet: Fleet) -> list[dict[str, Any]]:
+def _temperatures(recordings: Sequence[Recording]) -> dict[tuple[str, str], float]:
+    """(unit, recording) -> the manifest's temperature [deg C], for the recordings that give
+    one. Recorded beside each value, not modelled: the fleet estimates ignore it."""
+    return {(r.unit, r.name): r.temperature for r in recordings if r.temperature is not None}
+
+
+def _unit_rows(fleet: Fleet, temps: Mapping[tuple[str, str], float] | None = None
+               ) -> list[dict[str, Any]]:
     rows = []
     for v in fleet.verdicts:
         e = v.estimate
         num = e.usable
+        t = (temps or {}).get((e.unit, e.recording))
         rows.append({"unit": e.unit, "recording": e.recording,
-                     "date": e.date.isoformat() if e.date else "", "coefficient": e.coefficient,
+                     "date": e.date.isoformat() if e.date else "",
+                     "temperature_c": "" if t is None else f"{t:g}",
+                     "coefficient": e.coefficient,
                      "sensor": e.sensor, "value_unit": e.value_unit,
                      "value": _g(e.value) if num else "",
                      "ci95_low": _g(e.ci95[0]) if num and e.ci95 else "",
@@ -139,7 +153,7 @@ def _sections(fleet: Fleet) -> dict[str, Any]:
             "failed": [{"unit": u, "recording": r, "reason": why} for u, r, why in fleet.failed]}
 
 
-def _markdown(fleet: Fleet, title: str) -> str:
+def _markdown(fleet: Fleet, title: str, temps: Mapping[tuple[str, str], float]) -> str:
     s = _sections(fleet)
     units = fleet.units
     lines = [f"# {title}\n",
@@ -154,7 +168,7 @@ def _markdown(fleet: Fleet, title: str) -> str:
                                     "percent_per_year", "ci95", "drifts")),
              "\n## Recordings that failed\n",
              _md_table(s["failed"], ("unit", "recording", "reason")),
-             "\n## Units, per coefficient\n", _md_table(_unit_rows(fleet), _UNIT_COLUMNS),
+             "\n## Units, per coefficient\n", _md_table(_unit_rows(fleet, temps), _UNIT_COLUMNS),
              "\n" + "\n".join(f"- {n}" for n in fleet.notes) + "\n"]
     return "\n".join(lines)
 
@@ -265,15 +279,22 @@ def _html(fleet: Fleet, title: str) -> str:
 
 
 def write_fleet(out: Path, fleet: Fleet, *, settings: dict[str, Any] | None = None,
-                title: str = "Fleet calibration") -> list[Path]:
+                title: str = "Fleet calibration", recordings: Sequence[Recording] = ()
+                ) -> list[Path]:
     """Write the fleet table's files into ``out`` (atomically; fleet.json last, as the
-    workflow's marker); return their paths."""
-    files = [write_text_atomic(out / "fleet.csv", _csv(_unit_rows(fleet), _UNIT_COLUMNS)),
+    workflow's marker); return their paths. ``recordings``: their manifest temperatures
+    [deg C] are carried beside each value (``temperature_c``; recorded only, not modelled)."""
+    temps = _temperatures(recordings)
+    if temps and TEMPERATURE_NOTE not in fleet.notes:
+        fleet.notes.append(TEMPERATURE_NOTE)
+    files = [write_text_atomic(out / "fleet.csv", _csv(_unit_rows(fleet, temps), _UNIT_COLUMNS)),
              write_text_atomic(out / "fleet_summary.csv",
                                _csv(_summary_rows(fleet), _SUMMARY_COLUMNS)),
-             write_text_atomic(out / "fleet.md", _markdown(fleet, title)),
+             write_text_atomic(out / "fleet.md", _markdown(fleet, title, temps)),
              write_text_atomic(out / "fleet.html", _html(fleet, title))]
     obj = fleet.to_json_dict() | {"settings": settings or {}}
+    for row in obj.get("units", []):
+        row["temperature_c"] = temps.get((row["unit"], row["recording"]))
     files.append(write_json_atomic(out / "fleet.json", obj))
     return files
 
@@ -312,7 +333,7 @@ def build_and_write(out: Path, recordings: Sequence[Recording], settings: Any,
     """:func:`build_fleet`, :func:`write_fleet` and :func:`archive` (the workflow's table
     job)."""
     fleet = build_fleet(out, recordings, settings.method_re)
-    files = write_fleet(out, fleet, settings=settings.to_json())
+    files = write_fleet(out, fleet, settings=settings.to_json(), recordings=recordings)
     archive(out, config, settings.to_json())
     return files
 

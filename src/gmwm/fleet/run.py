@@ -124,21 +124,24 @@ def _not_identifiable(fits: Mapping[str, Any], notes: list[str]) -> dict[str, di
 
 
 def calibrate_recording(path: str | Path, outdir: str | Path, settings: FleetSettings, *,
-                        report: Callable[[list[str]], tuple[int, str, str]],
+                        report: Callable[[list[str]], tuple[int, dict[str, Any] | None, str]],
                         topic: str | None = None, datasheet: str | None = None,
                         content: str | None = None) -> dict[str, Any]:
     """Calibrate one recording into ``outdir`` exactly as ``gmwm report`` would (same defaults,
     same refusals; the longest static stretch), then judge what the fleet can use: ``ok``, the
     exit status, a one-line ``reason`` when not ok, the length used and, per axis, the terms the
-    ``gmwm plan`` rule finds not identifiable at that length. ``report(argv)`` runs ``gmwm
-    report`` and returns (exit status, stdout, stderr) (:func:`gmwm.fleet.job.report`: the job
-    layer calls the command line; this module sits below it). Writes ``report.json`` and, last
-    (so a killed job leaves none), ``status.json``; returns the status."""
+    ``gmwm plan`` rule finds not identifiable at that length. ``report(argv)`` calibrates the
+    recording with the arguments of the ``gmwm report`` command line ``argv`` and returns (exit
+    status, the report's ``--json`` object or None, stderr's text)
+    (:func:`gmwm.fleet.job.report`: :func:`gmwm.calibrate.calibrate` and
+    :func:`gmwm.report.write_calibration` with the arguments ``gmwm report`` passes; the job
+    layer parses the command line, this module sits below it). Writes ``report.json`` and,
+    last (so a killed job leaves none), ``status.json``; returns the status."""
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     argv = settings.report_argv(str(path), str(outdir), topic, datasheet)
-    code, out, err = report(argv)
+    code, obj, err = report(argv)
     lines = [ln for ln in err.splitlines() if ln.strip()]
     errors = [ln.removeprefix("gmwm: error: ") for ln in lines if ln.startswith("gmwm: error:")]
     status: dict[str, Any] = {"ok": False, "exit_status": code, "reason": "",
@@ -148,10 +151,9 @@ def calibrate_recording(path: str | Path, outdir: str | Path, settings: FleetSet
                                            if ln.startswith("gmwm: warning:")]}
     report: dict[str, Any] | None = None
     if code in (0, 3):  # 3: an optimizer did not report convergence; the report says so
-        try:
-            report = json.loads(out)
-        except ValueError:
-            status["reason"] = "gmwm report printed no JSON result"
+        report = obj
+        if report is None:
+            status["reason"] = "the calibration gave no JSON result"
     else:
         status["reason"] = errors[-1] if errors else (lines[-1] if lines else
                                                       f"gmwm report exited with status {code}")
