@@ -84,7 +84,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             return _run(args, out, err)
         finally:
-            _python_warnings(caught, err, args.debug)
+            python_warnings(caught, err, args.debug)
 
 
 def console_main() -> None:
@@ -160,7 +160,7 @@ def _silence_stdout() -> None:
         pass
 
 
-def _python_warnings(caught: Sequence[warnings.WarningMessage], err: TextIO, debug: bool) -> None:
+def python_warnings(caught: Sequence[warnings.WarningMessage], err: TextIO, debug: bool) -> None:
     """Turn Python warnings raised while a command ran into ``gmwm: warning:`` lines.
 
     Numerical RuntimeWarnings (overflow in a trial step, ...) are transients of the search whose

@@ -20,17 +20,16 @@ __all__ = ["main", "report"]
 
 
 def report(argv: list[str]) -> tuple[int, dict[str, Any] | None, str]:
-    """One recording calibrated by the library's one calibration path,
-    :func:`gmwm.calibrate.calibrate` then :func:`gmwm.report.write_calibration`, with the
-    arguments ``gmwm report ARGV`` passes them (argv parsed by gmwm's own parser: its defaults and
-    usage refusals): (exit status, the report's ``--json`` object or None, stderr's lines as the
-    command would print them). The status follows ``gmwm report``: 0, 1 an input error, 2 a
+    """One recording calibrated as ``gmwm report ARGV`` calibrates it, in this process: argv
+    parsed by gmwm's own parser (its defaults and usage refusals), then the command's
+    :func:`gmwm.cli.commands.report.calibrate_and_write` (the library's one calibration path,
+    :func:`gmwm.calibrate.calibrate`, and :func:`gmwm.report.write_calibration`): (exit status,
+    the report's ``--json`` object or None, stderr's lines as the command would print them). The status follows ``gmwm report``: 0, 1 an input error, 2 a
     usage error, 3 not converged, 4 a topic not calibrated, 5 no configuration written.
 
-    Inputs ``gmwm report`` does not calibrate as a recording are refused: a WV table and raw
-    binary (``--dtype``). A large .npy / HDF5 file, which ``gmwm report`` streams, is read whole
-    here (``calibrate`` takes a file path or a recording)."""
-    from gmwm.cli import _python_warnings, one_line
+    Inputs that are not recordings are refused: a WV table and raw binary (``--dtype``). A large
+    .npy / HDF5 file is streamed as ``gmwm report`` streams it."""
+    from gmwm.cli import one_line, python_warnings
     from gmwm.cli.errors import as_flags
     from gmwm.cli.parser import EXIT_ERROR, EXIT_USAGE, UsageError, build_parser, check_args
     from gmwm.errors import GMWMError
@@ -55,27 +54,18 @@ def report(argv: list[str]) -> tuple[int, dict[str, Any] | None, str]:
             err.write(f"gmwm: error: {as_flags(one_line(exc))}\n")
             code = EXIT_ERROR
         finally:  # as the command line prints them: after the command's own lines
-            _python_warnings(caught, err, False)
+            python_warnings(caught, err, False)
     return code, obj, err.getvalue()
 
 
 def _calibrate(args: argparse.Namespace, err: io.StringIO) -> tuple[int, dict[str, Any]]:
-    """What ``gmwm report`` does with a recording (gmwm.cli.commands.report.run and
-    gmwm.cli.commands.fit.calibrate_input), the same arguments passed to the same calls."""
-    from gmwm.calibrate import calibrate, start_warm_server, stop_warm_server
-    from gmwm.cli.commands.fit import (
-        calibration_status,
-        fit_options,
-        load_datasheet,
-        several_choices,
-    )
-    from gmwm.cli.commands.report import _json, _verdicts
-    from gmwm.cli.errors import as_flags
-    from gmwm.cli.inputs import wanted_columns
+    """What ``gmwm report`` does with a recording: the command's own
+    :func:`gmwm.cli.commands.report.calibrate_and_write`, its verdict lines and its ``--json``
+    object. The fleet calibrates recordings only: a WV table or raw binary is refused."""
+    from gmwm.cli.commands.fit import calibration_status
+    from gmwm.cli.commands.report import calibrate_and_write, report_json, verdicts
     from gmwm.errors import InputError
-    from gmwm.exports import parse_inflation, parse_targets
     from gmwm.readers.tables import is_wv_table
-    from gmwm.report import FigureDrawer, report_dir, warm_up, write_calibration
 
     if args.dtype is not None:
         raise InputError(f"{args.input}: raw binary (--dtype) is not a fleet recording")
@@ -84,44 +74,9 @@ def _calibrate(args: argparse.Namespace, err: io.StringIO) -> tuple[int, dict[st
     if is_wv_table(Path(args.input)):
         raise InputError(f"{args.input} is a WV table, not a recording: the fleet calibrates "
                          "recordings")
-    targets = parse_targets(args.export)  # bad targets or factors before any fit
-    inflation = parse_inflation(args.inflate)
-    topics = getattr(args, "topics", None)
-    drawn: list[Any] = []
-    in_workers = not args.datasheet  # as gmwm report: figures drawn by the fitting workers
-
-    def while_waiting(prepared: Any) -> None:
-        if not topics:
-            st = next(iter(prepared.values())).stationarity
-            drawn.extend(warm_up(st, args.output, fit=not in_workers))
-
-    def say(msg: str) -> None:
-        if msg.startswith(("warning: ", "note: ")):
-            err.write(f"gmwm: {as_flags(msg)}\n")
-
-    options = fit_options(args)
-    sheet = load_datasheet(args)
-    if several_choices(args):
-        start_warm_server()
-    try:
-        result = calibrate(
-            args.input, args.model,
-            topics=("all" if topics == ["all"] else list(topics)) if topics else args.topic,
-            columns=wanted_columns(args), dataset=args.dataset, freq=args.freq,
-            time_unit=args.time_unit, units=getattr(args, "units", None) or None, levels=args.levels,
-            gaps=args.gaps, start_s=args.start, end_s=args.end, segment=args.segment,
-            strict=args.strict, fit=options, sheet=sheet, check=getattr(args, "check", False),
-            readings=True, draw=FigureDrawer(str(report_dir(args.output))) if in_workers
-            else None, require_time="a calibration report", name=args.input, progress=say,
-            while_waiting=while_waiting, motion_share=getattr(args, "motion_share", 0.05),
-            allow_motion=getattr(args, "allow_motion", False))
-    finally:
-        stop_warm_server()
-    files = write_calibration(args.output, result, title=args.title, targets=targets,
-                              inflation=inflation, drawn=drawn,
-                              rostopic=getattr(args, "rostopic", None))
-    status = _verdicts(result, err, calibration_status(result, err, True))
-    return status, _json(args, result, files)
+    result, files = calibrate_and_write(args, err)
+    status = verdicts(result, err, calibration_status(result, err, True))
+    return status, report_json(args, result, files)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

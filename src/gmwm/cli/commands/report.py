@@ -15,6 +15,29 @@ from gmwm.formatting import fit_json, json_text
 
 
 def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
+    result, files = calibrate_and_write(args, err)
+    if args.json:
+        out.write(json_text(report_json(args, result, files)))
+    else:
+        shown = [str(p) for p in files if p.suffix in (".md", ".html", ".yaml", ".json")]
+        if result.several:
+            done = list(result.calibrated)
+            failed = result.failed
+            out.write(f"report of {len(done)} IMUs ({', '.join(done)}) of {args.input}"
+                      + (f", {len(failed)} not calibrated ({', '.join(failed)})" if failed
+                         else "") + " written to: " + ", ".join(shown) + "\n")
+        else:
+            out.write(f"report of {len(result.only().axes)} axes of {args.input} written to: "
+                      + ", ".join(shown) + "\n")
+    return verdicts(result, err, calibration_status(result, err, True))
+
+
+def calibrate_and_write(args: argparse.Namespace, err: TextIO) -> tuple[Any, list[Any]]:
+    """What ``gmwm report ARGS`` does before it prints: the input calibrated
+    (:func:`gmwm.cli.commands.fit.calibrate_input`) and the report and configuration files
+    written (:func:`gmwm.report.write_calibration`); (the
+    :class:`gmwm.calibrate.CalibrationResult`, the files written). The fleet's jobs call it too
+    (:mod:`gmwm.fleet.job`), so a unit is calibrated exactly as the command would."""
     from gmwm.exports import parse_inflation, parse_targets
     from gmwm.report import FigureDrawer, report_dir, warm_up, write_calibration
 
@@ -41,24 +64,10 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                               inflation=inflation, drawn=drawn,
                               rostopic=getattr(args, "rostopic", None))
     result.seconds["write"] = time.perf_counter() - started
-    if args.json:
-        out.write(json_text(_json(args, result, files)))
-    else:
-        shown = [str(p) for p in files if p.suffix in (".md", ".html", ".yaml", ".json")]
-        if result.several:
-            done = list(result.calibrated)
-            failed = result.failed
-            out.write(f"report of {len(done)} IMUs ({', '.join(done)}) of {args.input}"
-                      + (f", {len(failed)} not calibrated ({', '.join(failed)})" if failed
-                         else "") + " written to: " + ", ".join(shown) + "\n")
-        else:
-            out.write(f"report of {len(result.only().axes)} axes of {args.input} written to: "
-                      + ", ".join(shown) + "\n")
-    status = calibration_status(result, err, True)
-    return _verdicts(result, err, status)
+    return result, list(files)
 
 
-def _verdicts(result: Any, err: TextIO, status: int) -> int:
+def verdicts(result: Any, err: TextIO, status: int) -> int:
     """The terminal's last line(s): each calibrated topic's configuration verdict
     (:class:`gmwm.verdict.Verdict`); exit status 5 when a configuration was not written."""
     from gmwm.cli.errors import as_flags
@@ -84,7 +93,7 @@ def _fits(args: argparse.Namespace, axes: Any) -> dict[str, Any]:
             for c, a in axes.items()}
 
 
-def _json(args: argparse.Namespace, result: Any, files: Any) -> dict[str, Any]:
+def report_json(args: argparse.Namespace, result: Any, files: Any) -> dict[str, Any]:
     """``--json``: per axis the fit, its datasheet and choice; several topics: per topic (the
     failed ones under ``"failed"``, topic -> reason)."""
     obj: dict[str, Any] = {"command": "report", "input": args.input,
