@@ -5,16 +5,15 @@ study code (a public name only the studies or the workflow use) sits in the core
 from __future__ import annotations
 
 import ast
-import functools
 import json
 import subprocess
 import sys
-from collections import deque
 from pathlib import Path
 
 import pytest
 
 import gmwm
+from conftest import source_nodes
 
 CORE = Path(gmwm.__file__).parent
 STUDIES = "gmwm_studies"
@@ -323,32 +322,13 @@ def _all_modules(src: Path, pkg: str = "gmwm") -> set[str]:
     return set(_gmwm_modules(src, pkg)) | ext
 
 
-def _walk(path: Path) -> tuple[tuple[ast.AST, bool], ...]:
-    """Every node of ``path``'s syntax tree in ``ast.walk`` order, each with whether it lies inside
-    a function or lambda. Parsed and walked once per file content and session: the checks below
-    all read the same source files (the walk is most of their time)."""
-    return _walk_text(str(path), path.read_text(encoding="utf-8"))
-
-
-@functools.cache
-def _walk_text(filename: str, text: str) -> tuple[tuple[ast.AST, bool], ...]:
-    out = []
-    todo = deque([(ast.parse(text, filename=filename), False)])
-    while todo:
-        node, in_function = todo.popleft()
-        out.append((node, in_function))
-        inner = in_function or isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda)
-        todo.extend((child, inner) for child in ast.iter_child_nodes(node))
-    return tuple(out)
-
-
 def _import_targets(path: Path, src: Path, modules: dict[str, Path] | set[str]
                     ) -> list[tuple[str, list[str], int, bool]]:
     """``(module, names, line, in_function)`` for every import in ``path``: ``module`` is the
     imported module (``from gmwm import wv`` imports module ``gmwm.wv``, with no names;
     ``from gmwm.wv import _x`` imports ``gmwm.wv`` with names ``['_x']``)."""
     out = []
-    for child, in_function in _walk(path):
+    for child, in_function in source_nodes(path):
         if isinstance(child, ast.Import):
             out.extend((a.name, [], child.lineno, in_function) for a in child.names)
         elif isinstance(child, ast.ImportFrom):
@@ -475,7 +455,7 @@ def private_imports(files: dict[str, Path], src: Path, pkg: str = "gmwm",
             for n in names:
                 if n.startswith("_") and not n.startswith("__") and target != m:
                     found.append(f"{where}:{line} imports {target}.{n}")
-        nodes = [node for node, _ in _walk(f)]
+        nodes = [node for node, _ in source_nodes(f)]
         for node in nodes:
             if isinstance(node, ast.Import):
                 for a in node.names:
