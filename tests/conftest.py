@@ -79,6 +79,18 @@ def _source_nodes(filename: str, text: str) -> tuple[tuple[ast.AST, bool], ...]:
     return tuple(out)
 
 
+@pytest.fixture
+def one_process(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Reports draw their figures and commands choose models in this process (as on one core:
+    ``gmwm.calibrate.available_cores`` -> 1), for tests of what a page, a file or the output says,
+    where worker processes are not what is tested: starting them costs a small report more than
+    the work itself. That workers give the same page: test_report_workers; that parallel fits
+    equal serial ones: test_multi_imu; other report tests still run with the workers."""
+    import gmwm.calibrate
+
+    monkeypatch.setattr(gmwm.calibrate, "available_cores", lambda: 1)
+
+
 #: set by .ci/run: CI has every optional package and ../shared, so a skipped test there is a
 #: test that did not run for a reason CI should not have; it fails instead of passing silently
 NO_SKIPS = os.environ.get("GMWM_TEST_NO_SKIPS") == "1"
