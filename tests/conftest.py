@@ -79,6 +79,12 @@ def _source_nodes(filename: str, text: str) -> tuple[tuple[ast.AST, bool], ...]:
     return tuple(out)
 
 
+def pytest_sessionfinish(session, exitstatus):
+    """Free the cached syntax trees while the interpreter is whole: left to its shutdown, their
+    ~300,000 nodes delay the exit by ~1.5 s."""
+    _source_nodes.cache_clear()
+
+
 @pytest.fixture
 def one_process(monkeypatch: pytest.MonkeyPatch) -> None:
     """Reports draw their figures and commands choose models in this process (as on one core:
