@@ -8,11 +8,14 @@ pytest builds it once, on first use.
 
 from __future__ import annotations
 
+import ast
+import functools
 import importlib.util
 import os
 import shutil
 import subprocess
 import sys
+from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -54,6 +57,44 @@ def load_benchmark(name: str):
     sys.modules[mod_name] = module  # dataclasses and pickling look the module up by name
     spec.loader.exec_module(module)
     return module
+
+
+def source_nodes(path: Path) -> tuple[tuple[ast.AST, bool], ...]:
+    """Every node of the syntax tree of the Python file ``path`` in ``ast.walk`` order, each with
+    whether it lies inside a function or lambda. Parsed and walked once per file content and
+    session: the source checks (test_layout, test_cli_errors) read the same files, and parsing and
+    walking are most of their time. The trees are shared: do not modify them."""
+    return _source_nodes(str(path), path.read_text(encoding="utf-8"))
+
+
+@functools.cache
+def _source_nodes(filename: str, text: str) -> tuple[tuple[ast.AST, bool], ...]:
+    out = []
+    todo = deque([(ast.parse(text, filename=filename), False)])
+    while todo:
+        node, in_function = todo.popleft()
+        out.append((node, in_function))
+        inner = in_function or isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda)
+        todo.extend((child, inner) for child in ast.iter_child_nodes(node))
+    return tuple(out)
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """Free the cached syntax trees while the interpreter is whole: left to its shutdown, their
+    ~300,000 nodes delay the exit by ~1.5 s."""
+    _source_nodes.cache_clear()
+
+
+@pytest.fixture
+def one_process(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Reports draw their figures and commands choose models in this process (as on one core:
+    ``gmwm.calibrate.available_cores`` -> 1), for tests of what a page, a file or the output says,
+    where worker processes are not what is tested: starting them costs a small report more than
+    the work itself. That workers give the same page: test_report_workers; that parallel fits
+    equal serial ones: test_multi_imu; other report tests still run with the workers."""
+    import gmwm.calibrate
+
+    monkeypatch.setattr(gmwm.calibrate, "available_cores", lambda: 1)
 
 
 #: set by .ci/run: CI has every optional package and ../shared, so a skipped test there is a

@@ -7,6 +7,7 @@ import re
 from pathlib import Path
 
 import gmwm
+from conftest import source_nodes
 from gmwm.cli.errors import PARAMETER_FLAGS, as_flags
 
 CORE = Path(gmwm.__file__).parent
@@ -39,14 +40,14 @@ def test_as_flags_maps_parameters_to_flags():
 
 def _messages(path: Path) -> list[tuple[int, str]]:
     """String constants of ``path`` outside docstrings, with their lines."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
+    nodes = [node for node, _ in source_nodes(path)]  # ast.walk order, parsed once a session
     docs = set()
-    for node in ast.walk(tree):
+    for node in nodes:
         body = getattr(node, "body", None)
         if isinstance(body, list) and body and isinstance(body[0], ast.Expr) \
                 and isinstance(body[0].value, ast.Constant):
             docs.add(id(body[0].value))
-    return [(n.lineno, n.value) for n in ast.walk(tree)
+    return [(n.lineno, n.value) for n in nodes
             if isinstance(n, ast.Constant) and isinstance(n.value, str) and id(n) not in docs]
 
 

@@ -398,7 +398,7 @@ def test_known_truth_six_axis_imu(tmp_path):
 # ---- the report writes the Kalibr file through the exports --------------------------------------
 
 
-def test_report_writes_config_files_with_topic_and_inflation(tmp_path):
+def test_report_writes_config_files_with_topic_and_inflation(tmp_path, one_process):
     from gmwm.report import write_report
 
     model = Model("WN+RW", freq=FS)

@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 import gmwm
+from conftest import source_nodes
 
 CORE = Path(gmwm.__file__).parent
 STUDIES = "gmwm_studies"
@@ -109,6 +110,18 @@ def test_readers_import_no_result_class():
 @pytest.mark.slow
 def test_svo_modules_load_numba_only_on_first_use():
     assert "numba" not in _loaded_after("import gmwm.virtual, gmwm.wccv")
+
+
+@pytest.mark.slow
+def test_svo_job_modules_load_no_scipy_stats():
+    """The SVO pipeline jobs' modules take the normal quantile from scipy.special: importing
+    scipy.stats would add ~0.5 s to every job's start-up."""
+    probe = ("import sys, gmwm.virtual, gmwm.wccv, gmwm_studies.svo_study\n"
+             "print('scipy.stats' in sys.modules)")
+    proc = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                          check=False)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.split() == ["False"]
 
 
 # -- study code stays out of the core ---------------------------------------------------------------
@@ -314,33 +327,25 @@ def _import_targets(path: Path, src: Path, modules: dict[str, Path] | set[str]
     """``(module, names, line, in_function)`` for every import in ``path``: ``module`` is the
     imported module (``from gmwm import wv`` imports module ``gmwm.wv``, with no names;
     ``from gmwm.wv import _x`` imports ``gmwm.wv`` with names ``['_x']``)."""
-    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
     out = []
-
-    def visit(node: ast.AST, in_function: bool) -> None:
-        for child in ast.iter_child_nodes(node):
-            inner = in_function or isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef
-                                                  | ast.Lambda)
-            if isinstance(child, ast.Import):
-                out.extend((a.name, [], child.lineno, in_function) for a in child.names)
-            elif isinstance(child, ast.ImportFrom):
-                x = _from_module(path, src, child)
-                names = []
-                for a in child.names:
-                    if f"{x}.{a.name}" in modules:
-                        out.append((f"{x}.{a.name}", [], child.lineno, in_function))
-                    else:
-                        names.append(a.name)
-                if names:
-                    out.append((x, names, child.lineno, in_function))
-            elif (isinstance(child, ast.Call)
-                  and getattr(child.func, "attr", getattr(child.func, "id", ""))
-                  in ("import_module", "__import__") and child.args
-                  and isinstance(child.args[0], ast.Constant)):
-                out.append((str(child.args[0].value), [], child.lineno, in_function))
-            visit(child, inner)
-
-    visit(tree, False)
+    for child, in_function in source_nodes(path):
+        if isinstance(child, ast.Import):
+            out.extend((a.name, [], child.lineno, in_function) for a in child.names)
+        elif isinstance(child, ast.ImportFrom):
+            x = _from_module(path, src, child)
+            names = []
+            for a in child.names:
+                if f"{x}.{a.name}" in modules:
+                    out.append((f"{x}.{a.name}", [], child.lineno, in_function))
+                else:
+                    names.append(a.name)
+            if names:
+                out.append((x, names, child.lineno, in_function))
+        elif (isinstance(child, ast.Call)
+              and getattr(child.func, "attr", getattr(child.func, "id", ""))
+              in ("import_module", "__import__") and child.args
+              and isinstance(child.args[0], ast.Constant)):
+            out.append((str(child.args[0].value), [], child.lineno, in_function))
     return out
 
 
@@ -450,8 +455,8 @@ def private_imports(files: dict[str, Path], src: Path, pkg: str = "gmwm",
             for n in names:
                 if n.startswith("_") and not n.startswith("__") and target != m:
                     found.append(f"{where}:{line} imports {target}.{n}")
-        tree = ast.parse(f.read_text(encoding="utf-8"))
-        for node in ast.walk(tree):
+        nodes = [node for node, _ in source_nodes(f)]
+        for node in nodes:
             if isinstance(node, ast.Import):
                 for a in node.names:
                     if a.name.split(".")[0] == pkg:
@@ -461,7 +466,7 @@ def private_imports(files: dict[str, Path], src: Path, pkg: str = "gmwm",
                 for a in node.names:
                     if f"{x}.{a.name}" in modules:
                         aliases[a.asname or a.name] = f"{x}.{a.name}"
-        for node in ast.walk(tree):
+        for node in nodes:
             if isinstance(node, ast.Attribute) and node.attr.startswith("_") \
                     and not node.attr.startswith("__"):
                 chain, v = [node.attr], node.value

@@ -409,10 +409,14 @@ def test_report_of_a_bag_needs_no_options_and_recovers_densities(tmp_path, capsy
         assert choice["candidates"][0]["rank"] == 1 and "result" not in choice
 
 
-@pytest.mark.parametrize(("unit", "factor"), [("mg", 1e-3 * 9.80665), ("ug", 1e-6 * 9.80665),
-                                              ("µg", 1e-6 * 9.80665), ("deg/h", math.pi / 648000),
-                                              ("mdps", math.pi / 180000)])
-def test_report_yaml_in_si_for_every_unit(tmp_path, unit, factor):
+# a whole report per unit (~0.6 s each): one accelerometer and one gyroscope unit in the inner
+# loop, the other units' table entries in the full suite
+@pytest.mark.parametrize(("unit", "factor"), [
+    pytest.param("mg", 1e-3 * 9.80665, marks=pytest.mark.slow),
+    pytest.param("ug", 1e-6 * 9.80665, marks=pytest.mark.slow),
+    ("µg", 1e-6 * 9.80665), ("deg/h", math.pi / 648000),
+    pytest.param("mdps", math.pi / 180000, marks=pytest.mark.slow)])
+def test_report_yaml_in_si_for_every_unit(tmp_path, unit, factor, one_process):
     from gmwm.cli import main
 
     n = 2 ** 12

@@ -10,7 +10,7 @@ from gmwm.datasheet import datasheet
 from gmwm.report import write_report
 
 
-def test_report_shows_the_gof_line_and_the_rejected_model(tmp_path):
+def test_report_shows_the_gof_line_and_the_rejected_model(tmp_path, one_process):
     model = gmwm.Model("WN+AR1", freq=100.0)
     x = model.simulate(model.theta({"WN[1].sigma2": 1e-4, "AR1[1].phi": 0.995,
                                     "AR1[1].sigma2": 1e-7}), 2**13, np.random.default_rng(5))

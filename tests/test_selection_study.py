@@ -47,6 +47,11 @@ def _study(label: str, T: int, reps: int) -> dict:
     return bs.summarise(s, model, theta, picks)
 
 
+# The two Monte Carlo checks (16 and 12 replicates, ~1.5 s each) are slow; one replicate of each
+# behaviour stays in the inner loop: test_ranking_notes_name_the_disagreement (the RW at 3 SE is
+# kept, WN rejected) and tests/test_select.py's test_rank_picks_generating_linear_model and
+# test_superset_with_a_zero_component_ties_and_loses (no component added to WN+RW).
+@pytest.mark.slow
 def test_default_keeps_a_random_walk_at_3_se():
     out = _study("WN+RW, RW z=3", 2**14, 16)
     assert out[DEFAULT]["dropped"] <= 0.2
@@ -56,6 +61,7 @@ def test_default_keeps_a_random_walk_at_3_se():
     assert out["wic-log"]["dropped"] <= 0.2
 
 
+@pytest.mark.slow
 def test_default_on_a_strong_model_rarely_adds():
     out = _study("null: WN+RW, RW z=8", 2**14, 12)
     assert out[DEFAULT]["hit"] >= 0.75

@@ -345,7 +345,7 @@ def test_report_has_stationarity_section(capsys, files):
     assert "Stationarity" in html and "not static" in html
 
 
-def test_timeline_drawn_while_fitting_is_not_drawn_again(tmp_path):
+def test_timeline_drawn_while_fitting_is_not_drawn_again(tmp_path, one_process):
     """gmwm.report.warm_up draws the stationarity timeline ahead (the CLI does it while the
     axes' models are chosen); write_report with it in ``drawn`` lists the file and leaves it."""
     import gmwm

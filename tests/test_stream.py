@@ -326,7 +326,7 @@ def gmwm_cli(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture):
     return run
 
 
-def test_cli_streams_and_prints_the_same_numbers(tmp_path: Path, gmwm_cli) -> None:
+def test_cli_streams_and_prints_the_same_numbers(tmp_path: Path, gmwm_cli, one_process) -> None:
     rng = np.random.default_rng(12)
     T = 60_000
     X = np.stack([1e4 + 0.01 * np.arange(T) + np.cumsum(rng.standard_normal(T)) * 0.01

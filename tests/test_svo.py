@@ -285,6 +285,24 @@ def test_mbb_se_close_to_empirical_sd():
 
 
 # --- result object and RDVG -----------------------------------------------------------------------
+def test_normal_quantile_is_scipy_stats_norm_ppf_bit_for_bit():
+    """virtual, wccv and svo_study take z_{1-alpha/2} from scipy.special.ndtri (scipy.stats is
+    ~0.5 s of import): the same numbers as norm.ppf on a grid of levels, and so the same
+    intervals as before."""
+    from scipy.special import ndtri
+    from scipy.stats import norm
+
+    q = np.concatenate([1.0 - np.geomspace(1e-12, 0.5, 400) / 2.0, np.linspace(0.5, 1.0, 401)[1:-1],
+                        [0.975, 0.995, 0.95, 0.9, 0.5 + 0.9 / 2.0]])
+    np.testing.assert_array_equal(ndtri(q), norm.ppf(q))
+    X = _array(2000, 3, np.random.default_rng(3))
+    res = svo(X, "equal", levels=6, n_boot=20, seed=1)
+    for alpha in (0.01, 0.05, 0.1, 0.3):
+        h = norm.ppf(1.0 - alpha / 2.0) * res.se
+        np.testing.assert_array_equal(res.conf_int(alpha), np.column_stack([res.coef - h,
+                                                                            res.coef + h]))
+
+
 def test_result_api():
     X = _array(5000, 3, np.random.default_rng(12))
     res = gmwm.svo(X, weights="short", n_boot=50, names=["a", "b", "c"], freq=10.0)
