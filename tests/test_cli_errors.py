@@ -23,8 +23,9 @@ KNOWN_FLAG_MESSAGES = {  # string pieces (an f-string's constant parts count one
     "readers/text.py": 1, "readers/timebase.py": 5, "readers/ulog.py": 2,
     "readers/dataflash.py": 2, "readers/phone.py": 2,
     # the fleet: run.py builds Snakemake's own command line and job.py is a job's command line
-    # (their flags are other programs' options, not messages); collect.py's one is a table note
-    "fleet/run.py": 17, "fleet/job.py": 2, "fleet/collect.py": 1,
+    # (their flags are other programs' options, not messages; job.py parses a `gmwm report`
+    # command line and answers in its terms); collect.py's one is a table note
+    "fleet/run.py": 17, "fleet/job.py": 4, "fleet/collect.py": 1,
 }
 
 
