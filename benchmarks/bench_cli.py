@@ -131,7 +131,7 @@ def latency(args: argparse.Namespace, gmwm: str) -> None:
                 continue  # the warm-up: file cache, Numba's cache files
             timed.append((wall, (after.ru_utime - before.ru_utime)
                           + (after.ru_stime - before.ru_stime)))
-            if "--json" in cmd:
+            if "--json" in cmd and "seconds" in json.loads(run.stdout):  # older trees: none
                 parts.append(json.loads(run.stdout)["seconds"])
         walls = [w for w, _ in timed]
         split = ", ".join(f"{k} {v:.2f}" for k, v in _breakdown(parts).items()) if parts else ""
