@@ -72,3 +72,14 @@ def test_the_flag_scan_sees_a_message(tmp_path):
     f = tmp_path / "m.py"
     f.write_text('"""Docs may say --freq."""\n\n\ndef g(x):\n    raise ValueError(f"give --freq {x}")\n')
     assert [t for _, t in _messages(f) if _FLAG.search(t)] == ["give --freq "]
+
+
+def test_select_criterion_default_is_the_librarys():
+    # one place for the default criterion: the CLI offers the library's criteria and default
+    from gmwm.cli.parser import build_parser
+    from gmwm.criteria import CRITERIA, DEFAULT
+
+    p = build_parser()
+    assert p.parse_args(["select", "x.csv", "WN"]).criterion == DEFAULT
+    for crit in CRITERIA:
+        assert p.parse_args(["select", "x.csv", "WN", "--criterion", crit]).criterion == crit

@@ -548,10 +548,12 @@ def _add_select_parser(sub: Any) -> None:
                    help="candidate model strings (with --auto: base models)")
     p.add_argument("--auto", action="store_true",
                    help="build the candidate set from the MODEL(s) as base (see above)")
-    p.add_argument("--criterion", choices=("wic-log", "wic"), default="wic-log",
-                   help="wic-log: penalty factor log T (consistent choice of the generating "
-                        "model); wic: factor 2 (WV prediction error, admits spurious components "
-                        "more often)")
+    # the library's criteria and default (gmwm.criteria), not a second choice made here
+    p.add_argument("--criterion", choices=("wic", "wic-hq", "wic-log"), default="wic",
+                   help="penalty factor of the ranking: wic 2 (the default, as the library's: "
+                        "the WV prediction error; keeps weak real components, a spurious one "
+                        "more often), wic-hq 2 log log T, wic-log log T (consistent, drops "
+                        "components below ~3.5 standard errors)")
     p.add_argument("--freq", type=_positive_float, default=None,
                    help="sampling frequency in Hz (default: from the file, else 1)")
     p.add_argument("--levels", "-J", type=_positive_int, default=None, metavar="J",
