@@ -113,6 +113,19 @@ def static_imu(profile: int, fs: float, seconds: float, rng: np.random.Generator
 UNITS = {c: ("rad/s" if c[0] == "g" else "m/s^2") for c in AXES}
 
 
+def write_csv(path: Path, x: dict[str, np.ndarray], fs: float,
+              units: dict[str, str] | None = None) -> Path:
+    """The six axes of ``x`` as a CSV recording at ``fs`` Hz: a time column [s] and one column
+    per axis, its unit in the header (default :data:`UNITS`)."""
+    units = units or UNITS
+    n = x[AXES[0]].size
+    cols = [np.arange(n) / fs] + [x[c] for c in AXES]
+    head = "time [s]," + ",".join(f"{c} [{units[c]}]" for c in AXES)
+    np.savetxt(path, np.column_stack(cols), delimiter=",", header=head, comments="",
+               fmt="%.10g")
+    return path
+
+
 def sd_min(profile: int, axis: str, fs: float, n: int) -> float:
     """Smallest sd of a window-mean difference over the tested windows: sqrt(2 AV(L)) = 2 sqrt(nu)
     at the Haar filter length 2L (docs/METHODS.md §2.4)."""

@@ -18,13 +18,7 @@ FS = 100.0
 
 
 def _csv(path: Path, x: dict, fs: float = FS, units: dict | None = None) -> Path:
-    units = units or bs.UNITS
-    n = x["gx"].size
-    cols = [np.arange(n) / fs] + [x[c] for c in bs.AXES]
-    head = "time [s]," + ",".join(f"{c} [{units[c]}]" for c in bs.AXES)
-    np.savetxt(path, np.column_stack(cols), delimiter=",", header=head, comments="",
-               fmt="%.10g")
-    return path
+    return bs.write_csv(path, x, fs, units)
 
 
 def _static(seed: int, seconds: float = 240.0) -> dict[str, np.ndarray]:

@@ -22,13 +22,8 @@ needs_external = pytest.mark.skipif(not EXTERNAL.is_dir(),
 FS = 100.0
 
 
-def _csv(path: Path, x: dict, fs: float = FS) -> Path:
-    n = x["gx"].size
-    cols = [np.arange(n) / fs] + [x[c] for c in bs.AXES]
-    head = "time [s]," + ",".join(f"{c} [{bs.UNITS[c]}]" for c in bs.AXES)
-    np.savetxt(path, np.column_stack(cols), delimiter=",", header=head, comments="",
-               fmt="%.10g")
-    return path
+def _csv(path: Path, x: dict, fs: float = FS, units: dict | None = None) -> Path:
+    return bs.write_csv(path, x, fs, units)
 
 
 def _report(capsys, out: Path, src: Path, *extra: str, model: str = "WN+RW"
