@@ -673,17 +673,37 @@ class _Job:
     n_used: int | None = None
 
 
+def _stopwatch() -> tuple[dict[str, float], Callable[[str], None]]:
+    """(seconds per step, ``lap(step)``: records the wall time since the previous lap)."""
+    spent: dict[str, float] = {}
+    clock = [time.perf_counter()]
+
+    def lap(what: str) -> None:
+        now = time.perf_counter()
+        spent[what] = now - clock[0]
+        clock[0] = now
+
+    return spent, lap
+
+
+def _draw_axis(draw: Callable[..., Sequence[Any]], topic: str, name: str, res: Any,
+               unit: str) -> list[Any]:
+    """The files ``draw`` drew for one axis; none when it failed (the report draws the figure
+    again then, and reports that failure)."""
+    try:
+        return list(draw(topic, name, res, unit))
+    except Exception:  # noqa: BLE001 - reported by the report's own drawing
+        return []
+
+
 def _drawn_here(draw: Callable[..., Sequence[Any]], key: tuple[str, str], got: Any) -> Any:
     """``got`` of :func:`_fit_job` with the figure ``draw`` drew here (as the job would have)."""
     res, choice, _, page = got
-    if page is None or "datasheet" not in page:  # a job without a page draws nothing
+    if "datasheet" not in page:  # a job without a page draws nothing
         return got
     started = time.perf_counter()
-    try:
-        drawn = list(draw(key[0], key[1], res, page.get("unit", "")))
-    except Exception:  # noqa: BLE001 - the report draws it again and reports a failure then
-        drawn = []
-    page.setdefault("seconds", {})["draw"] = time.perf_counter() - started
+    drawn = _draw_axis(draw, key[0], key[1], res, page["unit"])
+    page["seconds"]["draw"] = time.perf_counter() - started
     return res, choice, drawn, page
 
 
@@ -694,20 +714,14 @@ def _kind(unit: str) -> str | None:
 
 
 def _fit_job(job: _Job, progress: Callable[[str], None] | None = None
-             ) -> tuple[Any, Any, list[Any], dict[str, Any] | None]:
+             ) -> tuple[Any, Any, list[Any], dict[str, Any]]:
     """One axis's fit (in a worker or not): (result, automatic choice or None, figure files
-    drawn, None or ``{"datasheet": ..., "readings": ...}`` computed beside the fit so that they
-    overlap the other workers' fits and the calling process needs no fitting kernels)."""
+    drawn, page). The page always has ``seconds`` (:func:`_stopwatch`'s steps); with
+    ``job.page`` also ``datasheet``, ``readings``, ``unit`` and, given ``job.n_used``,
+    ``identifiability``, computed beside the fit so that they overlap the other workers' fits
+    and the calling process needs no fitting kernels."""
     s = job.settings
-    clock = time.perf_counter()
-    spent: dict[str, float] = {}
-
-    def lap(what: str) -> None:
-        nonlocal clock
-        now = time.perf_counter()
-        spent[what] = now - clock
-        clock = now
-
+    spent, lap = _stopwatch()
     choice = None
     if _is_auto(job.spec):
         from gmwm.automodel import choose_model
@@ -755,10 +769,7 @@ def _fit_job(job: _Job, progress: Callable[[str], None] | None = None
         lap("identifiability")
     drawn: list[Any] = []
     if job.draw is not None:
-        try:
-            drawn = list(job.draw(job.topic, job.name, res, job.unit or ""))
-        except Exception:  # noqa: BLE001 - the report draws it again and reports a failure then
-            drawn = []
+        drawn = _draw_axis(job.draw, job.topic, job.name, res, job.unit or "")
         lap("draw")
     return res, choice, drawn, page
 
@@ -888,15 +899,7 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
     settings = FitSettings.of(**options)  # bad options before the input is read
     explicit_starts = "n_starts" in options
     label = name or (str(source) if isinstance(source, str | os.PathLike) else "the recording")
-    seconds: dict[str, Any] = {}
-    clock = time.perf_counter()
-
-    def lap(what: str) -> None:
-        nonlocal clock
-        now = time.perf_counter()
-        seconds[what] = now - clock
-        clock = now
-
+    seconds, lap = _stopwatch()
     # -- the inputs, topic -> Recording | Prepared | exception
     several = False
     if isinstance(source, str | os.PathLike):
@@ -1018,7 +1021,7 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
             continue
         axes = _axes(p, got, sheet, check, say)
         known = {c: g[3]["identifiability"] for c, g in got.items()
-                 if g[3] and "identifiability" in g[3]}
+                 if "identifiability" in g[3]}
         out[topic] = TopicCalibration(topic, "calibrated", axes, freq=p.freq,
                                       timing=p.timing, stationarity=p.stationarity,
                                       gaps=p.gaps, rostopic=p.rostopic, label=p.label,
@@ -1026,11 +1029,10 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
     lap("verdict")
     spent: dict[str, float] = {}
     for r in results.values():
-        if not isinstance(r, BaseException) and r[3]:
-            for k, v in r[3].get("seconds", {}).items():
+        if not isinstance(r, BaseException):
+            for k, v in r[3]["seconds"].items():
                 spent[k] = spent.get(k, 0.0) + v
-    seconds["axes"] = spent
-    result = CalibrationResult(label, out, several, seconds)
+    result = CalibrationResult(label, out, several, {**seconds, "axes": spent})
     if not result.calibrated:
         fails = result.failed
         if len(fails) == 1:
@@ -1160,7 +1162,6 @@ def _axes(p: Prepared, got: Mapping[str, Any], sheet: Any, check: bool,
     for c, (res, choice, files, page) in got.items():
         if c in p.streamed:
             res = _streamed(res, p.streamed[c])
-        page = page or {}
         if choice is not None and not choice.passed:  # the rejection hint knows the motion
             from gmwm.verdict import evidence
 
