@@ -246,3 +246,46 @@ def test_bootstrap_intervals_stay_in_the_domain(spec, truth, freq):
             assert ok.any()
             assert np.all(ci[ok, 0] >= dom[ok, 0]) and np.all(ci[ok, 1] <= dom[ok, 1]), (ci, dom)
             assert np.all(ci[ok, 0] <= ci[ok, 1])
+
+
+@pytest.mark.parametrize("opts", [{}, {"weights": "ci-mixture"}, {"reweight": 1},
+                                  {"weights": "efficient", "n_starts": 2},
+                                  {"method": "armav", "n_starts": 2}])
+def test_estimate_only_fit_has_the_full_fits_estimate(opts):
+    """fit(estimate_only=True), the bootstrap's refit: the same search, hence bit-identical
+    params, objective, weights, convergence and WV values; no SEs, no test, no diagnostics."""
+    model = Model("WN+AR1+RW")
+    theta = model.theta({"WN[1].sigma2": 1.0, "AR1[1].phi": 0.95, "AR1[1].sigma2": 0.1,
+                         "RW[1].gamma2": 1e-4})
+    x = model.simulate(theta, 2**12, np.random.default_rng(4))
+    full = gmwm.fit(x, model, seed=7, **opts)
+    lean = gmwm.fit(x, model, seed=7, estimate_only=True, **opts)
+    assert lean.params.tobytes() == full.params.tobytes()
+    assert lean.objective == full.objective and lean.weights.tobytes() == full.weights.tobytes()
+    assert (lean.converged, lean.message) == (full.converged, full.message)
+    assert lean.wv.variance.tobytes() == full.wv.variance.tobytes()
+    assert lean.diagnostics["at_boundary"] == full.diagnostics["at_boundary"]
+    assert lean.settings == full.settings
+    assert np.all(np.isnan(lean.se)) and np.all(np.isnan(lean.cov)) and lean.wv_cov is None
+    assert lean.gof is None and lean.diagnostics["estimate_only"] is True
+    assert lean.wv.ci_kind == ("mixture" if opts.get("weights") == "ci-mixture" else "eta3")
+
+
+def test_estimate_only_is_refused_for_avsm():
+    x = np.random.default_rng(0).standard_normal(2**10)
+    with pytest.raises(InputError, match="estimate_only"):
+        gmwm.fit(x, "WN", method="avsm", estimate_only=True)
+
+
+def test_bootstrap_refits_equal_full_fits(wn_ar1_fit):
+    """Each refit of the bootstrap is the full fit of its draw (same stream, seed and settings)."""
+    res = wn_ar1_fit
+    boot = bs.parametric_bootstrap(res, seed=5, draws=[0, 3])
+    for i, b in enumerate(boot.draws):
+        ss = bs.draw_seed(5, int(b))
+        x = bs.simulate_draw(res.model, res.params, res.wv.n_samples, np.random.default_rng(ss))
+        ref = gmwm.fit(x, res.model, settings=boot.settings, freq=res.wv.freq,
+                       seed=bs._fit_seed(ss))
+        assert boot.theta[i].tobytes() == ref.params.tobytes()
+        assert boot.wv[i].tobytes() == ref.wv.variance.tobytes()
+        assert bool(boot.converged[i]) == bool(ref.converged)

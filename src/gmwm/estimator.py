@@ -213,7 +213,7 @@ class GMWMResult:
 # -- main entry -----------------------------------------------------------------------------------
 def fit(data: np.ndarray | WaveletVariance, model: str | Model, *,
         settings: FitSettings | None = None, freq: float | None = None,
-        **options: Any) -> GMWMResult | AVSMResult:
+        estimate_only: bool = False, **options: Any) -> GMWMResult | AVSMResult:
     """Estimate ``model`` from a signal or a precomputed wavelet variance.
 
     Parameters
@@ -222,6 +222,13 @@ def fit(data: np.ndarray | WaveletVariance, model: str | Model, *,
     model : model string such as ``"WN+RW+AR1+SIN"`` or a :class:`~gmwm.model.Model`.
     settings : a :class:`~gmwm.settings.FitSettings` (default: the defaults).
     freq : sampling frequency [Hz] of a raw signal (GM parameters and scales in seconds use it).
+    estimate_only : GMWM/ARMAV only: compute what the estimate needs and nothing else (the
+        bootstrap's refits, :func:`gmwm.bootstrap.parametric_bootstrap`). ``params``,
+        ``objective``, ``weights``, ``converged`` and ``message`` are those of the full fit
+        (same search, same starts); ``se``/``cov`` are NaN and ``wv_cov`` None (no sandwich), no
+        goodness-of-fit test, ``diagnostics`` holds only ``estimate_only``, ``at_boundary`` and
+        the non-convergence warning, and a signal's WV carries the eta_3 interval unless the
+        weights are ``"ci-mixture"`` (the WV values and the weights are unchanged).
     **options : fit options replacing those of ``settings``: ``method`` (``"gmwm"``: f(x) = x,
         ``"armav"``: f = log10 of the Allan variance, ``"avsm"``: the Allan-variance slope
         method), ``weights``, ``n_starts``, ``seed``, ``reweight``, ``nested``, ``se_cov``,
@@ -235,23 +242,30 @@ def fit(data: np.ndarray | WaveletVariance, model: str | Model, *,
     boundary estimates, weak identification and non-convergence.
     """
     settings = FitSettings.of(settings, **options)
+    if estimate_only and settings.method == "avsm":
+        raise InputError("estimate_only applies to GMWM and ARMAV fits, not to method 'avsm'")
     if freq is None and isinstance(model, Model):
         freq = model.freq
     if freq is None and isinstance(data, WaveletVariance):
         freq = data.freq
-    wv, drift_sign, seconds_wv = prepare_wv(data, settings, freq=freq)
+    # the mixture interval of a signal's WV is read only by "ci-mixture" weights; an
+    # estimate-only fit skips it (the WV values, edof and eta_3 bounds are the same either way)
+    ci = "eta3" if estimate_only and settings.weights_kind != "ci-mixture" else "mixture"
+    wv, drift_sign, seconds_wv = prepare_wv(data, settings, freq=freq, ci=ci)
     model = as_model(model, wv.freq)
     settings = settings.replace(levels=wv.n_levels)
     if settings.method == "avsm":
         from .avsm import avsm_fit
 
         return avsm_fit(wv, model, settings, seconds_wv)
-    return _fit_gmwm(wv, model, settings, drift_sign, seconds_wv)
+    return _fit_gmwm(wv, model, settings, drift_sign, seconds_wv, estimate_only)
 
 
 def _fit_gmwm(wv: WaveletVariance, model: Model, settings: FitSettings,
-              drift_sign: float | None, seconds_wv: float) -> GMWMResult:
-    """GMWM or ARMAV: the search, the boundary components, the sandwich and the warnings."""
+              drift_sign: float | None, seconds_wv: float,
+              estimate_only: bool = False) -> GMWMResult:
+    """GMWM or ARMAV: the search, the boundary components, the sandwich and the warnings
+    (``estimate_only``: the search and the boundary components only, see :func:`fit`)."""
     method = settings.method
     if model.n_params > wv.n_levels:
         raise IdentifiabilityError(
@@ -294,6 +308,18 @@ def _fit_gmwm(wv: WaveletVariance, model: Model, settings: FitSettings,
         if c.name in vanished:
             fixed[c.slice] = True
             theta[c.start + c.process.scale_index] = 0.0
+    converged = node.converged and not node.edge
+    message = node.message if not node.edge else (
+        "parameter(s) at the edge of the search region: " + ", ".join(node.edge))
+    if estimate_only:
+        nan = np.full(model.n_params, np.nan)
+        diagnostics = {"estimate_only": True, "at_boundary": vanished,
+                       "warnings": [] if converged else
+                       [f"the optimiser did not converge ({message})"]}
+        return GMWMResult(model=model, params=theta, se=nan, cov=np.full((nan.size,) * 2, np.nan),
+                          objective=node.objective, weights=omega, converged=converged,
+                          message=message, wv=wv, diagnostics=diagnostics,
+                          seconds_wv=seconds_wv, seconds_fit=seconds_fit, settings=settings)
     V = user_cov if user_cov is not None else wv_cov(settings.se_cov, model, theta, wv)
     cov, se, cond = prob.sandwich(theta, V, fixed)
     warnings = dg.fit_warnings(model, theta, se, cond, vanished, fixed, float(wv.scales[-1]),
@@ -306,9 +332,6 @@ def _fit_gmwm(wv: WaveletVariance, model: Model, settings: FitSettings,
                    "closed_form": bool(model.is_linear and method == "gmwm"),
                    "n_refined": node.n_refined, "from_submodel": node.from_submodel,
                    "n_models_searched": search.n_models_searched}
-    converged = node.converged and not node.edge
-    message = node.message if not node.edge else (
-        "parameter(s) at the edge of the search region: " + ", ".join(node.edge))
     if not converged:
         warnings.insert(0, f"the optimiser did not converge ({message})")
     res = GMWMResult(model=model, params=theta, se=se, cov=cov, objective=node.objective,

@@ -267,11 +267,12 @@ class PreparedWV(NamedTuple):
 
 
 def prepare_wv(data: Any, settings: FitSettings | None = None, *, freq: float | None = None,
-               **options: Any) -> PreparedWV:
+               ci: str = "mixture", **options: Any) -> PreparedWV:
     """The wavelet variance of ``data`` (a 1-D signal, per-sample units, or a
     :class:`~gmwm.wv.WaveletVariance`) under ``settings`` (or the options ``levels``, ``alpha``,
     ``robust``, ``eff``) and the drift sign of a signal. A WV is cut to ``levels`` and given
-    ``freq`` [Hz] if that differs; a signal's WV is computed at ``freq`` (default 1 Hz)."""
+    ``freq`` [Hz] if that differs; a signal's WV is computed at ``freq`` (default 1 Hz) with the
+    interval kind ``ci`` (:func:`gmwm.wv.wvar`; a given WV keeps its own)."""
     from .wv import WaveletVariance, wvar
 
     s = FitSettings.of(settings, **options)
@@ -284,7 +285,7 @@ def prepare_wv(data: Any, settings: FitSettings | None = None, *, freq: float | 
         return PreparedWV(wv, None, 0.0)
     t0 = time.perf_counter()
     wv = wvar(data, levels=s.levels, alpha=s.alpha, freq=1.0 if freq is None else freq,
-              robust=s.robust, eff=s.eff)
+              robust=s.robust, eff=s.eff, ci=ci)
     seconds = time.perf_counter() - t0
     x = np.asarray(data, dtype=float)
     drift = (x[-1] - x[0]) / max(x.size - 1, 1)
