@@ -430,7 +430,9 @@ def parametric_bootstrap(result: GMWMResult, B: int = 100, *, seed: SeedLike = 0
     Each draw ``b`` simulates ``T = result.wv.n_samples`` samples from ``result.params`` (stream
     :func:`draw_seed` ``(seed, b)``), computes its WV on the same J levels and, if ``refit``,
     refits the same model with the estimate's settings (``result.settings``; ``weights``,
-    ``reweight``, ``n_starts`` replace theirs if given; diagonal Gaussian SEs). A
+    ``reweight``, ``n_starts`` replace theirs if given) as an estimate-only fit
+    (:func:`gmwm.fit` ``estimate_only=True``: the full fit's estimate, without its SEs,
+    diagnostics or WV interval, which no bootstrap output reads). A
     refit that raises a :class:`GMWMError` or reports ``converged=False`` is kept in ``theta``
     but excluded from intervals and SEs (counted in ``n_failed``, message in ``messages``).
     ``draws`` restricts the run to those draw indices (chunks for a pipeline; join them with

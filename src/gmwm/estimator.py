@@ -15,9 +15,10 @@ then ``Omega = V(theta_1)^-1``.
 
 Every fit with that ``V`` carries the goodness-of-fit test of :mod:`gmwm.gof` (``result.gof``; a
 rejected model is a warning) and its intervals stay inside the parameter space
-(:func:`gmwm.intervals.fit_intervals`). Fits with ``se_cov="gaussian"`` (the bootstrap's refits,
-the model ranking's candidates) skip the test, which would cost about as much as the fit; call
-:func:`gmwm.gof.gof_test` on them when needed.
+(:func:`gmwm.intervals.fit_intervals`). Fits with ``se_cov="gaussian"`` (the model ranking's
+candidates) skip the test, which would cost about as much as the fit; call
+:func:`gmwm.gof.gof_test` on them when needed. ``estimate_only=True`` (the bootstrap's refits)
+also skips the sandwich and the diagnostics: the same search and estimate, nothing else.
 """
 
 from __future__ import annotations
