@@ -377,9 +377,16 @@ def _riccati_step(p11: float, p12: float, p22: float, prev: float, s2: float, g2
     # the Riccati recursion converges geometrically, at a rate close to 1 when the RW is small:
     # the distance from the limit is the step over (1 - rate), not the step
     step = abs(n11 - p11) + abs(n12 - p12) + abs(n22 - p22)
-    rate = step / prev if prev > 0.0 else 0.0
-    steady = step == 0.0 or (rate < 1.0 and step <= _STEADY_TOL * (1.0 - rate)
-                             * (abs(n11) + abs(n22)))
+    size = abs(n11) + abs(n22)
+    if step == 0.0:
+        steady = True
+    elif step > _STEADY_TOL * size:
+        # then also step > _STEADY_TOL * (1 - rate) * size (0 <= 1 - rate <= 1 and rounding is
+        # monotone): the same verdict without the division, which costs while far from the limit
+        steady = False
+    else:
+        rate = step / prev if prev > 0.0 else 0.0
+        steady = rate < 1.0 and step <= _STEADY_TOL * (1.0 - rate) * size
     return f, k1, k2, log_f, n11, n12, n22, step, steady
 
 
