@@ -226,12 +226,14 @@ _LAST_PREPARED: list[_Prepared] = []
 
 def _prepared(x: np.ndarray, beta: float) -> _Prepared:
     """The shared pieces of signal ``x`` (compared by value: a changed array is rebuilt)."""
-    if _LAST_PREPARED:
-        last = _LAST_PREPARED[0]
+    cached = _LAST_PREPARED[:1]  # a copy: another thread may replace the entry meanwhile
+    if cached:
+        last = cached[0]
         if last.beta == beta and last.x.shape == x.shape and np.array_equal(last.x, x):
             return last
-    _LAST_PREPARED[:] = [_Prepared(x, beta)]
-    return _LAST_PREPARED[0]
+    prep = _Prepared(x, beta)
+    _LAST_PREPARED[:] = [prep]
+    return prep
 
 
 def _sin_ols(x: np.ndarray, X: np.ndarray) -> np.ndarray:
