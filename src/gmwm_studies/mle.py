@@ -37,6 +37,7 @@ import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -195,6 +196,46 @@ def _regressors(n: int, beta: float) -> np.ndarray:
     return np.column_stack([np.cos(t), np.sin(t)])
 
 
+@lru_cache(maxsize=4)
+def _shared_regressors(n: int, beta: float) -> np.ndarray:
+    """:func:`_regressors`, read-only and kept for the next fit of the same length and frequency
+    (every variant, start and standard error of a study's replicate uses the same matrix)."""
+    X = _regressors(n, beta)
+    X.setflags(write=False)
+    return X
+
+
+class _Prepared:
+    """What every fit of one signal shares: ``Y = [x, cos, sin]`` for the filter and the
+    first-difference sinusoid coefficients ``b0``. :func:`_prepared` keeps the last one, so the
+    variants and standard errors of one replicate build them once (same values, same bits)."""
+
+    def __init__(self, x: np.ndarray, beta: float):
+        self.x = x.copy()
+        self.x.setflags(write=False)
+        self.beta = beta
+        self.X = _shared_regressors(x.size, beta)
+        self.Y = np.ascontiguousarray(np.column_stack([x, self.X]))
+        self.Y.setflags(write=False)
+        self.b0 = _sin_ols(x, self.X)
+        self.b0.setflags(write=False)
+
+
+_LAST_PREPARED: list[_Prepared] = []
+
+
+def _prepared(x: np.ndarray, beta: float) -> _Prepared:
+    """The shared pieces of signal ``x`` (compared by value: a changed array is rebuilt)."""
+    cached = _LAST_PREPARED[:1]  # a copy: another thread may replace the entry meanwhile
+    if cached:
+        last = cached[0]
+        if last.beta == beta and last.x.shape == x.shape and np.array_equal(last.x, x):
+            return last
+    prep = _Prepared(x, beta)
+    _LAST_PREPARED[:] = [prep]
+    return prep
+
+
 def _sin_ols(x: np.ndarray, X: np.ndarray) -> np.ndarray:
     """Sinusoid coefficients by least squares on first differences (removes level and RW)."""
     b, *_ = np.linalg.lstsq(np.diff(X, axis=0), np.diff(x), rcond=None)
@@ -309,9 +350,11 @@ class _Likelihood:
         model = self._model(self.x - self.X @ b)
         return float(model.loglike(np.array([theta[k] for k in self.order])))
 
-    def default_start(self) -> dict[str, float]:
-        """statsmodels' own start values (known to lead to a wrong optimum, docs/METHODS.md §12.1)."""
-        model = self._model(self.x - self.X @ _sin_ols(self.x, self.X))
+    def default_start(self, b0: np.ndarray | None = None) -> dict[str, float]:
+        """statsmodels' own start values (known to lead to a wrong optimum, docs/METHODS.md §12.1)
+        on the data less the first-difference sinusoid fit ``b0`` (computed when not given)."""
+        b0 = _sin_ols(self.x, self.X) if b0 is None else b0
+        model = self._model(self.x - self.X @ b0)
         return dict(zip(self.order, (float(v) for v in model.start_params), strict=True))
 
 
@@ -336,9 +379,16 @@ def _riccati_step(p11: float, p12: float, p22: float, prev: float, s2: float, g2
     # the Riccati recursion converges geometrically, at a rate close to 1 when the RW is small:
     # the distance from the limit is the step over (1 - rate), not the step
     step = abs(n11 - p11) + abs(n12 - p12) + abs(n22 - p22)
-    rate = step / prev if prev > 0.0 else 0.0
-    steady = step == 0.0 or (rate < 1.0 and step <= _STEADY_TOL * (1.0 - rate)
-                             * (abs(n11) + abs(n22)))
+    size = abs(n11) + abs(n22)
+    if step == 0.0:
+        steady = True
+    elif step > _STEADY_TOL * size:
+        # then also step > _STEADY_TOL * (1 - rate) * size (0 <= 1 - rate <= 1 and rounding is
+        # monotone): the same verdict without the division, which costs while far from the limit
+        steady = False
+    else:
+        rate = step / prev if prev > 0.0 else 0.0
+        steady = rate < 1.0 and step <= _STEADY_TOL * (1.0 - rate) * size
     return f, k1, k2, log_f, n11, n12, n22, step, steady
 
 
@@ -449,14 +499,30 @@ class _Profile:
 
     Coordinates ``r = (log(gamma2/sigma2), log(sigma2_AR/sigma2), atanh(phi))``; filtering with
     ``sigma2 = 1`` gives ``S`` and ``sum log F``, then GLS gives ``b`` and ``sigma2 = RSS/(n-1)``.
+    The last few evaluations are remembered by the exact bits of ``r``: the optimiser, its
+    convergence check, its polish and the final parameters all ask again for the point reached.
     """
 
-    def __init__(self, x: np.ndarray, X: np.ndarray):
-        self.Y = np.ascontiguousarray(np.column_stack([x, X]))
+    _MEMO = 8  # evaluations remembered
+
+    def __init__(self, x: np.ndarray, X: np.ndarray, Y: np.ndarray | None = None):
+        self.Y = np.ascontiguousarray(np.column_stack([x, X])) if Y is None else Y
         self.n = x.size
+        self._memo: dict[bytes, tuple[float, dict[str, float], np.ndarray]] = {}
 
     def solve(self, r: np.ndarray) -> tuple[float, dict[str, float], np.ndarray]:
         """(concentrated log-likelihood, full parameters, sinusoid coefficients) at ``r``."""
+        key = np.asarray(r, dtype=np.float64).tobytes()
+        hit = self._memo.get(key)
+        if hit is None:
+            hit = self._solve(r)
+            if len(self._memo) >= self._MEMO:
+                del self._memo[next(iter(self._memo))]
+            self._memo[key] = hit
+        ll, theta, b = hit
+        return ll, dict(theta), b.copy()
+
+    def _solve(self, r: np.ndarray) -> tuple[float, dict[str, float], np.ndarray]:
         g, a, phi = float(np.exp(r[0])), float(np.exp(r[1])), float(np.tanh(r[2]))
         S, sum_log_f = _kf_cross(self.Y, 1.0, g, a, phi)
         Sxx, Sxy = S[1:, 1:], S[1:, 0]
@@ -507,21 +573,30 @@ def _whittle_info(eta: np.ndarray, n: int, beta: float) -> np.ndarray:
     s2, g2 = theta["WN[1].sigma2"], theta["RW[1].gamma2"]
     s2ar, phi = theta["AR1[1].sigma2"], theta["AR1[1].phi"]
 
-    def parts(w: np.ndarray) -> tuple[np.ndarray, ...]:
-        g = 2.0 - 2.0 * np.cos(w)
-        d = 1.0 - 2.0 * phi * np.cos(w) + phi**2
+    def parts(cw: np.ndarray) -> tuple[np.ndarray, ...]:  # cw = cos(w)
+        g = 2.0 - 2.0 * cw
+        d = 1.0 - 2.0 * phi * cw + phi**2
         ar = s2ar * g / d
         return g, d, ar, s2 * g + g2 + ar
 
-    w = 2.0 * np.pi * np.arange(1, (n - 1) // 2 + 1) / n
-    g, d, ar, S = parts(w)
-    dphi = ar * (2.0 * np.cos(w) - 2.0 * phi) / d * (1.0 - phi**2)  # d ar / d atanh(phi)
-    grad = np.vstack([s2 * g, np.full_like(w, g2), ar, dphi]) / S
+    cw = _fourier_cos(n)
+    g, d, ar, S = parts(cw)
+    dphi = ar * (2.0 * cw - 2.0 * phi) / d * (1.0 - phi**2)  # d ar / d atanh(phi)
+    grad = np.vstack([s2 * g, np.full_like(cw, g2), ar, dphi]) / S
     info = np.zeros((6, 6))
     info[:4, :4] = grad @ grad.T
-    gb, _, _, Sb = parts(np.array([beta]))
+    gb, _, _, Sb = parts(np.cos(np.array([beta])))
     info[4, 4] = info[5, 5] = 0.5 * n * gb[0] / Sb[0]
     return info
+
+
+@lru_cache(maxsize=4)
+def _fourier_cos(n: int) -> np.ndarray:
+    """``cos(w)`` at the Fourier frequencies ``w = 2 pi j / n``, ``j = 1..(n-1)//2`` (read-only;
+    the optimiser asks for the Whittle information of the same ``n`` many times)."""
+    cw = np.cos(2.0 * np.pi * np.arange(1, (n - 1) // 2 + 1) / n)
+    cw.setflags(write=False)
+    return cw
 
 
 def _whitening(info: np.ndarray) -> np.ndarray:
@@ -615,9 +690,10 @@ class _Backend:
 
     def __init__(self, name: str, x: np.ndarray, X: np.ndarray, beta: float, scale: float):
         self.name, self.n, self.beta, self.scale = name, x.size, beta, scale
-        self.b0 = _sin_ols(x, X)
+        prep = _prepared(x, beta)
+        self.b0 = prep.b0
         if name == "kalman":
-            self.loglike: Callable[[np.ndarray], float] = _Profile(x, X)
+            self.loglike: Callable[[np.ndarray], float] = _Profile(x, X, prep.Y)
             self.box = _r_box()
         else:
             self.loglike = _Likelihood(x, X)
@@ -641,9 +717,9 @@ class _Backend:
     def default_start(self) -> dict[str, float]:
         ref = self.loglike if self.name == "statsmodels" else None
         if ref is None:
-            X = _regressors(self.n, self.beta)
+            X = _shared_regressors(self.n, self.beta)
             ref = _Likelihood(self.loglike.Y[:, 0], X)
-        return ref.default_start()
+        return ref.default_start(self.b0)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -676,7 +752,7 @@ def mle_covariance(x: np.ndarray, beta: float, theta: dict[str, float]) -> np.nd
     """
     x = _check_input(x, beta)
     n = x.size
-    Y = np.ascontiguousarray(np.column_stack([x, _regressors(n, beta)]))
+    Y = _prepared(x, beta).Y
     s2 = theta["WN[1].sigma2"]
     g2, s2ar, phi = theta["RW[1].gamma2"], theta["AR1[1].sigma2"], theta["AR1[1].phi"]
     if not (min(s2, g2, s2ar) > 0 and abs(phi) < 1):
@@ -767,7 +843,7 @@ def fit_mle(x: np.ndarray, beta: float, start: dict[str, float] | None = None, *
 
     n = x.size
     scale = float(np.var(np.diff(x)))
-    X = _regressors(n, beta)
+    X = _shared_regressors(n, beta)
     be = _Backend(backend, x, X, beta, scale)
 
     starts: list[tuple[str, dict[str, float] | None]] = []
