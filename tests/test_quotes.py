@@ -11,7 +11,15 @@ from pathlib import Path
 import pytest
 
 from gmwm.errors import InputError
-from gmwm_studies.counts import cell_value, check_quotes, find_quotes
+from gmwm_studies.counts import (
+    cell_value,
+    check_quotes,
+    find_quotes,
+    format_like,
+    main,
+    plan_refresh,
+    refresh_quotes,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 REPORTS = REPO / "reports"
@@ -146,3 +154,65 @@ def test_a_changed_digit_in_a_committed_quote_fails(tmp_path):
                         encoding="utf-8")
         _, bad = check_quotes(copy)
         assert any(b.quote == changed and b.value is not None for b in bad), (q, changed)
+
+
+@pytest.mark.parametrize("quote, value, want", [
+    ("0.9376", 0.93812, "0.9381"), ("37", 145, "145"), ("80.8", 79.96, "80.0"),
+    ("0.99", 0.9996, "1.0"), ("0.0123", 0.009871, "0.00987"), ("1.12e-9", 1.2345e-9, "1.23e-9"),
+    ("1.0E+03", 2345.0, "2.3E+03"), ("\u22120.5", -0.4444, "\u22120.4"), ("+3.1", 3.04, "+3.0"),
+])
+def test_format_like_keeps_precision_and_notation(quote, value, want):
+    assert format_like(quote, value) == want
+
+
+def test_refresh_check_fixes_and_keeps_precision(tmp_path, capsys):
+    """A changed digit (a stale quote) fails --check without writing; refresh rewrites it, and
+    the count link, at the quote's precision; the page then checks clean."""
+    stale = (PAGE.replace("[0.9376]", "[0.9377]", 1).replace("[13]", "[15]", 1)
+             .replace("[80.8]", "[79]", 1))
+    md = write_page(tmp_path, stale)
+    assert main(["refresh", str(md), "--check"]) == 1
+    out = capsys.readouterr().out
+    assert "[0.9377] -> [0.9376]" in out and "[15] -> [13]" in out and "3 stale" in out
+    assert md.read_text(encoding="utf-8") == stale  # --check writes nothing
+    assert main(["refresh", str(md)]) == 0
+    text = md.read_text(encoding="utf-8")
+    assert "[0.9376](t/wv.csv#method=rdvg" in text and "[13](counts.md#" in text
+    assert "[81](t/wv.csv#level=14" in text  # 2 significant digits kept (79 -> 81, not 80.8)
+    assert "[145](#untraced" in text  # untraced markers are not touched
+    assert check_quotes(md)[1] == []
+    assert main(["refresh", str(md), "--check"]) == 0
+    changes, errors = refresh_quotes(md)
+    assert changes == [] and errors == []
+
+
+def test_refresh_follows_a_changed_table(tmp_path):
+    md = write_page(tmp_path)
+    wv = tmp_path / "t" / "wv.csv"
+    wv.write_text(TABLE.replace("0.9376293", "0.9412001"), encoding="utf-8")
+    new, changes, errors = plan_refresh(md.read_text(encoding="utf-8"), tmp_path)
+    assert errors == []
+    assert [(c.line, c.old, c.new) for c in changes] == [(5, "0.9376", "0.9412"),
+                                                         (5, "0.938", "0.941")]
+    assert "ratio_to_equal&agg=min)-[0.941](t/wv.csv" in new  # the range's end, same line
+    assert new.count("\n") == PAGE.count("\n")
+
+
+def test_refresh_names_the_line_and_link_of_a_vanished_cell(tmp_path, capsys):
+    md = write_page(tmp_path, PAGE.replace("[0.9376]", "[0.9377]", 1))
+    (tmp_path / "t" / "wv.csv").write_text(TABLE.replace("rdvg,15,", "rdvg,16,"),
+                                           encoding="utf-8")
+    before = md.read_text(encoding="utf-8")
+    _, errors = refresh_quotes(md)
+    assert md.read_text(encoding="utf-8") == before  # a broken link: nothing written
+    assert errors and errors[0].startswith(
+        "line 5: [0.9377](t/wv.csv#method=rdvg&level=15&col=ratio_to_equal): ")
+    assert "no row" in errors[0]
+    (tmp_path / "counts.json").write_text('{"counts": {}}', encoding="utf-8")
+    assert main(["refresh", str(md)]) == 1
+    err = capsys.readouterr().err
+    assert "line 7: [13](counts.md#sim2.gmwm.label_switched.SIN): no count" in err
+    assert "left unchanged" in err and "Traceback" not in err
+    assert md.read_text(encoding="utf-8") == before
+    assert main(["refresh", str(tmp_path / "none.md")]) == 1
+    assert "page not found" in capsys.readouterr().err

@@ -33,6 +33,12 @@ A number that no committed file holds (a time from an uncommitted run, a count o
 whose per-replicate file is not committed) is marked ``[145](#untraced "why")``: the link goes to
 the page's own list of such numbers, and the checker counts them. Rendered, every marker is the
 number as a link to its source (or to that list).
+
+After a new run, :func:`refresh_quotes` (``python -m gmwm_studies.counts refresh PAGE.md``)
+rewrites every count and cell marker whose quote no longer matches to the file's current value
+at the quote's significant digits (:func:`format_like`), atomically, and prints each change;
+``--check`` writes nothing and exits 1 on a stale quote. A marker whose file, count or cell is
+gone is an error naming its line and link, and then nothing is written.
 """
 
 from __future__ import annotations
@@ -59,6 +65,7 @@ __all__ = [
     "RIDGE_FACTOR",
     "UNTRACED_MARKER",
     "WILD_ROBUST_SD",
+    "Change",
     "Count",
     "Mismatch",
     "Quote",
@@ -69,8 +76,12 @@ __all__ = [
     "factor2_off",
     "find_markers",
     "find_quotes",
+    "format_like",
+    "main",
+    "plan_refresh",
     "quoted_matches",
     "read_counts",
+    "refresh_quotes",
     "render_counts_markdown",
     "study_counts",
     "write_counts",
@@ -343,14 +354,54 @@ def read_counts(path: str | os.PathLike) -> dict[str, Any]:
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
 
 
+def _sig_digits(q: str) -> int:
+    """Significant digits of a number as written (leading zeros not counted, trailing ones are:
+    ``37`` has 2, ``0.0120`` has 3)."""
+    mantissa = re.split(r"[eE]", q)[0].lstrip("+-").replace(".", "").lstrip("0") or "0"
+    return max(1, len(mantissa))
+
+
 def quoted_matches(quote: str, value: float | None) -> bool:
     """True when ``value`` rounded to the significant digits of ``quote`` equals it."""
     q = quote.strip().replace("\u2212", "-")
     if value is None or not _NUMBER.match(q):
         return False
-    mantissa = re.split(r"[eE]", q)[0].lstrip("+-").replace(".", "").lstrip("0") or "0"
-    sig = max(1, len(mantissa))
-    return float(f"{float(value):.{sig}g}") == float(q)
+    return float(f"{float(value):.{_sig_digits(q)}g}") == float(q)
+
+
+def format_like(quote: str, value: float) -> str:
+    """``value`` written the way ``quote`` is: the same significant digits and notation (fixed or
+    exponent, ``e``/``E``, a leading ``+``, the U+2212 minus). An integer quote of an integral
+    value is the integer itself (a count that grows a digit keeps every digit). Raises
+    ``InputError`` when the quote is no number or the value is not finite."""
+    q = quote.strip()
+    plain = q.replace("\u2212", "-")
+    if not _NUMBER.match(plain):
+        raise InputError(f"quote {quote!r} is not a number")
+    if not math.isfinite(value):
+        raise InputError(f"value {value!r} is not a finite number")
+    sig = _sig_digits(plain)
+    exp_char = next((c for c in "eE" if c in plain), "")
+    if exp_char:
+        mant, e = f"{value:.{sig - 1}e}".split("e")
+        q_exp = plain.split(exp_char)[1]
+        width = len(q_exp.lstrip("+-"))  # 1.0e-05 stays zero-padded
+        sign = "-" if int(e) < 0 else ("+" if q_exp.startswith("+") else "")
+        e_txt = f"{sign}{abs(int(e)):0{width}d}"
+        out = f"{mant}{exp_char}{e_txt}"
+    elif "." not in plain and float(value).is_integer():
+        out = str(int(value))
+    else:
+        r = float(f"{value:.{sig}g}")
+        decimals = sig - 1 - (math.floor(math.log10(abs(r))) if r else 0)
+        out = f"{r:.{decimals}f}" if decimals >= 0 else str(int(r))
+        if decimals == 0 and plain.endswith("."):
+            out += "."
+    if plain.startswith("+") and not out.startswith("-"):
+        out = "+" + out
+    if "\u2212" in q:
+        out = out.replace("-", "\u2212")
+    return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -504,20 +555,28 @@ class Quote:
     selector: str
 
 
+def _mask_code(line: str) -> str:
+    """``line`` with its inline code spans blanked (same length, so positions stay valid)."""
+    return re.sub(r"`[^`]*`", lambda m: " " * len(m.group(0)), line)
+
+
+def _line_quotes(i: int, line: str) -> list[tuple[re.Match[str], Quote]]:
+    """The markers of one line (code spans skipped) with their matches, in order."""
+    line = _mask_code(line)
+    hits = [(m, Quote(i, "count", m.group("quote"), m.group("file"), m.group("name")))
+            for m in MARKER.finditer(line)]
+    hits += [(m, Quote(i, "cell", m.group("quote"), m.group("file"), m.group("selector")))
+             for m in CELL_MARKER.finditer(line)]
+    hits += [(m, Quote(i, "untraced", m.group("quote"), "", m.group("why") or ""))
+             for m in UNTRACED_MARKER.finditer(line)]
+    return sorted(hits, key=lambda h: h[0].start())
+
+
 def find_quotes(text: str) -> list[Quote]:
     """Every marker of a Markdown text (count, table cell, untraced), in order of appearance.
     Inline code spans are skipped (a marker shown as an example is not a quote)."""
-    out = []
-    for i, line in enumerate(text.splitlines(), start=1):
-        line = re.sub(r"`[^`]*`", "", line)
-        hits = [(m.start(), Quote(i, "count", m.group("quote"), m.group("file"), m.group("name")))
-                for m in MARKER.finditer(line)]
-        hits += [(m.start(), Quote(i, "cell", m.group("quote"), m.group("file"),
-                                   m.group("selector"))) for m in CELL_MARKER.finditer(line)]
-        hits += [(m.start(), Quote(i, "untraced", m.group("quote"), "", m.group("why") or ""))
-                 for m in UNTRACED_MARKER.finditer(line)]
-        out += [q for _, q in sorted(hits, key=lambda h: h[0])]
-    return out
+    return [q for i, line in enumerate(text.splitlines(), start=1)
+            for _, q in _line_quotes(i, line)]
 
 
 def check_quotes(md_path: str | os.PathLike) -> tuple[list[Quote], list[Mismatch]]:
@@ -540,8 +599,124 @@ def check_quotes(md_path: str | os.PathLike) -> tuple[list[Quote], list[Mismatch
     return quotes, sorted(bad, key=lambda b: b.line)
 
 
+@dataclasses.dataclass(frozen=True)
+class Change:
+    """One quote :func:`refresh_quotes` rewrites: ``link`` the marker's target as written."""
+
+    line: int
+    link: str
+    old: str
+    new: str
+    value: float
+
+
+def _quote_value(q: Quote, base: Path, counts_cache: dict[Path, dict[str, Any]]) -> float:
+    """The current value of a count or cell marker (``InputError`` naming why there is none)."""
+    if q.kind == "cell":
+        return cell_value(base / q.source, q.selector)
+    json_path = (base / q.source).with_suffix(".json")
+    if json_path not in counts_cache:
+        counts_cache[json_path] = read_counts(json_path)
+    counts = counts_cache[json_path]
+    if q.selector not in counts:
+        raise InputError(f"no count {q.selector!r} in {json_path.name}")
+    if counts[q.selector] is None:
+        raise InputError(f"count {q.selector!r} is undefined in {json_path.name}")
+    return float(counts[q.selector])
+
+
+def plan_refresh(text: str, base: str | os.PathLike) -> tuple[str, list[Change], list[str]]:
+    """Every count and cell marker of a Markdown ``text`` (links relative to ``base``) rewritten
+    to its file's current value at the quote's precision (:func:`format_like`); quotes that
+    already match are left as written. Returns (new text, changes, errors): an error is one line
+    ``line <n>: <marker>: <why>`` for a marker whose file, count or cell is gone."""
+    base = Path(base)
+    cache: dict[Path, dict[str, Any]] = {}
+    changes: list[Change] = []
+    errors: list[str] = []
+    lines = text.splitlines(keepends=True)
+    for i, line in enumerate(lines, start=1):
+        edits = []
+        for m, q in _line_quotes(i, line):
+            if q.kind == "untraced":
+                continue
+            link = f"{q.source}#{q.selector}"
+            try:
+                value = _quote_value(q, base, cache)
+                if quoted_matches(q.quote, value):
+                    continue
+                new = format_like(q.quote, value)
+                if not quoted_matches(new, value):  # cannot happen unless the rounding disagrees
+                    raise InputError(f"{new!r} does not round back to {value!r}")
+            except InputError as e:
+                errors.append(f"line {i}: [{q.quote}]({link}): {e}")
+                continue
+            changes.append(Change(i, link, q.quote, new, value))
+            edits.append((m.start("quote"), m.end("quote"), new))
+        for start, end, new in reversed(edits):
+            line = line[:start] + new + line[end:]
+        lines[i - 1] = line
+    return "".join(lines), changes, errors
+
+
+def refresh_quotes(md_path: str | os.PathLike, *, write: bool = True
+                   ) -> tuple[list[Change], list[str]]:
+    """Bring every count and cell marker of a Markdown file up to its file's current value
+    (:func:`plan_refresh`). The page is rewritten atomically, only when ``write``, there is a
+    change and no error (a page with a broken link is left as it is). Returns (changes, errors)."""
+    md_path = Path(md_path)
+    if not md_path.is_file():
+        raise InputError(f"page not found: {md_path}")
+    text = md_path.read_text(encoding="utf-8")
+    new_text, changes, errors = plan_refresh(text, md_path.parent)
+    if write and changes and not errors:
+        write_text_atomic(md_path, new_text)
+    return changes, errors
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m gmwm_studies.counts refresh PAGE.md [--check]``: rewrite the page's count and
+    cell markers to their files' current values and print each change (``--check``: write
+    nothing, exit 1 on any stale quote). Exit 1 on a broken link (nothing written), 2 on bad
+    arguments."""
+    import argparse
+    import sys
+
+    ap = argparse.ArgumentParser(prog="python -m gmwm_studies.counts",
+                                 description="Quoted numbers of a Markdown page and their files.")
+    sub = ap.add_subparsers(dest="command", required=True)
+    rp = sub.add_parser("refresh", help="rewrite every linked quote to its file's current value")
+    rp.add_argument("page", help="Markdown page (links relative to its directory)")
+    rp.add_argument("--check", action="store_true",
+                    help="write nothing; exit 1 when a quote is stale or a link broken")
+    args = ap.parse_args(argv)
+    try:
+        changes, errors = refresh_quotes(args.page, write=not args.check)
+    except InputError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    for c in changes:
+        print(f"line {c.line}: [{c.old}] -> [{c.new}] ({c.link} = {c.value:.10g})")
+    for e in errors:
+        print(f"error: {e}", file=sys.stderr)
+    if errors:
+        print(f"{len(errors)} broken link(s): {args.page} left unchanged", file=sys.stderr)
+        return 1
+    if args.check:
+        print(f"{len(changes)} stale quote(s) in {args.page}" if changes
+              else f"every linked quote of {args.page} matches its file")
+        return 1 if changes else 0
+    print(f"{len(changes)} quote(s) rewritten in {args.page}" if changes
+          else f"every linked quote of {args.page} already matches its file")
+    return 0
+
+
 def collect(tables: Iterable[tuple[str, pd.DataFrame, Mapping[str, Any], str, bool]]
             ) -> list[Count]:
     """:func:`study_counts` over (study, table, record, source, label_T) tuples, concatenated."""
     return [c for study, df, rec, src, lab in tables
             for c in study_counts(study, df, rec, src, label_T=lab)]
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
