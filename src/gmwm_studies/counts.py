@@ -68,6 +68,7 @@ __all__ = [
     "Change",
     "Count",
     "Mismatch",
+    "PlainNumber",
     "Quote",
     "cell_value",
     "check_markers",
@@ -78,6 +79,7 @@ __all__ = [
     "find_quotes",
     "format_like",
     "main",
+    "plain_numbers",
     "plan_refresh",
     "quoted_matches",
     "read_counts",
@@ -597,6 +599,80 @@ def check_quotes(md_path: str | os.PathLike) -> tuple[list[Quote], list[Mismatch
         if value is None or not quoted_matches(q.quote, value):
             bad.append(Mismatch(q.line, q.selector, q.quote, value, where))
     return quotes, sorted(bad, key=lambda b: b.line)
+
+
+@dataclasses.dataclass(frozen=True)
+class PlainNumber:
+    """A number written as plain text (no marker): its line, column (0-based), text and the text
+    around it."""
+
+    line: int
+    start: int
+    text: str
+    context: str
+
+
+_PLAIN = re.compile(r"(?<![\w.^_/#\\\-+\u2212\[])[+\-\u2212]?"
+                    r"(?:\d{1,3}(?:,\d{3})+|\d+)(?:\.\d+)?(?:[eE][+\-]?\d+)?(?![\w\[.]\w|[\w\[/])"
+                    r"|(?<=\d[-\u2013])(?:\d+)(?:\.\d+)?(?:[eE][+\-]?\d+)?(?![\w\[])")
+_NOT_QUOTES = [  # spans that hold no quoted number (blanked before numbers are looked for)
+    re.compile(r"`[^`]*`"),  # code
+    re.compile(r"\]\([^()\s]*(?:\([^()\s]*\)[^()\s]*)*(?:\s+\"[^\"]*\")?\)"),  # link targets
+    re.compile(r"<[^>]+>"),  # HTML tags (anchors)
+    re.compile(r"\[\^[^\]]+\]"),  # footnote references
+    re.compile(r"\b\d{4}-\d\d-\d\d\b|\b\d\d:\d\d(?::\d\d)?\b"),  # dates, clock times
+    re.compile(r"\b[0-9a-f]{7,40}\b"),  # commits
+]
+_NAMED = re.compile(  # a number naming a thing, not quoting a value ("Fig 4", "Simulation 2")
+    r"(?:\b(?:Figs?|Fig\.|Tables?|Sec|Sec\.|Section|Lemmas?|Cor\.?|Corollary|Theorems?|Remarks?|"
+    r"Models?|Simulations?|[Cc]ases?|[Pp]apers?|issues?|items?|Eqs?\.?|SPEC|run|commit|"
+    r"[Ss]tage|[Ss]tep|[Pp]hase|Hz|Mode|replicate|replicates|iteration|axis|Chapter|line|"
+    r"Proposition|Prop\.|Definition|Algorithm|Assumption|[Cc]olumn|factor|gyros?|order)"
+    r"|§)\s*(?:[\w.]+\s*(?:,|-|\u2013|and|/)\s*)*$")
+_DESIGN = re.compile(r"=\s*(?:[^\s|;,()]+\s+(?:\.\.\.|to|-)\s+)?$")
+
+
+def _table_columns(header: str) -> list[str]:
+    return [c.strip().lower() for c in re.split(r"(?<!\\)\|", header.strip().strip("|"))]
+
+
+def plain_numbers(text: str) -> list[PlainNumber]:
+    """Numbers of a Markdown text written as plain text and outside the classes that stay plain:
+    markers (:func:`find_quotes`), code, link targets, footnote labels, dates, commits, headings,
+    a number naming a thing (``Fig 4``, ``Simulation 2``, ``AR1``, ``SIN[2]``), a value after
+    ``=`` (a design value such as ``T = 1e4`` or a ratio the page computes), and a table's
+    ``paper's claim`` column (the paper's own numbers). What is left is a number quoted without
+    a link to its source: the count a page should bring to 0."""
+    out = []
+    paper_cols: set[int] = set()
+    header: list[str] | None = None
+    for i, line in enumerate(text.splitlines(), start=1):
+        if line.lstrip().startswith("#"):
+            continue
+        masked = line
+        for m_, _q in _line_quotes(i, line):
+            masked = masked[:m_.start()] + " " * (m_.end() - m_.start()) + masked[m_.end():]
+        for pat in _NOT_QUOTES:
+            masked = pat.sub(lambda m: " " * len(m.group(0)), masked)
+        if line.startswith("|"):
+            cells = _table_columns(line)
+            if header is None:
+                header = cells
+                paper_cols = {k for k, c in enumerate(header) if "paper" in c}
+                continue
+            if all(re.fullmatch(r":?-+:?", c) for c in cells if c):
+                continue
+        else:
+            header, paper_cols = None, set()
+        bounds = [m.start() for m in re.finditer(r"(?<!\\)\|", line)] if header else []
+        for m in _PLAIN.finditer(masked):
+            before = masked[max(0, m.start() - 40):m.start()]
+            col = sum(b < m.start() for b in bounds) - 1
+            if col in paper_cols or _NAMED.search(before) or _DESIGN.search(before):
+                continue
+            out.append(PlainNumber(i, m.start(), m.group(0),
+                                   line[max(0, m.start() - 40):m.end() + 10]))
+    return out
 
 
 @dataclasses.dataclass(frozen=True)
