@@ -630,6 +630,11 @@ _NAMED = re.compile(  # a number naming a thing, not quoting a value ("Fig 4", "
     r"Proposition|Prop\.|Definition|Algorithm|Assumption|[Cc]olumn|factor|gyros?|order)"
     r"|§)\s*(?:[\w.]+\s*(?:,|-|\u2013|and|/)\s*)*$")
 _DESIGN = re.compile(r"=\s*(?:[^\s|;,()]+\s+(?:\.\.\.|to|-)\s+)?$")
+_DESIGN_UNIT = re.compile(  # a design size: "500 replicates", "a 24-point profile"
+    r"[\s-](?:replicates?|replications?|signals|draws|arrays|iterations?|starts|parameters|"
+    r"gyros|clusters|lanes?|submodels|point|fits|training)\b")
+_SAMPLE_SIZE = re.compile(r"^\d(?:\.\d)?e\+?\d+$")  # T = 1e4 ... 1.6e5, written "at 1.6e5"
+_SAMPLE_SIZE_BEFORE = re.compile(r"(?:\bat|\(|T\s*[<>]=?|\bfrom)\s*$")
 
 
 def _table_columns(header: str) -> list[str]:
@@ -640,7 +645,8 @@ def plain_numbers(text: str) -> list[PlainNumber]:
     """Numbers of a Markdown text written as plain text and outside the classes that stay plain:
     markers (:func:`find_quotes`), code, link targets, footnote labels, dates, commits, headings,
     a number naming a thing (``Fig 4``, ``Simulation 2``, ``AR1``, ``SIN[2]``), a value after
-    ``=`` (a design value such as ``T = 1e4`` or a ratio the page computes), and a table's
+    ``=`` (a design value such as ``T = 1e4`` or a ratio the page computes), a design size
+    (``500 replicates``, ``at 1.6e5``: a sample size in e-notation after "at", "(", "from"), and a table's
     ``paper's claim`` column (the paper's own numbers). What is left is a number quoted without
     a link to its source: the count a page should bring to 0."""
     out = []
@@ -668,7 +674,10 @@ def plain_numbers(text: str) -> list[PlainNumber]:
         for m in _PLAIN.finditer(masked):
             before = masked[max(0, m.start() - 40):m.start()]
             col = sum(b < m.start() for b in bounds) - 1
-            if col in paper_cols or _NAMED.search(before) or _DESIGN.search(before):
+            after = masked[m.end():m.end() + 14]
+            if (col in paper_cols or _NAMED.search(before) or _DESIGN.search(before)
+                    or _DESIGN_UNIT.match(after)
+                    or (_SAMPLE_SIZE.match(m.group(0)) and _SAMPLE_SIZE_BEFORE.search(before))):
                 continue
             out.append(PlainNumber(i, m.start(), m.group(0),
                                    line[max(0, m.start() - 40):m.end() + 10]))
