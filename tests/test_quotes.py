@@ -77,6 +77,7 @@ def test_cell_value_selectors_and_errors(tmp_path):
     assert cell_value(wv, "col=share&agg=min&abs=1&mul=100") == pytest.approx(25.0)
     assert cell_value(wv, "level<15&col=ratio_to_equal") == pytest.approx(1.0797508)
     assert cell_value(wv, "col=share&agg=mean") == pytest.approx((0.808 + 0.25 - 0.75) / 3)
+    assert cell_value(wv, "method=rdvg&col=level&agg=sum") == 29.0
     assert cell_value(wv, "level>=15&col=ratio_to_equal&agg=min") == pytest.approx(0.9123718)
     with pytest.raises(InputError, match="not a number"):
         cell_value(wv, "level<x&col=share")
@@ -84,7 +85,7 @@ def test_cell_value_selectors_and_errors(tmp_path):
     for sel, msg in [("level=15&col=ratio_to_equal", "2 rows"), ("method=x&col=share", "no row"),
                      ("method=rdvg&level=15&col=nope", "no column"),
                      ("nokey=1&col=share", "no key column"),
-                     ("col=share&agg=median", "min, max or mean"), ("col", "not key=value")]:
+                     ("col=share&agg=median", "min, max, mean or sum"), ("col", "not key=value")]:
         with pytest.raises(InputError, match=msg):
             cell_value(wv, sel)
     assert cell_value(tmp_path / "s.json", "outage/1") == 210.0

@@ -22,9 +22,10 @@ target is the CSV or JSON file and the fragment selects the cell,
 
 * CSV: ``[0.9376](svo/case2/wv.csv#method=rdvg&level=15&col=ratio_to_equal)``: the rows whose
   ``<key>`` columns equal the values (as text, or as numbers when both parse), the ``col``
-  column; exactly one row unless ``agg=min``, ``agg=max`` or ``agg=mean`` (over the selected
-  rows, e.g. for a quoted range's ends; ``<key><<number>`` and ``<key>>=<number>`` etc. select rows by a numeric key's
-  range); ``mul=100`` multiplies (a percentage), ``abs=1`` takes |x| before that; a
+  column; exactly one row unless ``agg=min``, ``agg=max``, ``agg=mean`` or ``agg=sum`` (over
+  the selected rows, e.g. for a quoted range's ends or a count over several rows;
+  ``<key><<number>`` and ``<key>>=<number>`` etc. select rows by a numeric key's range; a row
+  whose cell is empty fails unless such a range on that column leaves it out); ``mul=100`` multiplies (a percentage), ``abs=1`` takes |x| before that; a
   space or ``&`` in a value is written ``%20`` / ``%26`` (URL encoding);
 * JSON: ``[1.00004](allan/summary.json#fig41/N/mc_mean)``: keys (a list's index) separated by
   ``/``, with the same ``&mul=`` and ``&abs=`` options.
@@ -520,7 +521,7 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
             raise InputError(f"{path.name}: no row with {dict(filters)}")
         if len(values) > 1 and "agg" not in opts:
             raise InputError(f"{path.name}: {len(values)} rows with {dict(filters)} (add keys "
-                             "or agg=min|max|mean)")
+                             "or agg=min|max|mean|sum)")
     try:
         x = np.array([float(v) for v in values])
     except (TypeError, ValueError):
@@ -528,9 +529,9 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
     if opts.get("abs") == "1":
         x = np.abs(x)
     agg = opts.get("agg", "min")
-    if agg not in ("min", "max", "mean"):
-        raise InputError(f"agg={agg!r}: min, max or mean")
-    v = float({"min": np.min, "max": np.max, "mean": np.mean}[agg](x))
+    if agg not in ("min", "max", "mean", "sum"):
+        raise InputError(f"agg={agg!r}: min, max, mean or sum")
+    v = float({"min": np.min, "max": np.max, "mean": np.mean, "sum": np.sum}[agg](x))
     return v * float(opts.get("mul", "1"))
 
 
