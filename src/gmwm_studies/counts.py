@@ -646,7 +646,8 @@ def plain_numbers(text: str) -> list[PlainNumber]:
     """Numbers of a Markdown text written as plain text and outside the classes that stay plain:
     markers (:func:`find_quotes`), code, link targets, footnote labels, dates, commits, headings,
     a number naming a thing (``Fig 4``, ``Simulation 2``, ``AR1``, ``SIN[2]``), a value after
-    ``=`` (a design value such as ``T = 1e4`` or a ratio the page computes), a design size
+    ``=`` (a design value such as ``T = 1e4`` or a ratio the page computes) or in a clause (up
+    to ``;`` or ``|``) marked ``(= ...)`` as computed, a design size
     (``500 replicates``, ``at 1.6e5``: a sample size in e-notation after "at", "(", "from"), and a table's
     ``paper's claim`` column (the paper's own numbers). What is left is a number quoted without
     a link to its source: the count a page should bring to 0."""
@@ -672,11 +673,15 @@ def plain_numbers(text: str) -> list[PlainNumber]:
         else:
             header, paper_cols = None, set()
         bounds = [m.start() for m in re.finditer(r"(?<!\\)\|", line)] if header else []
+        # a clause with "(= ..." holds numbers the page computes (marked "=" after them)
+        computed = [(c.start(), c.end()) for c in re.finditer(r"[^;|]+", masked)
+                    if "(=" in c.group(0)]
         for m in _PLAIN.finditer(masked):
             before = masked[max(0, m.start() - 40):m.start()]
             col = sum(b < m.start() for b in bounds) - 1
             after = masked[m.end():m.end() + 14]
             if (col in paper_cols or _NAMED.search(before) or _DESIGN.search(before)
+                    or any(a <= m.start() < b for a, b in computed)
                     or _DESIGN_UNIT.match(after)
                     or (_SAMPLE_SIZE.match(m.group(0)) and _SAMPLE_SIZE_BEFORE.search(before))):
                 continue
