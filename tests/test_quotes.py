@@ -78,6 +78,15 @@ def test_cell_value_selectors_and_errors(tmp_path):
     assert cell_value(wv, "level<15&col=ratio_to_equal") == pytest.approx(1.0797508)
     assert cell_value(wv, "col=share&agg=mean") == pytest.approx((0.808 + 0.25 - 0.75) / 3)
     assert cell_value(wv, "method=rdvg&col=level&agg=sum") == 29.0
+    assert cell_value(wv, "method=rdvg&level=15&col=ratio_to_equal&over.level=14") == \
+        pytest.approx(0.9376293 / 1.0797508)
+    assert cell_value(wv, "method=svo_w2&level=15&col=share&over.method=rdvg&abs=1&mul=100") == \
+        pytest.approx(300.0)
+    for sel, msg in [("level=15&col=share&over.level=14", "2 rows"),
+                     ("method=rdvg&level=15&col=share&over.gyro=1", "must replace a key"),
+                     ("method=rdvg&level=15&col=share&over.level=16", "no row")]:
+        with pytest.raises(InputError, match=msg):
+            cell_value(wv, sel)
     assert cell_value(wv, "level>=15&col=ratio_to_equal&agg=min") == pytest.approx(0.9123718)
     with pytest.raises(InputError, match="not a number"):
         cell_value(wv, "level<x&col=share")

@@ -25,8 +25,11 @@ target is the CSV or JSON file and the fragment selects the cell,
   column; exactly one row unless ``agg=min``, ``agg=max``, ``agg=mean`` or ``agg=sum`` (over
   the selected rows, e.g. for a quoted range's ends or a count over several rows;
   ``<key><<number>`` and ``<key>>=<number>`` etc. select rows by a numeric key's range; a row
-  whose cell is empty fails unless such a range on that column leaves it out); ``mul=100`` multiplies (a percentage), ``abs=1`` takes |x| before that; a
-  space or ``&`` in a value is written ``%20`` / ``%26`` (URL encoding);
+  whose cell is empty fails unless such a range on that column leaves it out);
+  ``over.<key>=<value>`` divides the cell by the cell of the row with that key replaced (a ratio
+  of two cells, one row each: ``...&estimator=avsm&col=rmse&over.estimator=gmwm_cf`` is AVSM's
+  RMSE over the GMWM's); ``mul=100`` multiplies (a percentage), ``abs=1`` takes |x| before that;
+  a space or ``&`` in a value is written ``%20`` / ``%26`` (URL encoding);
 * JSON: ``[1.00004](allan/summary.json#fig41/N/mc_mean)``: keys (a list's index) separated by
   ``/``, with the same ``&mul=`` and ``&abs=`` options.
 
@@ -474,6 +477,7 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
     else:
         keys, rest = [], parts
     filters: list[tuple[str, str]] = []
+    over: dict[str, str] = {}
     ranges: list[tuple[str, str, float]] = []
     for part in rest:
         m = re.fullmatch(r"([^<>=]+)(<=|>=|<|>)([^<>=]+)", part)
@@ -488,6 +492,8 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
             raise InputError(f"selector part {part!r} is not key=value")
         if k in _OPTIONS:
             opts[k] = v
+        elif k.startswith("over."):
+            over[k[5:]] = v
         else:
             filters.append((k, v))
     if path.suffix == ".json":
@@ -501,27 +507,45 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
             else:
                 raise InputError(f"{path.name}: no key {k!r} on the path {'/'.join(keys)}")
         values = [node]
+        if over:
+            raise InputError(f"{path.name}: over.<key> is for CSV tables")
     else:
         df = _read_csv(path)
         col = opts.get("col")
         if col is None or col not in df.columns:
             raise InputError(f"{path.name}: no column {col!r}")
-        mask = np.ones(len(df), dtype=bool)
-        for k, v in filters:
-            if k not in df.columns:
-                raise InputError(f"{path.name}: no key column {k!r}")
-            mask &= np.array([_same(c, v) for c in df[k]])
-        for k, op, bound in ranges:
-            if k not in df.columns:
-                raise InputError(f"{path.name}: no key column {k!r}")
-            x = pd.to_numeric(df[k], errors="coerce").to_numpy(float)
-            mask &= {"<": x < bound, ">": x > bound, "<=": x <= bound, ">=": x >= bound}[op]
-        values = df.loc[mask, col].tolist()
-        if not values:
-            raise InputError(f"{path.name}: no row with {dict(filters)}")
-        if len(values) > 1 and "agg" not in opts:
-            raise InputError(f"{path.name}: {len(values)} rows with {dict(filters)} (add keys "
-                             "or agg=min|max|mean|sum)")
+
+        def select(filters: list[tuple[str, str]]) -> list[str]:
+            mask = np.ones(len(df), dtype=bool)
+            for k, v in filters:
+                if k not in df.columns:
+                    raise InputError(f"{path.name}: no key column {k!r}")
+                mask &= np.array([_same(c, v) for c in df[k]])
+            for k, op, bound in ranges:
+                if k not in df.columns:
+                    raise InputError(f"{path.name}: no key column {k!r}")
+                x = pd.to_numeric(df[k], errors="coerce").to_numpy(float)
+                mask &= {"<": x < bound, ">": x > bound, "<=": x <= bound, ">=": x >= bound}[op]
+            values = df.loc[mask, col].tolist()
+            if not values:
+                raise InputError(f"{path.name}: no row with {dict(filters)}")
+            if len(values) > 1 and ("agg" not in opts or over):
+                raise InputError(f"{path.name}: {len(values)} rows with {dict(filters)} (add keys"
+                                 + (")" if over else " or agg=min|max|mean|sum)"))
+            return values
+
+        values = select(filters)
+        if over:  # a ratio of two cells: this row over the row with the keys replaced
+            unknown = sorted(set(over) - {k for k, _ in filters})
+            if unknown:
+                raise InputError(f"{path.name}: over.<key> must replace a key of the selector: "
+                                 f"{unknown}")
+            den = select([(k, over.get(k, v)) for k, v in filters])
+            try:
+                values = [float(values[0]) / float(den[0])]
+            except (TypeError, ValueError, ZeroDivisionError):
+                raise InputError(f"{path.name}#{selector}: not a ratio of numbers: "
+                                 f"{values[0]!r} / {den[0]!r}") from None
     try:
         x = np.array([float(v) for v in values])
     except (TypeError, ValueError):
