@@ -82,8 +82,11 @@ def test_cell_value_selectors_and_errors(tmp_path):
         pytest.approx(0.9376293 / 1.0797508)
     assert cell_value(wv, "method=svo_w2&level=15&col=share&over.method=rdvg&abs=1&mul=100") == \
         pytest.approx(300.0)
+    assert cell_value(wv, "method=rdvg&level=15&col=share&less.method=svo_w2&abs=1") == \
+        pytest.approx(1.0)
     for sel, msg in [("level=15&col=share&over.level=14", "2 rows"),
                      ("method=rdvg&level=15&col=share&over.gyro=1", "must replace a key"),
+                     ("method=rdvg&level=15&col=share&over.level=14&less.level=14", "not both"),
                      ("method=rdvg&level=15&col=share&over.level=16", "no row")]:
         with pytest.raises(InputError, match=msg):
             cell_value(wv, sel)

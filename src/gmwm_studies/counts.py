@@ -28,7 +28,8 @@ target is the CSV or JSON file and the fragment selects the cell,
   whose cell is empty fails unless such a range on that column leaves it out);
   ``over.<key>=<value>`` divides the cell by the cell of the row with that key replaced (a ratio
   of two cells, one row each: ``...&estimator=avsm&col=rmse&over.estimator=gmwm_cf`` is AVSM's
-  RMSE over the GMWM's); ``mul=100`` multiplies (a percentage), ``abs=1`` takes |x| before that;
+  RMSE over the GMWM's); ``less.<key>=<value>`` likewise subtracts that cell (a difference);
+  ``mul=100`` multiplies (a percentage), ``abs=1`` takes |x| before that;
   a space or ``&`` in a value is written ``%20`` / ``%26`` (URL encoding);
 * JSON: ``[1.00004](allan/summary.json#fig41/N/mc_mean)``: keys (a list's index) separated by
   ``/``, with the same ``&mul=`` and ``&abs=`` options.
@@ -478,6 +479,7 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
         keys, rest = [], parts
     filters: list[tuple[str, str]] = []
     over: dict[str, str] = {}
+    less: dict[str, str] = {}
     ranges: list[tuple[str, str, float]] = []
     for part in rest:
         m = re.fullmatch(r"([^<>=]+)(<=|>=|<|>)([^<>=]+)", part)
@@ -494,6 +496,8 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
             opts[k] = v
         elif k.startswith("over."):
             over[k[5:]] = v
+        elif k.startswith("less."):
+            less[k[5:]] = v
         else:
             filters.append((k, v))
     if path.suffix == ".json":
@@ -507,8 +511,8 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
             else:
                 raise InputError(f"{path.name}: no key {k!r} on the path {'/'.join(keys)}")
         values = [node]
-        if over:
-            raise InputError(f"{path.name}: over.<key> is for CSV tables")
+        if over or less:
+            raise InputError(f"{path.name}: over.<key> and less.<key> are for CSV tables")
     else:
         df = _read_csv(path)
         col = opts.get("col")
@@ -529,23 +533,27 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
             values = df.loc[mask, col].tolist()
             if not values:
                 raise InputError(f"{path.name}: no row with {dict(filters)}")
-            if len(values) > 1 and ("agg" not in opts or over):
+            if len(values) > 1 and ("agg" not in opts or over or less):
                 raise InputError(f"{path.name}: {len(values)} rows with {dict(filters)} (add keys"
-                                 + (")" if over else " or agg=min|max|mean|sum)"))
+                                 + (")" if over or less else " or agg=min|max|mean|sum)"))
             return values
 
         values = select(filters)
-        if over:  # a ratio of two cells: this row over the row with the keys replaced
-            unknown = sorted(set(over) - {k for k, _ in filters})
+        if over and less:
+            raise InputError(f"{path.name}#{selector}: over.<key> or less.<key>, not both")
+        if over or less:  # a ratio or difference of two cells: this row and the row with the
+            other = over or less  # keys replaced
+            unknown = sorted(set(other) - {k for k, _ in filters})
             if unknown:
-                raise InputError(f"{path.name}: over.<key> must replace a key of the selector: "
-                                 f"{unknown}")
-            den = select([(k, over.get(k, v)) for k, v in filters])
+                raise InputError(f"{path.name}: over.<key> / less.<key> must replace a key of the "
+                                 f"selector: {unknown}")
+            den = select([(k, other.get(k, v)) for k, v in filters])
             try:
-                values = [float(values[0]) / float(den[0])]
+                a, b = float(values[0]), float(den[0])
+                values = [a / b if over else a - b]
             except (TypeError, ValueError, ZeroDivisionError):
-                raise InputError(f"{path.name}#{selector}: not a ratio of numbers: "
-                                 f"{values[0]!r} / {den[0]!r}") from None
+                raise InputError(f"{path.name}#{selector}: not two numbers: "
+                                 f"{values[0]!r}, {den[0]!r}") from None
     try:
         x = np.array([float(v) for v in values])
     except (TypeError, ValueError):
