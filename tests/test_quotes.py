@@ -84,6 +84,11 @@ def test_cell_value_selectors_and_errors(tmp_path):
         pytest.approx(300.0)
     assert cell_value(wv, "method=rdvg&level=15&col=share&less.method=svo_w2&abs=1") == \
         pytest.approx(1.0)
+    assert cell_value(wv, "method=rdvg&level=14&col=ratio_to_equal&minus=share") == \
+        pytest.approx(1.0797508 - 0.808)
+    assert cell_value(wv, "col=level&plus=share&agg=sum") == pytest.approx(44 + 0.308)
+    with pytest.raises(InputError, match="no column 'x'"):
+        cell_value(wv, "method=rdvg&level=14&col=share&plus=x")
     for sel, msg in [("level=15&col=share&over.level=14", "2 rows"),
                      ("method=rdvg&level=15&col=share&over.gyro=1", "must replace a key"),
                      ("method=rdvg&level=15&col=share&over.level=14&less.level=14", "not both"),

@@ -29,6 +29,8 @@ target is the CSV or JSON file and the fragment selects the cell,
   ``over.<key>=<value>`` divides the cell by the cell of the row with that key replaced (a ratio
   of two cells, one row each: ``...&estimator=avsm&col=rmse&over.estimator=gmwm_cf`` is AVSM's
   RMSE over the GMWM's); ``less.<key>=<value>`` likewise subtracts that cell (a difference);
+  ``plus=<column>`` / ``minus=<column>`` add / subtract another column of the same row (before
+  ``agg``, ``over``, ``less``);
   ``mul=100`` multiplies (a percentage), ``abs=1`` takes |x| before that;
   a space or ``&`` in a value is written ``%20`` / ``%26`` (URL encoding);
 * JSON: ``[1.00004](allan/summary.json#fig41/N/mc_mean)``: keys (a list's index) separated by
@@ -451,7 +453,7 @@ def check_markers(md_path: str | os.PathLike) -> tuple[int, list[Mismatch]]:
     return len(markers), bad
 
 
-_OPTIONS = ("col", "agg", "mul", "abs")
+_OPTIONS = ("col", "agg", "mul", "abs", "plus", "minus")
 
 
 def _same(cell: str, want: str) -> bool:
@@ -531,6 +533,18 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
                 x = pd.to_numeric(df[k], errors="coerce").to_numpy(float)
                 mask &= {"<": x < bound, ">": x > bound, "<=": x <= bound, ">=": x >= bound}[op]
             values = df.loc[mask, col].tolist()
+            for op in ("plus", "minus"):  # another column of the same row, added / subtracted
+                if op in opts:
+                    other = opts[op]
+                    if other not in df.columns:
+                        raise InputError(f"{path.name}: no column {other!r} ({op}=)")
+                    try:
+                        sign = 1.0 if op == "plus" else -1.0
+                        values = [str(float(a) + sign * float(b))
+                                  for a, b in zip(values, df.loc[mask, other], strict=True)]
+                    except ValueError:
+                        raise InputError(f"{path.name}#{selector}: {col} {op} {other}: "
+                                         "not numbers") from None
             if not values:
                 raise InputError(f"{path.name}: no row with {dict(filters)}")
             if len(values) > 1 and ("agg" not in opts or over or less):
