@@ -247,6 +247,7 @@ def test_plain_numbers_leave_out_the_classes_that_stay_plain():
 Run of 2026-11-26 05:26:46 at 46fd1ec, `code 3.5`, [link](a/b2.csv), ratio (= 1 - x) 0.42;
 Simulation 2 quotes 0.8549-0.9922 and 37 of 500[^n2], 0 of 500 replicates at 1.6e5;
 to 1.4e3; lower by (= 1 - ratio) 5.8 % and 7.6 %; 1.3-5.0 SDs (= (1/6 - mean) / SD) | 2.5
+m = 4096 / 8192 / 16384, (phi, theta) = (0.9, -0.5), (0.99, 0); S(f) = (1 +- 0.5 cos(2 pi f)).
 """
     found = [(p.line, p.text) for p in plain_numbers(text)]
     assert found == [(5, "209.9"), (8, "0.8549"), (8, "0.9922"), (8, "37"), (8, "500"),

@@ -677,6 +677,11 @@ _NAMED = re.compile(  # a number naming a thing, not quoting a value ("Fig 4", "
     r"Proposition|Prop\.|Definition|Algorithm|Assumption|[Cc]olumn|factor|gyros?|order)"
     r"|§)\s*(?:[\w.]+\s*(?:,|-|\u2013|and|/)\s*)*$")
 _DESIGN = re.compile(r"=\s*(?:[^\s|;,()]+\s+(?:\.\.\.|to|-)\s+)?$")
+_DESIGN_LIST = re.compile(  # "m = 4096 / 8192 / 16384", "(phi, theta) = (0.9, -0.5), (0.9, 0.5)"
+    r"=\s*(?:[(\[]?[-+\u2212]?[\d.]+(?:e[-+]?\d+)?[)\]]?(?:\s*(?:,|/|\.\.\.|and)\s*))*"
+    r"[(\[]?[-+\u2212]?$")
+_FORMULA_BEFORE = re.compile(r"(?:\+-|\^|\*|\bpi|\bcos\(|\bsin\(|\bln)\s*\(?$")
+_FORMULA_AFTER = re.compile(r"\s*(?:\+-|\^|\*|pi\b|ln\b|tau\b|cos\b|sin\b)")
 _DESIGN_UNIT = re.compile(  # a design size: "500 replicates", "a 24-point profile"
     r"[\s-](?:replicates?|replications?|signals|draws|arrays|iterations?|starts|parameters|"
     r"gyros|clusters|lanes?|submodels|point|fits|training)\b")
@@ -693,7 +698,8 @@ def plain_numbers(text: str) -> list[PlainNumber]:
     markers (:func:`find_quotes`), code, link targets, footnote labels, dates, commits, headings,
     a number naming a thing (``Fig 4``, ``Simulation 2``, ``AR1``, ``SIN[2]``), a value after
     ``=`` (a design value such as ``T = 1e4`` or a ratio the page computes) or in a clause (up
-    to ``;`` or ``|``) marked ``(= ...)`` as computed, a design size
+    to ``;`` or ``|``) marked ``(= ...)`` as computed, a constant of a formula (beside ``+-``,
+    ``^``, ``pi``, ``cos``), a design size
     (``500 replicates``, ``at 1.6e5``: a sample size in e-notation after "at", "(", "from"), and a table's
     ``paper's claim`` column (the paper's own numbers). What is left is a number quoted without
     a link to its source: the count a page should bring to 0."""
@@ -728,7 +734,8 @@ def plain_numbers(text: str) -> list[PlainNumber]:
             after = masked[m.end():m.end() + 14]
             if (col in paper_cols or _NAMED.search(before) or _DESIGN.search(before)
                     or any(a <= m.start() < b for a, b in computed)
-                    or _DESIGN_UNIT.match(after)
+                    or _DESIGN_UNIT.match(after) or _DESIGN_LIST.search(before)
+                    or _FORMULA_BEFORE.search(before) or _FORMULA_AFTER.match(after)
                     or (_SAMPLE_SIZE.match(m.group(0)) and _SAMPLE_SIZE_BEFORE.search(before))):
                 continue
             out.append(PlainNumber(i, m.start(), m.group(0),
