@@ -248,10 +248,11 @@ Run of 2026-11-26 05:26:46 at 46fd1ec, `code 3.5`, [link](a/b2.csv), ratio (= 1 
 Simulation 2 quotes 0.8549-0.9922 and 37 of 500[^n2], 0 of 500 replicates at 1.6e5;
 to 1.4e3; lower by (= 1 - ratio) 5.8 % and 7.6 %; 1.3-5.0 SDs (= (1/6 - mean) / SD) | 2.5
 m = 4096 / 8192 / 16384, (phi, theta) = (0.9, -0.5), (0.99, 0); S(f) = (1 +- 0.5 cos(2 pi f)).
+At the boundary 0 in [304](counts.md#x) of 500, nominal 95 % and a 95 % CI; 0 of 1000.
 """
     found = [(p.line, p.text) for p in plain_numbers(text)]
     assert found == [(5, "209.9"), (8, "0.8549"), (8, "0.9922"), (8, "37"), (8, "500"),
-                     (8, "0"), (9, "1.4e3"), (9, "2.5")]
+                     (8, "0"), (9, "1.4e3"), (9, "2.5"), (11, "0"), (11, "1000")]
     p = plain_numbers(text)[0]
     assert text.splitlines()[p.line - 1][p.start:].startswith("209.9 s")
 

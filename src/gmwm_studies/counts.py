@@ -682,6 +682,9 @@ _DESIGN_LIST = re.compile(  # "m = 4096 / 8192 / 16384", "(phi, theta) = (0.9, -
     r"[(\[]?[-+\u2212]?$")
 _FORMULA_BEFORE = re.compile(r"(?:\+-|\^|\*|\bpi|\bcos\(|\bsin\(|\bln)\s*\(?$")
 _FORMULA_AFTER = re.compile(r"\s*(?:\+-|\^|\*|pi\b|ln\b|tau\b|cos\b|sin\b)")
+_DENOMINATOR = re.compile(r"\)\**\s*(?:/|of(?:\s+(?:the|its))?)\s*$")  # "[304](...) of 500"
+_BOUND = re.compile(r"(?:boundary|\bat|below|reach|cut at)\s*$")  # "at the boundary 0"
+_NOMINAL = re.compile(r"^95\s*%\s*(?:CI|interval|confidence|\w*\s*interval)|^95\s*%$")
 _DESIGN_UNIT = re.compile(  # a design size: "500 replicates", "a 24-point profile"
     r"[\s-](?:replicates?|replications?|signals|draws|arrays|iterations?|starts|parameters|"
     r"gyros|clusters|lanes?|submodels|point|fits|training)\b")
@@ -699,7 +702,8 @@ def plain_numbers(text: str) -> list[PlainNumber]:
     a number naming a thing (``Fig 4``, ``Simulation 2``, ``AR1``, ``SIN[2]``), a value after
     ``=`` (a design value such as ``T = 1e4`` or a ratio the page computes) or in a clause (up
     to ``;`` or ``|``) marked ``(= ...)`` as computed, a constant of a formula (beside ``+-``,
-    ``^``, ``pi``, ``cos``), a design size
+    ``^``, ``pi``, ``cos``), the bound 0 ("at the boundary 0"), a nominal 95 %, the design
+    denominator of a linked count (``[304](...) of 500``), a design size
     (``500 replicates``, ``at 1.6e5``: a sample size in e-notation after "at", "(", "from"), and a table's
     ``paper's claim`` column (the paper's own numbers). What is left is a number quoted without
     a link to its source: the count a page should bring to 0."""
@@ -735,6 +739,10 @@ def plain_numbers(text: str) -> list[PlainNumber]:
             if (col in paper_cols or _NAMED.search(before) or _DESIGN.search(before)
                     or any(a <= m.start() < b for a, b in computed)
                     or _DESIGN_UNIT.match(after) or _DESIGN_LIST.search(before)
+                    or _DENOMINATOR.search(line[:m.start()])
+                    or (m.group(0) == "0" and _BOUND.search(before))
+                    or _NOMINAL.match(masked[m.start():m.end() + 16])
+                    or re.search(r"nominal\s*$", before)
                     or _FORMULA_BEFORE.search(before) or _FORMULA_AFTER.match(after)
                     or (_SAMPLE_SIZE.match(m.group(0)) and _SAMPLE_SIZE_BEFORE.search(before))):
                 continue
