@@ -151,13 +151,20 @@ def test_committed_reproduction_quotes_match_their_tables():
 
 def test_a_changed_digit_in_a_committed_quote_fails(tmp_path):
     """A copy of the committed page (beside copies of the tables it cites) with one digit of one
-    plain-text quote changed fails the check: the quoted-number test catches a stale number."""
+    plain-text quote changed fails the check: the quoted-number test catches a stale number
+    (cell markers at the page's start, middle and end, a count marker, and a marker with each
+    option that combines cells)."""
     md = committed_md()
     text = md.read_text(encoding="utf-8")
-    cells = [q for q in find_quotes(text) if q.kind == "cell"]
+    quotes = find_quotes(text)
+    cells = [q for q in quotes if q.kind == "cell"]
     if not cells:
         pytest.skip("no cell markers yet")
-    for q in (cells[0], cells[len(cells) // 2], cells[-1]):
+    picks = [cells[0], cells[len(cells) // 2], cells[-1]]
+    picks += [next(q for q in quotes if q.kind == "count")]
+    for option in ("over.", "less.", "plus=", "agg=sum"):  # a marker of each kind of option
+        picks += [q for q in cells if option in q.selector][:1]
+    for q in picks:
         marker = f"[{q.quote}]({q.source}#{q.selector})"
         assert marker in text
         last = re.search(r"\d(?=\D*$)", q.quote)
@@ -169,8 +176,12 @@ def test_a_changed_digit_in_a_committed_quote_fails(tmp_path):
         dst = copy.parent / q.source
         dst.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(md.parent / q.source, dst)
-        copy.write_text(text.replace(marker, f"[{changed}]({q.source}#{q.selector})", 1),
-                        encoding="utf-8")
+        if q.kind == "count":  # the values are in the counts.json beside the counts.md
+            shutil.copy((md.parent / q.source).with_suffix(".json"), dst.with_suffix(".json"))
+        lines = text.split("\n")  # on the quote's own line: the same marker may also be shown
+        lines[q.line - 1] = lines[q.line - 1].replace(  # as an example in a code span above
+            marker, f"[{changed}]({q.source}#{q.selector})", 1)
+        copy.write_text("\n".join(lines), encoding="utf-8")
         _, bad = check_quotes(copy)
         assert any(b.quote == changed and b.value is not None for b in bad), (q, changed)
 
