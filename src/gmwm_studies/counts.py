@@ -45,7 +45,9 @@ After a new run, :func:`refresh_quotes` (``python -m gmwm_studies.counts refresh
 rewrites every count and cell marker whose quote no longer matches to the file's current value
 at the quote's significant digits (:func:`format_like`), atomically, and prints each change;
 ``--check`` writes nothing and exits 1 on a stale quote. A marker whose file, count or cell is
-gone is an error naming its line and link, and then nothing is written.
+gone is an error naming its line and link, and then nothing is written. :func:`plain_numbers`
+lists the numbers a page still writes as plain text outside the classes that stay plain (the
+papers' own numbers, names, design values, computed ones marked "="): the count to bring down.
 """
 
 from __future__ import annotations
@@ -674,7 +676,8 @@ _NAMED = re.compile(  # a number naming a thing, not quoting a value ("Fig 4", "
     r"(?:\b(?:Figs?|Fig\.|Tables?|Sec|Sec\.|Section|Lemmas?|Cor\.?|Corollary|Theorems?|Remarks?|"
     r"Models?|Simulations?|[Cc]ases?|[Pp]apers?|issues?|items?|Eqs?\.?|SPEC|run|commit|"
     r"[Ss]tage|[Ss]tep|[Pp]hase|Hz|Mode|replicate|replicates|iteration|axis|Chapter|line|"
-    r"Proposition|Prop\.|Definition|Algorithm|Assumption|[Cc]olumn|factor|gyros?|order)"
+    r"Proposition|Prop\.|Definition|Algorithm|Assumption|[Cc]olumn|factor|gyros?|order|Sim|"
+    r"Pixhawk|[A-Z]{2,}\(\s*(?:\d+,\s*)?)"
     r"|§)\s*(?:[\w.]+\s*(?:,|-|\u2013|and|/)\s*)*$")
 _DESIGN = re.compile(r"=\s*(?:[^\s|;,()]+\s+(?:\.\.\.|to|-)\s+)?$")
 _DESIGN_LIST = re.compile(  # "m = 4096 / 8192 / 16384", "(phi, theta) = (0.9, -0.5), (0.9, 0.5)"
