@@ -22,10 +22,17 @@ target is the CSV or JSON file and the fragment selects the cell,
 
 * CSV: ``[0.9376](svo/case2/wv.csv#method=rdvg&level=15&col=ratio_to_equal)``: the rows whose
   ``<key>`` columns equal the values (as text, or as numbers when both parse), the ``col``
-  column; exactly one row unless ``agg=min``, ``agg=max`` or ``agg=mean`` (over the selected
-  rows, e.g. for a quoted range's ends; ``<key><<number>`` and ``<key>>=<number>`` etc. select rows by a numeric key's
-  range); ``mul=100`` multiplies (a percentage), ``abs=1`` takes |x| before that; a
-  space or ``&`` in a value is written ``%20`` / ``%26`` (URL encoding);
+  column; exactly one row unless ``agg=min``, ``agg=max``, ``agg=mean`` or ``agg=sum`` (over
+  the selected rows, e.g. for a quoted range's ends or a count over several rows;
+  ``<key><<number>`` and ``<key>>=<number>`` etc. select rows by a numeric key's range; a row
+  whose cell is empty fails unless such a range on that column leaves it out);
+  ``over.<key>=<value>`` divides the cell by the cell of the row with that key replaced (a ratio
+  of two cells, one row each: ``...&estimator=avsm&col=rmse&over.estimator=gmwm_cf`` is AVSM's
+  RMSE over the GMWM's); ``less.<key>=<value>`` likewise subtracts that cell (a difference);
+  ``plus=<column>`` / ``minus=<column>`` add / subtract another column of the same row (before
+  ``agg``, ``over``, ``less``);
+  ``mul=100`` multiplies (a percentage), ``abs=1`` takes |x| before that;
+  a space or ``&`` in a value is written ``%20`` / ``%26`` (URL encoding);
 * JSON: ``[1.00004](allan/summary.json#fig41/N/mc_mean)``: keys (a list's index) separated by
   ``/``, with the same ``&mul=`` and ``&abs=`` options.
 
@@ -33,6 +40,14 @@ A number that no committed file holds (a time from an uncommitted run, a count o
 whose per-replicate file is not committed) is marked ``[145](#untraced "why")``: the link goes to
 the page's own list of such numbers, and the checker counts them. Rendered, every marker is the
 number as a link to its source (or to that list).
+
+After a new run, :func:`refresh_quotes` (``python -m gmwm_studies.counts refresh PAGE.md``)
+rewrites every count and cell marker whose quote no longer matches to the file's current value
+at the quote's significant digits (:func:`format_like`), atomically, and prints each change;
+``--check`` writes nothing and exits 1 on a stale quote. A marker whose file, count or cell is
+gone is an error naming its line and link, and then nothing is written. :func:`plain_numbers`
+lists the numbers a page still writes as plain text outside the classes that stay plain (the
+papers' own numbers, names, design values, computed ones marked "="): the count to bring down.
 """
 
 from __future__ import annotations
@@ -59,8 +74,10 @@ __all__ = [
     "RIDGE_FACTOR",
     "UNTRACED_MARKER",
     "WILD_ROBUST_SD",
+    "Change",
     "Count",
     "Mismatch",
+    "PlainNumber",
     "Quote",
     "cell_value",
     "check_markers",
@@ -69,8 +86,13 @@ __all__ = [
     "factor2_off",
     "find_markers",
     "find_quotes",
+    "format_like",
+    "main",
+    "plain_numbers",
+    "plan_refresh",
     "quoted_matches",
     "read_counts",
+    "refresh_quotes",
     "render_counts_markdown",
     "study_counts",
     "write_counts",
@@ -343,14 +365,54 @@ def read_counts(path: str | os.PathLike) -> dict[str, Any]:
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
 
 
+def _sig_digits(q: str) -> int:
+    """Significant digits of a number as written (leading zeros not counted, trailing ones are:
+    ``37`` has 2, ``0.0120`` has 3)."""
+    mantissa = re.split(r"[eE]", q)[0].lstrip("+-").replace(".", "").lstrip("0") or "0"
+    return max(1, len(mantissa))
+
+
 def quoted_matches(quote: str, value: float | None) -> bool:
     """True when ``value`` rounded to the significant digits of ``quote`` equals it."""
     q = quote.strip().replace("\u2212", "-")
     if value is None or not _NUMBER.match(q):
         return False
-    mantissa = re.split(r"[eE]", q)[0].lstrip("+-").replace(".", "").lstrip("0") or "0"
-    sig = max(1, len(mantissa))
-    return float(f"{float(value):.{sig}g}") == float(q)
+    return float(f"{float(value):.{_sig_digits(q)}g}") == float(q)
+
+
+def format_like(quote: str, value: float) -> str:
+    """``value`` written the way ``quote`` is: the same significant digits and notation (fixed or
+    exponent, ``e``/``E``, a leading ``+``, the U+2212 minus). An integer quote of an integral
+    value is the integer itself (a count that grows a digit keeps every digit). Raises
+    ``InputError`` when the quote is no number or the value is not finite."""
+    q = quote.strip()
+    plain = q.replace("\u2212", "-")
+    if not _NUMBER.match(plain):
+        raise InputError(f"quote {quote!r} is not a number")
+    if not math.isfinite(value):
+        raise InputError(f"value {value!r} is not a finite number")
+    sig = _sig_digits(plain)
+    exp_char = next((c for c in "eE" if c in plain), "")
+    if exp_char:
+        mant, e = f"{value:.{sig - 1}e}".split("e")
+        q_exp = plain.split(exp_char)[1]
+        width = len(q_exp.lstrip("+-"))  # 1.0e-05 stays zero-padded
+        sign = "-" if int(e) < 0 else ("+" if q_exp.startswith("+") else "")
+        e_txt = f"{sign}{abs(int(e)):0{width}d}"
+        out = f"{mant}{exp_char}{e_txt}"
+    elif "." not in plain and float(value).is_integer():
+        out = str(int(value))
+    else:
+        r = float(f"{value:.{sig}g}")
+        decimals = sig - 1 - (math.floor(math.log10(abs(r))) if r else 0)
+        out = f"{r:.{decimals}f}" if decimals >= 0 else str(int(r))
+        if decimals == 0 and plain.endswith("."):
+            out += "."
+    if plain.startswith("+") and not out.startswith("-"):
+        out = "+" + out
+    if "\u2212" in q:
+        out = out.replace("-", "\u2212")
+    return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -393,7 +455,7 @@ def check_markers(md_path: str | os.PathLike) -> tuple[int, list[Mismatch]]:
     return len(markers), bad
 
 
-_OPTIONS = ("col", "agg", "mul", "abs")
+_OPTIONS = ("col", "agg", "mul", "abs", "plus", "minus")
 
 
 def _same(cell: str, want: str) -> bool:
@@ -420,6 +482,8 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
     else:
         keys, rest = [], parts
     filters: list[tuple[str, str]] = []
+    over: dict[str, str] = {}
+    less: dict[str, str] = {}
     ranges: list[tuple[str, str, float]] = []
     for part in rest:
         m = re.fullmatch(r"([^<>=]+)(<=|>=|<|>)([^<>=]+)", part)
@@ -434,6 +498,10 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
             raise InputError(f"selector part {part!r} is not key=value")
         if k in _OPTIONS:
             opts[k] = v
+        elif k.startswith("over."):
+            over[k[5:]] = v
+        elif k.startswith("less."):
+            less[k[5:]] = v
         else:
             filters.append((k, v))
     if path.suffix == ".json":
@@ -447,27 +515,61 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
             else:
                 raise InputError(f"{path.name}: no key {k!r} on the path {'/'.join(keys)}")
         values = [node]
+        if over or less:
+            raise InputError(f"{path.name}: over.<key> and less.<key> are for CSV tables")
     else:
         df = _read_csv(path)
         col = opts.get("col")
         if col is None or col not in df.columns:
             raise InputError(f"{path.name}: no column {col!r}")
-        mask = np.ones(len(df), dtype=bool)
-        for k, v in filters:
-            if k not in df.columns:
-                raise InputError(f"{path.name}: no key column {k!r}")
-            mask &= np.array([_same(c, v) for c in df[k]])
-        for k, op, bound in ranges:
-            if k not in df.columns:
-                raise InputError(f"{path.name}: no key column {k!r}")
-            x = pd.to_numeric(df[k], errors="coerce").to_numpy(float)
-            mask &= {"<": x < bound, ">": x > bound, "<=": x <= bound, ">=": x >= bound}[op]
-        values = df.loc[mask, col].tolist()
-        if not values:
-            raise InputError(f"{path.name}: no row with {dict(filters)}")
-        if len(values) > 1 and "agg" not in opts:
-            raise InputError(f"{path.name}: {len(values)} rows with {dict(filters)} (add keys "
-                             "or agg=min|max|mean)")
+
+        def select(filters: list[tuple[str, str]]) -> list[str]:
+            mask = np.ones(len(df), dtype=bool)
+            for k, v in filters:
+                if k not in df.columns:
+                    raise InputError(f"{path.name}: no key column {k!r}")
+                mask &= np.array([_same(c, v) for c in df[k]])
+            for k, op, bound in ranges:
+                if k not in df.columns:
+                    raise InputError(f"{path.name}: no key column {k!r}")
+                x = pd.to_numeric(df[k], errors="coerce").to_numpy(float)
+                mask &= {"<": x < bound, ">": x > bound, "<=": x <= bound, ">=": x >= bound}[op]
+            values = df.loc[mask, col].tolist()
+            for op in ("plus", "minus"):  # another column of the same row, added / subtracted
+                if op in opts:
+                    other = opts[op]
+                    if other not in df.columns:
+                        raise InputError(f"{path.name}: no column {other!r} ({op}=)")
+                    try:
+                        sign = 1.0 if op == "plus" else -1.0
+                        values = [str(float(a) + sign * float(b))
+                                  for a, b in zip(values, df.loc[mask, other], strict=True)]
+                    except ValueError:
+                        raise InputError(f"{path.name}#{selector}: {col} {op} {other}: "
+                                         "not numbers") from None
+            if not values:
+                raise InputError(f"{path.name}: no row with {dict(filters)}")
+            if len(values) > 1 and ("agg" not in opts or over or less):
+                raise InputError(f"{path.name}: {len(values)} rows with {dict(filters)} (add keys"
+                                 + (")" if over or less else " or agg=min|max|mean|sum)"))
+            return values
+
+        values = select(filters)
+        if over and less:
+            raise InputError(f"{path.name}#{selector}: over.<key> or less.<key>, not both")
+        if over or less:  # a ratio or difference of two cells: this row and the row with the
+            other = over or less  # keys replaced
+            unknown = sorted(set(other) - {k for k, _ in filters})
+            if unknown:
+                raise InputError(f"{path.name}: over.<key> / less.<key> must replace a key of the "
+                                 f"selector: {unknown}")
+            den = select([(k, other.get(k, v)) for k, v in filters])
+            try:
+                a, b = float(values[0]), float(den[0])
+                values = [a / b if over else a - b]
+            except (TypeError, ValueError, ZeroDivisionError):
+                raise InputError(f"{path.name}#{selector}: not two numbers: "
+                                 f"{values[0]!r}, {den[0]!r}") from None
     try:
         x = np.array([float(v) for v in values])
     except (TypeError, ValueError):
@@ -475,9 +577,9 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
     if opts.get("abs") == "1":
         x = np.abs(x)
     agg = opts.get("agg", "min")
-    if agg not in ("min", "max", "mean"):
-        raise InputError(f"agg={agg!r}: min, max or mean")
-    v = float({"min": np.min, "max": np.max, "mean": np.mean}[agg](x))
+    if agg not in ("min", "max", "mean", "sum"):
+        raise InputError(f"agg={agg!r}: min, max, mean or sum")
+    v = float({"min": np.min, "max": np.max, "mean": np.mean, "sum": np.sum}[agg](x))
     return v * float(opts.get("mul", "1"))
 
 
@@ -504,20 +606,28 @@ class Quote:
     selector: str
 
 
+def _mask_code(line: str) -> str:
+    """``line`` with its inline code spans blanked (same length, so positions stay valid)."""
+    return re.sub(r"`[^`]*`", lambda m: " " * len(m.group(0)), line)
+
+
+def _line_quotes(i: int, line: str) -> list[tuple[re.Match[str], Quote]]:
+    """The markers of one line (code spans skipped) with their matches, in order."""
+    line = _mask_code(line)
+    hits = [(m, Quote(i, "count", m.group("quote"), m.group("file"), m.group("name")))
+            for m in MARKER.finditer(line)]
+    hits += [(m, Quote(i, "cell", m.group("quote"), m.group("file"), m.group("selector")))
+             for m in CELL_MARKER.finditer(line)]
+    hits += [(m, Quote(i, "untraced", m.group("quote"), "", m.group("why") or ""))
+             for m in UNTRACED_MARKER.finditer(line)]
+    return sorted(hits, key=lambda h: h[0].start())
+
+
 def find_quotes(text: str) -> list[Quote]:
     """Every marker of a Markdown text (count, table cell, untraced), in order of appearance.
     Inline code spans are skipped (a marker shown as an example is not a quote)."""
-    out = []
-    for i, line in enumerate(text.splitlines(), start=1):
-        line = re.sub(r"`[^`]*`", "", line)
-        hits = [(m.start(), Quote(i, "count", m.group("quote"), m.group("file"), m.group("name")))
-                for m in MARKER.finditer(line)]
-        hits += [(m.start(), Quote(i, "cell", m.group("quote"), m.group("file"),
-                                   m.group("selector"))) for m in CELL_MARKER.finditer(line)]
-        hits += [(m.start(), Quote(i, "untraced", m.group("quote"), "", m.group("why") or ""))
-                 for m in UNTRACED_MARKER.finditer(line)]
-        out += [q for _, q in sorted(hits, key=lambda h: h[0])]
-    return out
+    return [q for i, line in enumerate(text.splitlines(), start=1)
+            for _, q in _line_quotes(i, line)]
 
 
 def check_quotes(md_path: str | os.PathLike) -> tuple[list[Quote], list[Mismatch]]:
@@ -540,8 +650,228 @@ def check_quotes(md_path: str | os.PathLike) -> tuple[list[Quote], list[Mismatch
     return quotes, sorted(bad, key=lambda b: b.line)
 
 
+@dataclasses.dataclass(frozen=True)
+class PlainNumber:
+    """A number written as plain text (no marker): its line, column (0-based), text and the text
+    around it."""
+
+    line: int
+    start: int
+    text: str
+    context: str
+
+
+_PLAIN = re.compile(r"(?<![\w.^_/#\\\-+\u2212\[])[+\-\u2212]?"
+                    r"(?:\d{1,3}(?:,\d{3})+|\d+)(?:\.\d+)?(?:[eE][+\-]?\d+)?(?![\w\[.]\w|[\w\[/])"
+                    r"|(?<=\d[-\u2013])(?:\d+)(?:\.\d+)?(?:[eE][+\-]?\d+)?(?![\w\[])")
+_NOT_QUOTES = [  # spans that hold no quoted number (blanked before numbers are looked for)
+    re.compile(r"`[^`]*`"),  # code
+    re.compile(r"\]\([^()\s]*(?:\([^()\s]*\)[^()\s]*)*(?:\s+\"[^\"]*\")?\)"),  # link targets
+    re.compile(r"<[^>]+>"),  # HTML tags (anchors)
+    re.compile(r"\[\^[^\]]+\]"),  # footnote references
+    re.compile(r"\b\d{4}-\d\d-\d\d\b|\b\d\d:\d\d(?::\d\d)?\b"),  # dates, clock times
+    re.compile(r"\b[0-9a-f]{7,40}\b"),  # commits
+]
+_NAMED = re.compile(  # a number naming a thing, not quoting a value ("Fig 4", "Simulation 2")
+    r"(?:\b(?:Figs?|Fig\.|Tables?|Sec|Sec\.|Section|Lemmas?|Cor\.?|Corollary|Theorems?|Remarks?|"
+    r"Models?|Simulations?|[Cc]ases?|[Pp]apers?|issues?|items?|Eqs?\.?|SPEC|run|commit|"
+    r"[Ss]tage|[Ss]tep|[Pp]hase|Hz|Mode|replicate|replicates|iteration|axis|Chapter|line|"
+    r"Proposition|Prop\.|Definition|Algorithm|Assumption|[Cc]olumn|factor|gyros?|order|Sim|"
+    r"Pixhawk|[A-Z]{2,}\(\s*(?:\d+,\s*)?)"
+    r"|§)\s*(?:[\w.]+\s*(?:,|-|\u2013|and|/)\s*)*$")
+_DESIGN = re.compile(r"=\s*(?:[^\s|;,()]+\s+(?:\.\.\.|to|-)\s+)?$")
+_DESIGN_LIST = re.compile(  # "m = 4096 / 8192 / 16384", "(phi, theta) = (0.9, -0.5), (0.9, 0.5)"
+    r"=\s*(?:[(\[]?[-+\u2212]?[\d.]+(?:e[-+]?\d+)?[)\]]?(?:\s*(?:,|/|\.\.\.|and)\s*))*"
+    r"[(\[]?[-+\u2212]?$")
+_FORMULA_BEFORE = re.compile(r"(?:\+-|\^|\*|\bpi|\bcos\(|\bsin\(|\bln)\s*\(?$")
+_FORMULA_AFTER = re.compile(r"\s*(?:\+-|\^|\*|pi\b|ln\b|tau\b|cos\b|sin\b)")
+_DENOMINATOR = re.compile(r"\)\**\s*(?:/|of(?:\s+(?:the|its))?)\s*$")  # "[304](...) of 500"
+_BOUND = re.compile(r"(?:boundary|\bat|below|reach|cut at)\s*$")  # "at the boundary 0"
+_NOMINAL = re.compile(r"^95\s*%\s*(?:CI|interval|confidence|\w*\s*interval)|^95\s*%$")
+_DESIGN_UNIT = re.compile(  # a design size: "500 replicates", "a 24-point profile"
+    r"[\s-](?:replicates?|replications?|signals|draws|arrays|iterations?|starts|parameters|"
+    r"gyros|clusters|lanes?|submodels|point|fits|training)\b")
+_SAMPLE_SIZE = re.compile(r"^\d(?:\.\d)?e\+?\d+$")  # T = 1e4 ... 1.6e5, written "at 1.6e5"
+_SAMPLE_SIZE_BEFORE = re.compile(r"(?:\bat|\(|T\s*[<>]=?|\bfrom)\s*$")
+
+
+def _table_columns(header: str) -> list[str]:
+    return [c.strip().lower() for c in re.split(r"(?<!\\)\|", header.strip().strip("|"))]
+
+
+def plain_numbers(text: str) -> list[PlainNumber]:
+    """Numbers of a Markdown text written as plain text and outside the classes that stay plain:
+    markers (:func:`find_quotes`), code, link targets, footnote labels, dates, commits, headings,
+    a number naming a thing (``Fig 4``, ``Simulation 2``, ``AR1``, ``SIN[2]``), a value after
+    ``=`` (a design value such as ``T = 1e4`` or a ratio the page computes) or in a clause (up
+    to ``;`` or ``|``) marked ``(= ...)`` as computed, a constant of a formula (beside ``+-``,
+    ``^``, ``pi``, ``cos``), the bound 0 ("at the boundary 0"), a nominal 95 %, the design
+    denominator of a linked count (``[304](...) of 500``), a design size
+    (``500 replicates``, ``at 1.6e5``: a sample size in e-notation after "at", "(", "from"), and a table's
+    ``paper's claim`` column (the paper's own numbers). What is left is a number quoted without
+    a link to its source: the count a page should bring to 0."""
+    out = []
+    paper_cols: set[int] = set()
+    header: list[str] | None = None
+    for i, line in enumerate(text.splitlines(), start=1):
+        if line.lstrip().startswith("#"):
+            continue
+        masked = line
+        for m_, _q in _line_quotes(i, line):
+            masked = masked[:m_.start()] + " " * (m_.end() - m_.start()) + masked[m_.end():]
+        for pat in _NOT_QUOTES:
+            masked = pat.sub(lambda m: " " * len(m.group(0)), masked)
+        if line.startswith("|"):
+            cells = _table_columns(line)
+            if header is None:
+                header = cells
+                paper_cols = {k for k, c in enumerate(header) if "paper" in c}
+                continue
+            if all(re.fullmatch(r":?-+:?", c) for c in cells if c):
+                continue
+        else:
+            header, paper_cols = None, set()
+        bounds = [m.start() for m in re.finditer(r"(?<!\\)\|", line)] if header else []
+        # a clause with "(= ..." holds numbers the page computes (marked "=" after them)
+        computed = [(c.start(), c.end()) for c in re.finditer(r"[^;|]+", masked)
+                    if "(=" in c.group(0)]
+        for m in _PLAIN.finditer(masked):
+            before = masked[max(0, m.start() - 40):m.start()]
+            col = sum(b < m.start() for b in bounds) - 1
+            after = masked[m.end():m.end() + 14]
+            if (col in paper_cols or _NAMED.search(before) or _DESIGN.search(before)
+                    or any(a <= m.start() < b for a, b in computed)
+                    or _DESIGN_UNIT.match(after) or _DESIGN_LIST.search(before)
+                    or _DENOMINATOR.search(line[:m.start()])
+                    or (m.group(0) == "0" and _BOUND.search(before))
+                    or _NOMINAL.match(masked[m.start():m.end() + 16])
+                    or re.search(r"nominal\s*$", before)
+                    or _FORMULA_BEFORE.search(before) or _FORMULA_AFTER.match(after)
+                    or (_SAMPLE_SIZE.match(m.group(0)) and _SAMPLE_SIZE_BEFORE.search(before))):
+                continue
+            out.append(PlainNumber(i, m.start(), m.group(0),
+                                   line[max(0, m.start() - 40):m.end() + 10]))
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class Change:
+    """One quote :func:`refresh_quotes` rewrites: ``link`` the marker's target as written."""
+
+    line: int
+    link: str
+    old: str
+    new: str
+    value: float
+
+
+def _quote_value(q: Quote, base: Path, counts_cache: dict[Path, dict[str, Any]]) -> float:
+    """The current value of a count or cell marker (``InputError`` naming why there is none)."""
+    if q.kind == "cell":
+        return cell_value(base / q.source, q.selector)
+    json_path = (base / q.source).with_suffix(".json")
+    if json_path not in counts_cache:
+        counts_cache[json_path] = read_counts(json_path)
+    counts = counts_cache[json_path]
+    if q.selector not in counts:
+        raise InputError(f"no count {q.selector!r} in {json_path.name}")
+    if counts[q.selector] is None:
+        raise InputError(f"count {q.selector!r} is undefined in {json_path.name}")
+    return float(counts[q.selector])
+
+
+def plan_refresh(text: str, base: str | os.PathLike) -> tuple[str, list[Change], list[str]]:
+    """Every count and cell marker of a Markdown ``text`` (links relative to ``base``) rewritten
+    to its file's current value at the quote's precision (:func:`format_like`); quotes that
+    already match are left as written. Returns (new text, changes, errors): an error is one line
+    ``line <n>: <marker>: <why>`` for a marker whose file, count or cell is gone."""
+    base = Path(base)
+    cache: dict[Path, dict[str, Any]] = {}
+    changes: list[Change] = []
+    errors: list[str] = []
+    lines = text.splitlines(keepends=True)
+    for i, line in enumerate(lines, start=1):
+        edits = []
+        for m, q in _line_quotes(i, line):
+            if q.kind == "untraced":
+                continue
+            link = f"{q.source}#{q.selector}"
+            try:
+                value = _quote_value(q, base, cache)
+                if quoted_matches(q.quote, value):
+                    continue
+                new = format_like(q.quote, value)
+                if not quoted_matches(new, value):  # cannot happen unless the rounding disagrees
+                    raise InputError(f"{new!r} does not round back to {value!r}")
+            except InputError as e:
+                errors.append(f"line {i}: [{q.quote}]({link}): {e}")
+                continue
+            changes.append(Change(i, link, q.quote, new, value))
+            edits.append((m.start("quote"), m.end("quote"), new))
+        for start, end, new in reversed(edits):
+            line = line[:start] + new + line[end:]
+        lines[i - 1] = line
+    return "".join(lines), changes, errors
+
+
+def refresh_quotes(md_path: str | os.PathLike, *, write: bool = True
+                   ) -> tuple[list[Change], list[str]]:
+    """Bring every count and cell marker of a Markdown file up to its file's current value
+    (:func:`plan_refresh`). The page is rewritten atomically, only when ``write``, there is a
+    change and no error (a page with a broken link is left as it is). Returns (changes, errors)."""
+    md_path = Path(md_path)
+    if not md_path.is_file():
+        raise InputError(f"page not found: {md_path}")
+    text = md_path.read_text(encoding="utf-8")
+    new_text, changes, errors = plan_refresh(text, md_path.parent)
+    if write and changes and not errors:
+        write_text_atomic(md_path, new_text)
+    return changes, errors
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m gmwm_studies.counts refresh PAGE.md [--check]``: rewrite the page's count and
+    cell markers to their files' current values and print each change (``--check``: write
+    nothing, exit 1 on any stale quote). Exit 1 on a broken link (nothing written), 2 on bad
+    arguments."""
+    import argparse
+    import sys
+
+    ap = argparse.ArgumentParser(prog="python -m gmwm_studies.counts",
+                                 description="Quoted numbers of a Markdown page and their files.")
+    sub = ap.add_subparsers(dest="command", required=True)
+    rp = sub.add_parser("refresh", help="rewrite every linked quote to its file's current value")
+    rp.add_argument("page", help="Markdown page (links relative to its directory)")
+    rp.add_argument("--check", action="store_true",
+                    help="write nothing; exit 1 when a quote is stale or a link broken")
+    args = ap.parse_args(argv)
+    try:
+        changes, errors = refresh_quotes(args.page, write=not args.check)
+    except InputError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    for c in changes:
+        print(f"line {c.line}: [{c.old}] -> [{c.new}] ({c.link} = {c.value:.10g})")
+    for e in errors:
+        print(f"error: {e}", file=sys.stderr)
+    if errors:
+        print(f"{len(errors)} broken link(s): {args.page} left unchanged", file=sys.stderr)
+        return 1
+    if args.check:
+        print(f"{len(changes)} stale quote(s) in {args.page}" if changes
+              else f"every linked quote of {args.page} matches its file")
+        return 1 if changes else 0
+    print(f"{len(changes)} quote(s) rewritten in {args.page}" if changes
+          else f"every linked quote of {args.page} already matches its file")
+    return 0
+
+
 def collect(tables: Iterable[tuple[str, pd.DataFrame, Mapping[str, Any], str, bool]]
             ) -> list[Count]:
     """:func:`study_counts` over (study, table, record, source, label_T) tuples, concatenated."""
     return [c for study, df, rec, src, lab in tables
             for c in study_counts(study, df, rec, src, label_T=lab)]
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
