@@ -131,15 +131,17 @@ def wccv_sums(x: np.ndarray, n_levels: int, n_block: int, sums: np.ndarray, buf_
 
 @njit(cache=True, inline="always")
 def _haar_step(cur: np.ndarray, nxt: np.ndarray, t: int, lag: int, y: np.ndarray,
-               w: np.ndarray) -> float:
+               w: np.ndarray, keep: bool) -> float:
     """One Haar step at time ``t``: wavelet coefficients into ``w``, the next level's scaling
-    coefficients into ``nxt[t]``; returns the projection ``w'y``."""
+    coefficients into ``nxt[t]`` if ``keep`` (not at the last level); returns the projection
+    ``w'y``."""
     s = 0.0
     for i in range(w.shape[0]):
         a = cur[t, i]
         b = cur[t - lag, i]
         w[i] = 0.5 * (a - b)
-        nxt[t, i] = 0.5 * (a + b)
+        if keep:
+            nxt[t, i] = 0.5 * (a + b)
         s += w[i] * y[i]
     return s
 
@@ -214,7 +216,7 @@ def mbb_pass(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
                     ib += 1
             if m == Mj:
                 break
-            s = _haar_step(cur, nxt, m + tau - 1, lag, y, w)
+            s = _haar_step(cur, nxt, m + tau - 1, lag, y, w, j < J)
             if do_p:
                 if full:
                     q = 0
