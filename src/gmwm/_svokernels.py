@@ -128,6 +128,9 @@ def wccv_sums(x: np.ndarray, n_levels: int, n_block: int, sums: np.ndarray, buf_
 # --------------------------------------------------------------------------------------------------
 # moving-block bootstrap of SVO
 
+#: time-scheme blocks whose prefix-sum rows are read ahead together (see mbb_pass)
+_TOUCH = 512
+
 
 @njit(cache=True, inline="always")
 def _haar_step(cur: np.ndarray, nxt: np.ndarray, t: int, lag: int, y: np.ndarray,
@@ -182,6 +185,7 @@ def mbb_pass(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
     f = np.empty(qj)
     cp = np.empty(qj)
     rs = np.empty(Hp, dtype=np.int64)
+    touch = 0.0
     for j in range(1, J + 1):
         lag = 1 << (j - 1)
         tau = 2 * lag
@@ -245,17 +249,28 @@ def mbb_pass(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
                         cum[m + 1, i] = cum[m, i] + s * w[i]
         for h in range(Ht if do_t else 0):
             cnt = 0
-            for bi in range(nbt):
-                length = t_last if bi == nbt - 1 else t_block
-                lo = max(t_starts[h, bi] - sh, 0)
-                hi = t_starts[h, bi] + length - sh
-                if hi <= lo:
-                    continue
-                cnt += hi - lo
-                for q in range(qj):
-                    t_sums[h, j - 1, q] += cum[hi, q] - cum[lo, q]
+            for c0 in range(0, nbt, _TOUCH):
+                c1 = min(nbt, c0 + _TOUCH)
+                # read the chunk's random rows once with nothing waiting on them, so that many
+                # cache misses are in flight at once (a prefetch); the sums below then hit cache
+                for bi in range(c0, c1):
+                    length = t_last if bi == nbt - 1 else t_block
+                    lo = max(t_starts[h, bi] - sh, 0)
+                    hi = max(t_starts[h, bi] + length - sh, lo)
+                    touch += cum[hi, 0] + cum[hi, qj - 1] + cum[lo, 0] + cum[lo, qj - 1]
+                for bi in range(c0, c1):
+                    length = t_last if bi == nbt - 1 else t_block
+                    lo = max(t_starts[h, bi] - sh, 0)
+                    hi = t_starts[h, bi] + length - sh
+                    if hi <= lo:
+                        continue
+                    cnt += hi - lo
+                    for q in range(qj):
+                        t_sums[h, j - 1, q] += cum[hi, q] - cum[lo, q]
             t_counts[h, j - 1] = cnt
         cur, nxt = nxt, cur
+    if do_t:
+        cum[0, 0] = touch  # (keeps the prefetch reads; cum is a work array)
     if not do_p:
         return
     for r in range(1, MJ + 1):
