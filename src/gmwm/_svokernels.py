@@ -163,7 +163,8 @@ def mbb_pass(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
     The paper scheme keeps its per-level prefix sum ``cum[m]`` as a running sum and captures the
     ``2 H`` refill rows as the pass reaches them (refill starts visited in sorted order); the time
     scheme stores ``cum`` (``(T+1, q)``, passed in with the pyramid's two level arrays, see
-    :func:`gmwm.virtual._pass_buffers`) as its blocks start anywhere. Every floating-point
+    :func:`gmwm.virtual._pass_buffers`) as its blocks start anywhere, and reads each draw's
+    random rows ahead in chunks of ``_TOUCH`` blocks before summing them. Every floating-point
     operation and its order are those of running the two schemes one by one with separate
     kernels (``cum[m+1] = cum[m] + f_m``; a draw adds ``cum[hi] - cum[lo]`` per block in block
     order), so the output is bit-identical to that (tests/test_svo.py checks it)."""
