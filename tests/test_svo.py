@@ -561,3 +561,19 @@ def test_wv_table_population_ratios():
     case2 = {(r["method"], r["level"]): r for r in wv_table(res, 10.0, "case2")}
     assert np.isnan(case2[("rdvg", 19)]["true_ratio_to_equal"])
     assert "true_ratio_to_equal" not in wv_table(res, 10.0)[0]
+
+
+def test_train_fit_shortcuts_keep_the_estimates_bit_for_bit():
+    """svo_train's virtual-signal fits take the eta_3 interval and se_cov="gaussian" (cheaper):
+    the stored WV and WN+RW estimates equal those of the default mixture interval and
+    model-based covariance exactly."""
+    from gmwm_studies.svo_study import _wn_rw_fit, method_coefs
+
+    cs = case("case1")
+    coefs, _ = method_coefs(cs.simulate(2**14, np.random.default_rng(1)), 12)
+    W = wccv(cs.simulate(2**14, np.random.default_rng(2)), 12)
+    for c in coefs.values():
+        fast, ref = W.combine(c, ci="eta3"), W.combine(c)
+        assert np.array_equal(fast.variance, ref.variance)
+        d = gmwm.fit(ref, "WN+RW", n_starts=1).as_dict()
+        assert _wn_rw_fit(fast) == (d["WN[1].sigma2"], d["RW[1].gamma2"])

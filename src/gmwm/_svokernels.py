@@ -128,18 +128,23 @@ def wccv_sums(x: np.ndarray, n_levels: int, n_block: int, sums: np.ndarray, buf_
 # --------------------------------------------------------------------------------------------------
 # moving-block bootstrap of SVO
 
+#: time-scheme blocks whose prefix-sum rows are read ahead together (see mbb_pass)
+_TOUCH = 512
+
 
 @njit(cache=True, inline="always")
 def _haar_step(cur: np.ndarray, nxt: np.ndarray, t: int, lag: int, y: np.ndarray,
-               w: np.ndarray) -> float:
+               w: np.ndarray, keep: bool) -> float:
     """One Haar step at time ``t``: wavelet coefficients into ``w``, the next level's scaling
-    coefficients into ``nxt[t]``; returns the projection ``w'y``."""
+    coefficients into ``nxt[t]`` if ``keep`` (not at the last level); returns the projection
+    ``w'y``."""
     s = 0.0
     for i in range(w.shape[0]):
         a = cur[t, i]
         b = cur[t - lag, i]
         w[i] = 0.5 * (a - b)
-        nxt[t, i] = 0.5 * (a + b)
+        if keep:
+            nxt[t, i] = 0.5 * (a + b)
         s += w[i] * y[i]
     return s
 
@@ -158,7 +163,8 @@ def mbb_pass(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
     The paper scheme keeps its per-level prefix sum ``cum[m]`` as a running sum and captures the
     ``2 H`` refill rows as the pass reaches them (refill starts visited in sorted order); the time
     scheme stores ``cum`` (``(T+1, q)``, passed in with the pyramid's two level arrays, see
-    :func:`gmwm.virtual._pass_buffers`) as its blocks start anywhere. Every floating-point
+    :func:`gmwm.virtual._pass_buffers`) as its blocks start anywhere, and reads each draw's
+    random rows ahead in chunks of ``_TOUCH`` blocks before summing them. Every floating-point
     operation and its order are those of running the two schemes one by one with separate
     kernels (``cum[m+1] = cum[m] + f_m``; a draw adds ``cum[hi] - cum[lo]`` per block in block
     order), so the output is bit-identical to that (tests/test_svo.py checks it)."""
@@ -180,6 +186,7 @@ def mbb_pass(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
     f = np.empty(qj)
     cp = np.empty(qj)
     rs = np.empty(Hp, dtype=np.int64)
+    touch = 0.0
     for j in range(1, J + 1):
         lag = 1 << (j - 1)
         tau = 2 * lag
@@ -214,7 +221,7 @@ def mbb_pass(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
                     ib += 1
             if m == Mj:
                 break
-            s = _haar_step(cur, nxt, m + tau - 1, lag, y, w)
+            s = _haar_step(cur, nxt, m + tau - 1, lag, y, w, j < J)
             if do_p:
                 if full:
                     q = 0
@@ -243,17 +250,28 @@ def mbb_pass(x: np.ndarray, J: int, full: bool, y: np.ndarray, wf: np.ndarray,
                         cum[m + 1, i] = cum[m, i] + s * w[i]
         for h in range(Ht if do_t else 0):
             cnt = 0
-            for bi in range(nbt):
-                length = t_last if bi == nbt - 1 else t_block
-                lo = max(t_starts[h, bi] - sh, 0)
-                hi = t_starts[h, bi] + length - sh
-                if hi <= lo:
-                    continue
-                cnt += hi - lo
-                for q in range(qj):
-                    t_sums[h, j - 1, q] += cum[hi, q] - cum[lo, q]
+            for c0 in range(0, nbt, _TOUCH):
+                c1 = min(nbt, c0 + _TOUCH)
+                # read the chunk's random rows once with nothing waiting on them, so that many
+                # cache misses are in flight at once (a prefetch); the sums below then hit cache
+                for bi in range(c0, c1):
+                    length = t_last if bi == nbt - 1 else t_block
+                    lo = max(t_starts[h, bi] - sh, 0)
+                    hi = max(t_starts[h, bi] + length - sh, lo)
+                    touch += cum[hi, 0] + cum[hi, qj - 1] + cum[lo, 0] + cum[lo, qj - 1]
+                for bi in range(c0, c1):
+                    length = t_last if bi == nbt - 1 else t_block
+                    lo = max(t_starts[h, bi] - sh, 0)
+                    hi = t_starts[h, bi] + length - sh
+                    if hi <= lo:
+                        continue
+                    cnt += hi - lo
+                    for q in range(qj):
+                        t_sums[h, j - 1, q] += cum[hi, q] - cum[lo, q]
             t_counts[h, j - 1] = cnt
         cur, nxt = nxt, cur
+    if do_t:
+        cum[0, 0] = touch  # (keeps the prefetch reads; cum is a work array)
     if not do_p:
         return
     for r in range(1, MJ + 1):

@@ -305,7 +305,12 @@ def mbb_svo_draws_schemes(X: Any, cov: np.ndarray, omega: np.ndarray, n_boot: in
                           runs: Sequence[tuple[str, np.random.Generator]]) -> list[np.ndarray]:
     """:func:`mbb_svo_draws` for each ``(scheme, rng)`` of ``runs``, equal to separate calls
     (each scheme draws from its own generator); distinct schemes share one pass over the data."""
-    arr = as_array(X)
+    return _draws_schemes(as_array(X), cov, omega, n_boot, block, runs)
+
+
+def _draws_schemes(arr: np.ndarray, cov: np.ndarray, omega: np.ndarray, n_boot: int, block: int,
+                   runs: Sequence[tuple[str, np.random.Generator]]) -> list[np.ndarray]:
+    """:func:`mbb_svo_draws_schemes` of an array already checked by :func:`as_array`."""
     T, p = arr.shape
     J = cov.shape[0]
     A = _weighted(cov, omega)
@@ -547,7 +552,7 @@ def svo_schemes(X: Any, weights: Any = "short", *, levels: int | None = None, n_
         if blk < 1:
             raise InputError(f"block length must be >= 1, got {block}")
         runs = [(m, np.random.default_rng(sd)) for m, sd in zip(mbb, seeds, strict=True)]
-        dcs = mbb_svo_draws_schemes(arr, W.cov, omega, n_boot, blk, runs)
+        dcs = _draws_schemes(arr, W.cov, omega, n_boot, blk, runs)
         covs = [dc.T @ dc / dc.shape[0] for dc in dcs]
     return [SVOResult(c.copy(), cov, omega.copy(), W, "svo", int(n_boot) if cov is not None else 0, blk, alpha,
                       {"mbb": m} if cov is not None else None)

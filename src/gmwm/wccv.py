@@ -68,7 +68,9 @@ def as_array(X: Any, name: str = "X") -> np.ndarray:
     if arr.shape[1] > arr.shape[0]:
         raise InputError(f"{name} has shape {arr.shape}: more signals than samples "
                          "(pass one signal per column)")
-    bad = ~np.isfinite(arr)
+    if np.isfinite(arr.sum()):  # exact: a NaN or an infinity makes the sum non-finite
+        return arr
+    bad = ~np.isfinite(arr)       # (or the finite values overflowed: look element by element)
     if bad.any():
         t, i = np.argwhere(bad)[0]
         raise InputError(f"{name} contains {int(bad.sum())} NaN/infinite values "
