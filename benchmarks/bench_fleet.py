@@ -1,7 +1,9 @@
-"""The fleet table's statistics by simulation (gmwm.fleet.core), and its time at scale.
+"""The fleet table's statistics by simulation (gmwm.fleet.core), its time at scale, and the scale
+benchmark of ``gmwm fleet`` itself.
 
     python benchmarks/bench_fleet.py [--reps 2000] [--seed 1] [--table-units 10000] [--json F]
-    python benchmarks/bench_fleet.py --units 1000 [--minutes 5] [--cores 2]   # + the overhead
+    python benchmarks/bench_fleet.py --reps 0 --units 1000 [--sample 20] [--minutes 1.5]
+                                     [--long-minutes 4] [--cores 2] [--workdir DIR]
 
 Coverage. Fleets of ``k`` units drawn from the random-effects model on the log scale:
 ``y_i = mu + u_i + e_i``, ``u_i ~ N(0, tau^2)``, ``e_i ~ N(0, s_i^2)`` with ``s_i`` uniform on
@@ -10,18 +12,29 @@ reported: the share whose Q-profile 95 % interval covers the true tau^2 (exact u
 expected 95 %), of the 95 % interval of mu (Paule-Mandel estimate, modified Hartung-Knapp
 interval), and of the 95 % prediction interval for one new unit drawn from the same fleet; each with
 its Monte Carlo SE ``sqrt(p (1 - p) / R)``. The designs include tau = 0 (every lower end is 0, the
-interval covers whenever Q's upper end does).
+interval covers whenever Q's upper end does). ``--reps 0`` skips it.
 
-Overhead (``--units N``, alias ``--overhead N``, off by default): a synthetic fleet of ``N`` static units written by
-``examples/make_fleet.py`` (``--minutes`` each, CSV, six axes), calibrated once by ``gmwm fleet``
-(model WN+RW, ``--cores``) and once by ``N`` separate ``gmwm report`` runs with the same options;
-reported: CPU seconds (user + system of every child process) and wall time of each, and their
-ratio per recording (the fleet's includes Snakemake and the table job), and the peak resident
-memory of the largest single process of each (GNU time, when /usr/bin/time exists).
+Scale (``--units N``, alias ``--overhead N``, off by default). ``examples/make_fleet.py`` writes a
+fleet of ``N`` static six-axis units (``--minutes`` each at 100 Hz; 20 % ROS 1 bags, 20 % HDF5,
+the rest CSV), ``max(1, min(3, N // 20))`` units out of family, ``aging`` recorded 6 times (its
+gyroscope noise density +40 %/year), ``moved`` (static for its first 40 %; both ``--long-minutes``)
+and 3 corrupt files. ``gmwm fleet`` (model WN+RW, ``--cores``) calibrates it once, timed as a
+whole: wall and CPU seconds of the whole process tree (wait4's rusage of every reaped
+descendant), per recording; each job's own wall (its status.json), the table job's wall
+(Snakemake's log); the peak resident memory of the process tree (psutil: the sum over the tree,
+sampled every 0.25 s) and of its largest process (GNU time). A seeded sample of ``--sample`` of the
+recordings (corrupt ones included) is calibrated by separate ``gmwm report`` runs with the same
+options, one at a time: the overhead is the fleet's CPU per recording over the sample's mean CPU
+per report (goal <= 1.2x), with a bootstrap 95 % interval over the sample. Checked (the run fails,
+and writes no README block, otherwise): the out-of-family units are flagged, ``aging``'s
+gyroscope noise-density drift intervals exclude 0, the corrupt files are listed as failed.
 
-Scale. :func:`gmwm.fleet.core.fleet_table` for ``--table-units`` units x 1 coefficient (the
+Table. :func:`gmwm.fleet.core.fleet_table` for ``--table-units`` units x 1 coefficient (the
 whole-fleet band above 500 units, gmwm.fleet.core.LOO_MAX_UNITS) and for 500 units (leave-one-out
 band): CPU seconds.
+
+Only ``--readme`` modifies a tracked file: the generated blocks ``bench_fleet`` (coverage, when
+``--reps`` > 0) and ``bench_fleet_scale`` (with ``--units``) of benchmarks/README.md.
 """
 
 from __future__ import annotations
