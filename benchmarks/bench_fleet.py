@@ -18,9 +18,10 @@ Scale (``--units N``, alias ``--overhead N``, off by default). ``examples/make_f
 fleet of ``N`` static six-axis units (``--minutes`` each at 100 Hz; 20 % ROS 1 bags, 20 % HDF5,
 the rest CSV), ``max(1, min(3, N // 20))`` units out of family, ``aging`` recorded 6 times (its
 gyroscope noise density +40 %/year), ``moved`` (static for its first 40 %; both ``--long-minutes``)
-and 3 corrupt files. ``gmwm fleet`` (model WN+RW, ``--cores``) calibrates it once, timed as a
-whole: wall and CPU seconds of the whole process tree (wait4's rusage of every reaped
-descendant), per recording; each job's own wall (its status.json), the table job's wall
+and 3 corrupt files. ``gmwm fleet`` (model WN+RW, ``--cores``; run in the temporary folder, so no
+workflow profile of the working directory applies) calibrates it once, timed as a whole: wall
+and CPU seconds of the whole process tree (wait4's rusage of every reaped descendant), per
+recording; each job's own wall (its status.json), the table job's wall
 (Snakemake's log); the peak resident memory of the process tree (psutil: the sum over the tree,
 sampled every 0.25 s) and of its largest process (GNU time). A seeded sample of ``--sample`` of the
 recordings (corrupt ones included) is calibrated by separate ``gmwm report`` runs with the same
@@ -99,7 +100,8 @@ REPORT_OPTS = ["--columns", "all", "--units", "gx,gy,gz=rad/s", "--units", "ax,a
 MODEL = "WN+RW"
 
 
-def run_tree(cmd: list[str], env: dict[str, str], every: float = 0.25) -> dict[str, Any]:
+def run_tree(cmd: list[str], env: dict[str, str], cwd: Path | None = None, every: float = 0.25
+             ) -> dict[str, Any]:
     """Run ``cmd`` under GNU time (when /usr/bin/time exists) and return its wall seconds, CPU
     seconds (user + system of the whole process tree: wait4's rusage counts every reaped
     descendant), exit status, stderr, and two peaks of resident memory [MB]: ``tree_rss_mb``,
@@ -117,7 +119,7 @@ def run_tree(cmd: list[str], env: dict[str, str], every: float = 0.25) -> dict[s
     with tempfile.TemporaryFile() as fe, tempfile.NamedTemporaryFile(suffix=".rss") as fr:
         full = [str(gnu_time), "-f", "%M", "-o", fr.name, *cmd] if gnu_time.exists() else cmd
         t0 = time.perf_counter()
-        proc = subprocess.Popen(full, stdout=subprocess.DEVNULL, stderr=fe, env=env)
+        proc = subprocess.Popen(full, stdout=subprocess.DEVNULL, stderr=fe, env=env, cwd=cwd)
         peak = [0]
         done = threading.Event()
 
@@ -229,11 +231,14 @@ def scale(n_units: int, sample: int, minutes: float, long_minutes: float, cores:
         formats: dict[str, int] = {}
         for p in files:
             formats[p.suffix] = formats.get(p.suffix, 0) + 1
+        # run in the temporary folder, as a user runs it from a folder of their own: from the
+        # repository's root, Snakemake would pick up the pipeline's workflow profile
+        # (profiles/default: greedy scheduler, a job rate limit), which users do not get
         print(f"fleet: {len(files)} recordings ({', '.join(f'{v} {k}' for k, v in formats.items())}"
               f") written in {make_s:.0f} s; gmwm fleet on {cores} cores ...", flush=True)
         fleet = run_tree([sys.executable, "-m", "gmwm", "fleet", str(d / "in"), "-o",
                           str(d / "fleet"), "--model", MODEL, *REPORT_OPTS, "--cores",
-                          str(cores), "-q"], env)
+                          str(cores), "-q"], env, cwd=d)
         if fleet["code"] != 0:
             raise SystemExit(f"gmwm fleet failed ({fleet['code']}): {fleet['err'][-2000:]}")
         statuses = [json.loads(p.read_text())
@@ -252,7 +257,7 @@ def scale(n_units: int, sample: int, minutes: float, long_minutes: float, cores:
             f = files[i]
             got = run_tree([sys.executable, "-m", "gmwm", "report", str(f), MODEL,
                             *REPORT_OPTS, "-o", str(d / "rep" / f.stem), "--segment",
-                            "longest-static", "--export", "kalibr,json", "-q"], env)
+                            "longest-static", "--export", "kalibr,json", "-q"], env, cwd=d)
             if got["code"] not in (0, 3) and not f.name.startswith("corrupt"):
                 raise SystemExit(f"gmwm report {f.name} failed ({got['code']}): {got['err']}")
             reps.append({"file": f.name, "cpu_s": got["cpu"], "wall_s": got["wall"],
