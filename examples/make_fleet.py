@@ -1,7 +1,8 @@
 """Write a synthetic fleet of IMU recordings for trying ``gmwm fleet`` (and its benchmark).
 
-    python examples/make_fleet.py FOLDER [--units 12] [--minutes 5] [--freq 100] [--seed 1]
-                                         [--bags 0.25] [--odd 1] [--dated 4] [--corrupt 1]
+    python examples/make_fleet.py FOLDER [--units 12] [--minutes 5] [--long-minutes M]
+                                         [--freq 100] [--seed 1] [--bags 0.25] [--h5 0.25]
+                                         [--odd 1] [--dated 4] [--corrupt 1]
     gmwm fleet FOLDER --columns all --units gx,gy,gz=rad/s --units ax,ay,az=m/s^2 -o fleet
 
 What is written (file names follow the fleet's unit rule ``<unit>_<YYYY-MM-DD>``):
@@ -16,10 +17,15 @@ What is written (file names follow the fleet's unit rule ``<unit>_<YYYY-MM-DD>``
   density growing by 40 % per year;
 * one unit ``moved`` whose log is static for its first 40 % and then turns (the fleet uses the
   static start);
-* ``--corrupt`` unreadable files ``corrupt<k>_...csv``.
+* ``--corrupt`` unreadable files ``corrupt<k>_...``: in turn a CSV with a broken row, a ROS 1 bag
+  cut after its header, an ``.h5`` file that is not HDF5.
 
-A share ``--bags`` of the static units is written as ROS 1 bags (``sensor_msgs/Imu``, by
-``rosbags``' own writer; needs the ``recordings`` extra), the rest as CSV with a time column.
+``aging`` and ``moved`` last ``--long-minutes`` (default ``--minutes``): the fleet needs a static
+stretch of at least 60 s, so ``moved`` needs at least 2.5 minutes, and a longer ``aging`` gives
+its drift a narrower interval. A share ``--bags`` of the static units is written as ROS 1 bags
+(``sensor_msgs/Imu``, by ``rosbags``' own writer; needs the ``recordings`` extra), a share
+``--h5`` as HDF5 (by h5py: 1-D datasets ``time``, ``gx`` ... ``az``), the rest as CSV with a
+time column.
 ``truth.json`` beside them lists every recording's true densities (not a recording suffix:
 the fleet ignores it). Nothing random is unseeded.
 """
@@ -89,45 +95,74 @@ def write_bag(path: Path, data: np.ndarray, freq: float) -> None:
     tmp.replace(path)
 
 
+def write_h5(path: Path, data: np.ndarray, freq: float) -> None:
+    import h5py
+
+    tmp = path.with_name(path.name + ".part.h5")
+    with h5py.File(tmp, "w") as fh:
+        fh.create_dataset("time", data=np.arange(len(data)) / freq)
+        for k, name in enumerate(("gx", "gy", "gz", "ax", "ay", "az")):
+            fh.create_dataset(name, data=data[:, k])
+    tmp.replace(path)
+
+
+WRITERS = {".csv": write_csv, ".bag": write_bag, ".h5": write_h5}
+#: the corrupt files in turn: suffix, content (a broken CSV row, a bag cut after its header, an
+#: .h5 file that is text)
+CORRUPT = ((".csv", b"time,gx,gy,gz,ax,ay,az\n0,1,2\nnot a number\n"),
+           (".bag", b"#ROSBAG V2.0\nE\x00\x00\x00"), (".h5", b"not an HDF5 file\n"))
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("folder", type=Path)
     ap.add_argument("--units", type=int, default=12, help="static units (besides the others)")
     ap.add_argument("--minutes", type=float, default=5.0, help="length of each recording")
+    ap.add_argument("--long-minutes", type=float, default=None,
+                    help="length of the aging and moved units' recordings (default --minutes)")
     ap.add_argument("--freq", type=float, default=100.0, help="sampling rate [Hz]")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--bags", type=float, default=0.0, help="share of units written as bags")
+    ap.add_argument("--h5", type=float, default=0.0, help="share of units written as HDF5")
     ap.add_argument("--odd", type=int, default=1, help="out-of-family units")
     ap.add_argument("--dated", type=int, default=4, help="recordings of the degrading unit")
     ap.add_argument("--corrupt", type=int, default=1, help="unreadable files")
     a = ap.parse_args(argv)
     a.folder.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(a.seed)
+    if a.bags < 0 or a.h5 < 0 or a.bags + a.h5 > 1:
+        ap.error("--bags and --h5 are shares: each >= 0, together <= 1")
     n = int(a.minutes * 60 * a.freq)
+    n_long = int((a.long_minutes or a.minutes) * 60 * a.freq)
     truth: list[dict[str, object]] = []
-    every = round(1 / a.bags) if a.bags > 0 else 0
 
-    def emit(unit: str, date: dt.date, g: float, acc: float, turn: int | None = None,
-             bag: bool = False) -> None:
-        name = f"{unit}_{date.isoformat()}" + (".bag" if bag else ".csv")
-        data = signals(n, a.freq, g, acc, rng, turn)
-        (write_bag if bag else write_csv)(a.folder / name, data, a.freq)
+    def emit(unit: str, date: dt.date, g: float, acc: float, turn: float | None = None,
+             suffix: str = ".csv", length: int = n) -> None:
+        name = f"{unit}_{date.isoformat()}{suffix}"
+        data = signals(length, a.freq, g, acc, rng,
+                       None if turn is None else int(turn * length))
+        WRITERS[suffix](a.folder / name, data, a.freq)
         truth.append({"file": name, "unit": unit, "date": date.isoformat(),
-                      "gyro_noise_density": g, "accel_noise_density": acc})
+                      "gyro_noise_density": g, "accel_noise_density": acc,
+                      "seconds": length / a.freq})
 
     for i in range(a.units):
         g = GYRO_ND * math.exp(rng.normal(0, SPREAD))
         acc = ACCEL_ND * math.exp(rng.normal(0, SPREAD))
-        emit(f"unit{i:04d}", DAY0, g, acc, bag=bool(every) and i % every == 0)
+        # formats spread evenly over the units: unit i's place in [0, 1) picks its format
+        place = (i * 0.6180339887) % 1.0
+        suffix = ".bag" if place < a.bags else ".h5" if place < a.bags + a.h5 else ".csv"
+        emit(f"unit{i:04d}", DAY0, g, acc, suffix=suffix)
     for k in range(a.odd):
         emit(f"odd{k}", DAY0, 3 * GYRO_ND, ACCEL_ND)
     for j in range(a.dated):
         day = DAY0 + dt.timedelta(days=60 * j)
-        emit("aging", day, GYRO_ND * 1.4 ** ((day - DAY0).days / 365.25), ACCEL_ND)
-    emit("moved", DAY0, GYRO_ND, ACCEL_ND, turn=int(0.4 * n))
+        emit("aging", day, GYRO_ND * 1.4 ** ((day - DAY0).days / 365.25), ACCEL_ND,
+             length=n_long)
+    emit("moved", DAY0, GYRO_ND, ACCEL_ND, turn=0.4, length=n_long)
     for k in range(a.corrupt):
-        (a.folder / f"corrupt{k}_{DAY0.isoformat()}.csv").write_text(
-            "time,gx,gy,gz,ax,ay,az\n0,1,2\nnot a number\n")
+        suffix, content = CORRUPT[k % len(CORRUPT)]
+        (a.folder / f"corrupt{k}_{DAY0.isoformat()}{suffix}").write_bytes(content)
     (a.folder / "truth.json").write_text(json.dumps(truth, indent=1) + "\n")
     print(f"wrote {len(truth) + a.corrupt} recordings to {a.folder} (truth.json lists the "
           "true densities)")
