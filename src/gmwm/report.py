@@ -738,8 +738,8 @@ def write_multi_report(outdir: str | os.PathLike, imus: Mapping[str, Any], *,
                  sum(len(_axis_warnings(a)) for a in sec.axes.values()),
                  "not static" if sec.stationarity is not None and sec.stationarity.moving
                  else "static" if sec.stationarity is not None else "not checked",
-                 f"{folders[t]}/" if writes[t] else "NOT written" if exps[t] is not None
-                 and names else "–")
+                 f"{folders[t]}/" if writes[t] else "NOT written"
+                 if (exps[t] is not None or getattr(sec, "not_fitted", None)) and names else "–")
                 if t in done else
                 (t, f"FAILED: {sec.reason}", "–", 0, "–", "–", "–")
                 for t, sec in imus.items()]

@@ -2,7 +2,10 @@
 topic, several ``--topic`` or ``--topic all``) and write the calibration report
 (:func:`gmwm.report.write_calibration`: Markdown, HTML, figures and the filter configuration
 files of ``--export``, default the Kalibr ``imu.yaml``, with ``--inflate`` factors). A topic that
-cannot be calibrated is listed with its reason while the others are; exit status 4 then."""
+cannot be calibrated is listed with its reason while the others are; exit status 4 then. A topic
+refused for motion (beyond ``--motion-share``, without ``--allow-motion``) is not fitted: its page
+shows the WVs and says why, and the verdict line and ``--json`` (``"not_fitted"``) say so; exit
+status 5, as for any configuration not written."""
 
 from __future__ import annotations
 
@@ -98,11 +101,14 @@ def _fits(args: argparse.Namespace, axes: Any) -> dict[str, Any]:
 def _verdict_json(sec: Any) -> dict[str, Any]:
     """The topic's configuration verdict as the terminal's last line says it: ``"verdict"``
     (status, line, reasons, caveats); nothing when there is none."""
+    from gmwm.cli.errors import as_flags
+
     v = sec.verdict
     if v is None:
         return {}
-    return {"verdict": {"status": v.status, "line": v.line(), "reasons": list(v.reasons),
-                        "caveats": list(v.caveats)}}
+    return {"verdict": {"status": v.status, "line": as_flags(v.line()),
+                        "reasons": [as_flags(r) for r in v.reasons],
+                        "caveats": [as_flags(c) for c in v.caveats]}}
 
 
 def _not_fitted(sec: Any) -> dict[str, Any]:
