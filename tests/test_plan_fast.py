@@ -71,3 +71,28 @@ def test_identifiability_keeps_its_contract() -> None:
         assert predict(model, theta, m).identifiable[comp]
         assert not predict(model, theta, round(m / _ID_RATIO)).identifiable[comp]
     assert np.isclose(_ID_RATIO, 2 ** (1 / 16)) and math.isfinite(_ID_RATIO)
+
+
+@pytest.mark.parametrize("weights", ["ci", "ci-eta3", "ci-mixture", "gaussian", "efficient"])
+def test_the_expected_wvs_own_interval_changes_no_prediction(monkeypatch, weights):
+    """The expected WV carries the eta_3 interval (its mixture one costs ~40 % of a plan): with
+    the mixture interval instead, every prediction is bit-identical, whatever the weights."""
+    from gmwm import plan
+    from gmwm.wv import WaveletVariance
+
+    spec, values, freq, n = PINNED[1][:4]
+    model = as_model(spec, freq)
+    theta = model.theta(values)
+    got = predict(model, theta, n, weights=weights)
+    eta3 = plan._expected_wv
+
+    def mixture(*args, **kw):
+        wv = eta3(*args, **kw)
+        assert wv.ci_kind == "eta3"
+        return WaveletVariance.from_table(wv.scales, wv.variance, n_samples=wv.n_samples,
+                                          freq=wv.freq, ci="mixture")
+
+    monkeypatch.setattr(plan, "_expected_wv", mixture)
+    want = predict(model, theta, n, weights=weights)
+    assert np.array_equal(got.cov, want.cov) and got.se == want.se
+    assert got.coefficients == want.coefficients
