@@ -96,3 +96,13 @@ def test_the_expected_wvs_own_interval_changes_no_prediction(monkeypatch, weight
     want = predict(model, theta, n, weights=weights)
     assert np.array_equal(got.cov, want.cov) and got.se == want.se
     assert got.coefficients == want.coefficients
+
+
+def test_a_negative_coefficient_gets_a_positive_relative_se():
+    """An AR1 with phi < 0 (its datasheet phi negative, its interval linear): the plan gives a
+    positive relative SE instead of failing on the log of a negative ratio."""
+    pred = predict("QN+WN+AR1", [1e-6, 1e-4, -0.5, 1e-5], 100000)
+    phi = pred.coefficients["AR1[1].phi"]
+    assert phi["value"] == -0.5 and phi["rse"] > 0
+    lo, hi = phi["ci95"]
+    assert phi["rse"] == pytest.approx((hi - lo) / (2 * 1.959963984540054 * 0.5), rel=1e-9)

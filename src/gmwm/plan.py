@@ -176,7 +176,12 @@ def _coefficients(model: Any, theta: np.ndarray, cov: np.ndarray, wv: Any, unit:
                 continue
             name = term if not what else f"{term}.{what}"
             value, ci = v["value"], v.get("ci95")
-            rse = None if (ci is None or not value) else math.log(ci[1] / value) / _Z
+            if ci is None or not value:
+                rse = None
+            elif value > 0:
+                rse = math.log(ci[1] / value) / _Z
+            else:  # a signed coefficient (an AR1's negative phi): its interval is linear
+                rse = (ci[1] - ci[0]) / (2 * _Z * abs(value))
             out[name] = {"value": value, "unit": v["unit"], "rse": rse, "ci95": ci}
     if bi is not None:  # the bias instability a GM stands for: its AD peak / 0.6643
         from gmwm.sensor_datasheet import bi_of_gauss_markov
