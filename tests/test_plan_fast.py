@@ -71,3 +71,38 @@ def test_identifiability_keeps_its_contract() -> None:
         assert predict(model, theta, m).identifiable[comp]
         assert not predict(model, theta, round(m / _ID_RATIO)).identifiable[comp]
     assert np.isclose(_ID_RATIO, 2 ** (1 / 16)) and math.isfinite(_ID_RATIO)
+
+
+@pytest.mark.parametrize("weights", ["ci", "ci-eta3", "ci-mixture", "gaussian", "efficient"])
+def test_the_expected_wvs_own_interval_changes_no_prediction(monkeypatch, weights):
+    """The expected WV carries the eta_3 interval (its mixture one costs ~40 % of a plan): with
+    the mixture interval instead, every prediction is bit-identical, whatever the weights."""
+    from gmwm import plan
+    from gmwm.wv import WaveletVariance
+
+    spec, values, freq, n = PINNED[1][:4]
+    model = as_model(spec, freq)
+    theta = model.theta(values)
+    got = predict(model, theta, n, weights=weights)
+    eta3 = plan._expected_wv
+
+    def mixture(*args, **kw):
+        wv = eta3(*args, **kw)
+        assert wv.ci_kind == "eta3"
+        return WaveletVariance.from_table(wv.scales, wv.variance, n_samples=wv.n_samples,
+                                          freq=wv.freq, ci="mixture")
+
+    monkeypatch.setattr(plan, "_expected_wv", mixture)
+    want = predict(model, theta, n, weights=weights)
+    assert np.array_equal(got.cov, want.cov) and got.se == want.se
+    assert got.coefficients == want.coefficients
+
+
+def test_a_negative_coefficient_gets_a_positive_relative_se():
+    """An AR1 with phi < 0 (its datasheet phi negative, its interval linear): the plan gives a
+    positive relative SE instead of failing on the log of a negative ratio."""
+    pred = predict("QN+WN+AR1", [1e-6, 1e-4, -0.5, 1e-5], 100000)
+    phi = pred.coefficients["AR1[1].phi"]
+    assert phi["value"] == -0.5 and phi["rse"] > 0
+    lo, hi = phi["ci95"]
+    assert phi["rse"] == pytest.approx((hi - lo) / (2 * 1.959963984540054 * 0.5), rel=1e-9)

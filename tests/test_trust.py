@@ -138,3 +138,41 @@ def test_deg_s_labelled_rad_s_is_named(capsys, tmp_path):
     code, err, out = _report(capsys, tmp_path, src, "--allow-motion")
     head = (out / "imu.yaml").read_text().split("\n\n")[0]
     assert code == 0 and "CAUTION" in head and "57.3x" in head
+
+
+@pytest.mark.slow
+def test_a_refused_recording_is_not_fitted_and_every_surface_says_so(capsys, tmp_path,
+                                                                      recordings):
+    """Refused for motion (no --allow-motion): no fit, but the report with each axis's WV of the
+    part used; the verdict line, the JSON and the page say the axes were not fitted; exit
+    status 5 as before."""
+    import json
+
+    import gmwm
+
+    src = recordings["moved"]
+    out = tmp_path / "rep"
+    code = main(["report", str(src), "auto", "-o", str(out), "-q", "--json"])
+    captured = capsys.readouterr()
+    assert code == EXIT_NO_CONFIGURATION
+    last = captured.err.rstrip().splitlines()[-1]
+    assert last.startswith("gmwm: verdict: configuration NOT written: the recording moved")
+    assert last.endswith("the axes were not fitted: refused for motion, a fit would describe "
+                         "the motion, not the sensor at rest")
+    obj = json.loads(captured.out)
+    assert obj["fits"] == {} and obj["seconds"]["axes"] == {}
+    assert obj["verdict"]["status"] == "not written"
+    assert "gmwm: " + obj["verdict"]["line"] == last
+    nf = obj["not_fitted"]
+    assert "not fitted" in nf["reason"] and list(nf["axes"]) == list(bs.AXES)
+    data = np.loadtxt(src, delimiter=",", skiprows=1)
+    for i, c in enumerate(bs.AXES):  # the WV the fit would have used: the whole recording
+        want = gmwm.wvar(data[:, 1 + i], freq=FS).variance
+        np.testing.assert_allclose(nf["axes"][c]["wv"]["variance"], want, rtol=1e-12)
+        assert nf["axes"][c]["units"] == bs.UNITS[c]
+        assert (out / f"{c}_wv.png").exists()
+    md = (out / "report.md").read_text()
+    assert "The axes were not fitted: refused for motion" in md
+    assert "No filter configuration file written" in md and not (out / "imu.yaml").exists()
+    assert md.count("Not fitted: the wavelet variance of the part used") == len(bs.AXES)
+    assert "the axes were not fitted" in (out / "report.html").read_text()

@@ -33,7 +33,7 @@ import numpy as np
 from gmwm.errors import GMWMError, InputError
 
 __all__ = ["AUTO", "MIN_STATIC_SAMPLES", "AxisCalibration", "CalibrationResult", "Prepared",
-           "TopicCalibration", "available_cores", "calibrate", "calibrate_imus", "choose_part",
+           "TopicCalibration", "UnfittedAxis", "available_cores", "calibrate", "calibrate_imus", "choose_part",
            "executor", "models_for", "part_messages", "preload", "prepare", "start_warm_server",
            "stop_warm_server", "units_for", "warm_server_running"]
 
@@ -215,6 +215,9 @@ class Prepared:
     n_used: int | None = None
     #: seconds the command spent reading it (the CLI's ``--json``)
     seconds: float = 0.0
+    #: whether ``refusals`` holds the motion refusal (it moved beyond the share that may be
+    #: excluded, without ``allow_motion``): :func:`calibrate` may then skip the fits
+    motion_refused: bool = False
 
     @property
     def rostopic(self) -> str | None:
@@ -319,6 +322,7 @@ def _streamed_motion(p: Prepared, share_max: float, allow: bool) -> Prepared:
     a, b = st.used or (0, st.n)
     _, refusals, caveats = _motion(st, a, b, st.freq, share_max, allow, cut=False)
     return dataclasses.replace(p, refusals=tuple(refusals), caveats=tuple(caveats),
+                               motion_refused=bool(refusals),
                                messages=(*p.messages, *(f"note: {c}" for c in caveats)))
 
 
@@ -385,6 +389,7 @@ def prepare(rec: Any, *, units: str | Sequence[str] | Mapping[str, str | None] |
         raise InputError(f"`motion_share` must lie in [0, 1), got {motion_share}")
     excluded, refusals, caveats = _motion(st, i0, i1, freq if rec.time is not None else None,
                                           motion_share, allow_motion)
+    moved = bool(refusals)
     if excluded:
         st = dataclasses.replace(st, excluded=True)
     messages += part_messages(st)
@@ -412,7 +417,8 @@ def prepare(rec: Any, *, units: str | Sequence[str] | Mapping[str, str | None] |
     data = {c: signal_for_wv(x, decision, levels, freq) for c, x in used.channels.items()}
     return Prepared(data, freq, u, used, st, decision, timing=None if timing is None
                     else tuple(timing), messages=tuple(messages), topic=rec.topic,
-                    refusals=tuple(refusals), caveats=tuple(caveats), n_used=decision.used)
+                    refusals=tuple(refusals), caveats=tuple(caveats), n_used=decision.used,
+                    motion_refused=moved)
 
 
 # -- results --------------------------------------------------------------------------------------
@@ -448,6 +454,19 @@ class AxisCalibration:
 
 
 @dataclass(frozen=True)
+class UnfittedAxis:
+    """An axis of a topic refused for motion and not fitted (:func:`calibrate`'s
+    ``fit_refused=False``): its wavelet variance ``wv`` (of the part used, as the fit would have
+    used it) and its signal ``units`` ('' unknown)."""
+
+    wv: Any
+    units: str
+
+    def __getitem__(self, key: str) -> Any:  # the report's axis mapping, as AxisCalibration's
+        return getattr(self, key)
+
+
+@dataclass(frozen=True)
 class TopicCalibration:
     """One topic (IMU stream) of a calibration. ``status``: ``"calibrated"`` or ``"failed"``
     (then ``reason`` is the one-line cause and ``axes`` is empty); ``axes`` channel ->
@@ -471,6 +490,11 @@ class TopicCalibration:
     error: BaseException | None = field(default=None, repr=False, compare=False)
     #: what happens to the configuration files (:class:`gmwm.verdict.Verdict`)
     verdict: Any = None
+    #: a topic whose configuration was refused for motion before any fit (:func:`calibrate`'s
+    #: ``fit_refused=False``): channel -> its :class:`UnfittedAxis` (``axes`` is then empty)
+    #: and the one-line reason it was not fitted
+    unfitted: dict[str, UnfittedAxis] = field(default_factory=dict)
+    not_fitted: str | None = None
 
     @property
     def ok(self) -> bool:
@@ -532,7 +556,8 @@ class CalibrationResult:
         :meth:`gmwm.results.FitResult.to_json_dict`)."""
         return {"source": self.source,
                 "topics": {t: {"status": s.status, "reason": s.reason, "freq": s.freq,
-                               "rostopic": s.rostopic, "axes": list(s.axes),
+                               "rostopic": s.rostopic, "axes": list(s.axes or s.unfitted),
+                               "not_fitted": s.not_fitted,
                                "warnings": s.caveats} for t, s in self.topics.items()}}
 
 
@@ -853,8 +878,8 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
               require_time: str | None = "a calibration report",
               name: str | None = None, progress: Callable[[str], None] | None = None,
               while_waiting: Callable[[Mapping[str, Prepared]], None] | None = None,
-              motion_share: float = MOTION_SHARE, allow_motion: bool = False
-              ) -> CalibrationResult:
+              motion_share: float = MOTION_SHARE, allow_motion: bool = False,
+              fit_refused: bool = True) -> CalibrationResult:
     """Calibrate the IMU(s) of ``source``: a file path, a :class:`gmwm.readers.Recording`, a
     :class:`Prepared` input, or a mapping topic -> either (several IMUs).
 
@@ -890,7 +915,10 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
     (:class:`gmwm.verdict.Verdict`): whether its configuration files may be written and the
     caveats their first lines must carry. ``motion_share``/``allow_motion``: the motion policy
     of :func:`prepare` (flagged motion up to that share excluded; beyond it no configuration
-    unless ``allow_motion``)."""
+    unless ``allow_motion``). ``fit_refused=False``: a topic refused for motion is not fitted
+    (its fits would describe the motion, and no configuration is written from them): it is
+    kept as calibrated with no ``axes``, its WVs in :attr:`TopicCalibration.unfitted`, the
+    reason in :attr:`TopicCalibration.not_fitted` and among its verdict's reasons."""
     from gmwm.readers.recording import Recording
     from gmwm.settings import FitSettings
 
@@ -972,6 +1000,7 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
     # -- settings checked against every topic before any fit
     specs = {t: models_for(model, list(p.data)) for t, p in prepared.items()}
     jobs: list[_Job] = []
+    skipped = set() if fit_refused else {t for t, p in prepared.items() if p.motion_refused}
     for t, p in prepared.items():
         for c, d in p.data.items():
             spec = specs[t][c]
@@ -988,6 +1017,8 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
                                  "recording leave the pooled WV of its segments: use `gaps` "
                                  "longest")
             s = settings if isinstance(d, np.ndarray) else settings.replace(levels=None)
+            if t in skipped:
+                continue
             jobs.append(_Job(t, c, d, spec, p.freq, p.units.get(c, ""), s, explicit_starts,
                              page=c not in p.streamed, readings=readings,
                              draw=draw if c not in p.streamed else None,
@@ -1007,6 +1038,9 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
             out[topic] = TopicCalibration(topic, "failed", reason=_reason(exc), error=exc)
             continue
         p = prepared[topic]
+        if topic in skipped:
+            out[topic] = _unfitted_topic(topic, p, settings)  # its verdict line says why
+            continue
         got = {j.name: results[(topic, j.name)] for j in jobs if j.topic == topic}
         bad = next((r for r in got.values() if isinstance(r, BaseException)), None)
         if bad is not None:
@@ -1040,6 +1074,30 @@ def calibrate(source: Any, model: str | Mapping[str, str] = AUTO, *,
         raise InputError(f"no topic of {label} could be calibrated: "
                          + "; ".join(f"{t}: {r}" for t, r in fails.items()))
     return result
+
+
+#: why a topic refused for motion has no fits (:func:`calibrate`'s ``fit_refused=False``)
+NOT_FITTED = ("the axes were not fitted: refused for motion, a fit would describe the motion, not "
+              "the sensor at rest")
+
+
+def _unfitted_topic(topic: str, p: Prepared, settings: Any) -> TopicCalibration:
+    """A topic refused for motion, not fitted: its WVs (as the fits would have used them) and
+    its verdict (the refusals, then :data:`NOT_FITTED`)."""
+    from gmwm.settings import prepare_wv
+    from gmwm.verdict import decide
+
+    wvs = {}
+    for c, d in p.data.items():
+        s = settings if isinstance(d, np.ndarray) else settings.replace(levels=None)
+        wvs[c] = UnfittedAxis(prepare_wv(p.streamed[c].wv if c in p.streamed else d, s,
+                                         freq=p.freq).wv, p.units.get(c, ""))
+    n = p.n_used if p.n_used is not None else min(int(a.wv.n_samples) for a in wvs.values())
+    verdict = decide({}, n_samples=n, refusals=(*p.refusals, NOT_FITTED), caveats=p.caveats)
+    return TopicCalibration(topic, "calibrated", {}, freq=p.freq, timing=p.timing,
+                            stationarity=p.stationarity, gaps=p.gaps, rostopic=p.rostopic,
+                            label=p.label, messages=p.messages, verdict=verdict,
+                            unfitted=wvs, not_fitted=NOT_FITTED)
 
 
 def _check_sheet(sheet: Any, prepared: Mapping[str, Prepared],

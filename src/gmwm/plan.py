@@ -138,7 +138,9 @@ def default_fit_options() -> tuple[str, str]:
 
 def _expected_wv(model: Any, theta: np.ndarray, n_samples: int, levels: int | None = None) -> Any:
     """The WV a recording of ``n_samples`` samples has on average: ``nu(theta)`` on the default
-    scales, with the interval a fit of such a WV would carry."""
+    scales, with the eta_3 interval (the one the default ``ci`` weights read; the ``ci-mixture``
+    weights compute theirs from the WV, so no prediction reads the WV's own interval, and the
+    mixture interval's EDF costs ~40 % of a plan)."""
     from gmwm.wv import WaveletVariance
 
     jmax = math.floor(math.log2(n_samples))
@@ -150,7 +152,8 @@ def _expected_wv(model: Any, theta: np.ndarray, n_samples: int, levels: int | No
         nu = model.wv(theta, scales)
     if not np.all(np.isfinite(nu)) or np.any(nu <= 0):
         raise InputError(f"the model WV of {model.spec} is not positive and finite on {J} scales")
-    return WaveletVariance.from_table(scales, nu, n_samples=int(n_samples), freq=model.freq)
+    return WaveletVariance.from_table(scales, nu, n_samples=int(n_samples), freq=model.freq,
+                                      ci="eta3")
 
 
 def _coefficients(model: Any, theta: np.ndarray, cov: np.ndarray, wv: Any, unit: str | None,
@@ -173,7 +176,12 @@ def _coefficients(model: Any, theta: np.ndarray, cov: np.ndarray, wv: Any, unit:
                 continue
             name = term if not what else f"{term}.{what}"
             value, ci = v["value"], v.get("ci95")
-            rse = None if (ci is None or not value) else math.log(ci[1] / value) / _Z
+            if ci is None or not value:
+                rse = None
+            elif value > 0:
+                rse = math.log(ci[1] / value) / _Z
+            else:  # a signed coefficient (an AR1's negative phi): its interval is linear
+                rse = (ci[1] - ci[0]) / (2 * _Z * abs(value))
             out[name] = {"value": value, "unit": v["unit"], "rse": rse, "ci95": ci}
     if bi is not None:  # the bias instability a GM stands for: its AD peak / 0.6643
         from gmwm.sensor_datasheet import bi_of_gauss_markov

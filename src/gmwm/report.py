@@ -136,6 +136,11 @@ def _draw(fig: _Figure) -> list[Path]:
 
     if fig.kind == "stationarity":
         return save_figure(page_layout(plot_stationarity(fig.data[0])), fig.path, tight=False)
+    if fig.kind == "wv-unfitted":
+        name, wv, units = fig.data
+        ax = plot_wv(wv, units=units)
+        ax.set_title(f"{name}: WV (not fitted)")
+        return save_figure(page_layout(ax.figure), fig.path, tight=False)
     name, res, units, verdict = fig.data
     if fig.kind == "wv":
         ax = plot_wv(res.wv, result=res, units=units)
@@ -306,10 +311,38 @@ def report_dir(outdir: str | os.PathLike) -> Path:
     return out
 
 
-def _freq(axes: Mapping[str, Mapping[str, Any]], where: str = "the report") -> float:
+def _freq(axes: Mapping[str, Mapping[str, Any]], where: str = "the report",
+          unfitted: Mapping[str, Any] | None = None) -> float:
+    if not axes and unfitted:
+        return float(next(iter(unfitted.values()))["wv"].freq)
     if not axes:
         raise InputError(f"{where} needs at least one axis")
     return float(next(iter(axes.values()))["result"].wv.freq)
+
+
+def _unfitted_parts(out: Path, unfitted: Mapping[str, Any], why: str | None, h: str,
+                    prefix: str) -> tuple[list[str], list[str], list[_Figure]]:
+    """Markdown lines, HTML parts and figures of the axes of an IMU that was not fitted
+    (:class:`gmwm.calibrate.UnfittedAxis`: refused for motion): per axis its WV figure, no
+    model, and ``why``."""
+    lv = len(h)
+    why = why or "the axes were not fitted"
+    note = f"{why[0].upper()}{why[1:]} (see the verdict)."
+    md: list[str] = [f"**{note}**", ""]
+    body: list[str] = [f"<p><strong>{html.escape(note)}</strong></p>"]
+    figures: list[_Figure] = []
+    for name, a in unfitted.items():
+        wv = a["wv"]
+        png = wv_figure_path(out, name, prefix)
+        figures.append(_Figure("wv-unfitted", png, (name, wv, a["units"] or "")))
+        line = (f"Not fitted: the wavelet variance of the part used, "
+                f"T = {wv.n_samples} samples, J = {wv.n_levels} scales"
+                + (f", in {a['units']}" if a["units"] else "") + ".")
+        md += [f"{h} {name}", "", line, "", f"![WV of {name}, not fitted]({png.name})", ""]
+        body += [f"<h{lv}>{html.escape(name)}</h{lv}>", f"<p>{html.escape(line)}</p>",
+                 (f'<img src="{html.escape(png.name)}" alt="WV of {html.escape(name)}" '
+                  'width="560">')]
+    return md, body, figures
 
 
 def _export(axes: Mapping[str, Mapping[str, Any]], freq: float, topic: str | None,
@@ -442,12 +475,14 @@ def _summary_tables(axes: Mapping[str, Mapping[str, Any]], exp: Any, refused: bo
 
 def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
                  timing: Sequence[str] | None, stationarity: Any, lv: int = 2, prefix: str = "",
-                 config_dir: str | None = None, refused: Sequence[str] = ()
+                 config_dir: str | None = None, refused: Sequence[str] = (),
+                 unfitted: Mapping[str, Any] | None = None, not_fitted: str | None = None
                  ) -> tuple[list[str], list[str], list[_Figure]]:
     """Markdown lines, HTML parts and figures (to draw, :func:`_render`) of one IMU: the
     not-static warning, time base, stationarity, summary, one part per axis and the Kalibr block;
     headings of level ``lv``, figure names starting with ``prefix``; ``config_dir`` the folder of
-    its configuration files when they are not beside the page."""
+    its configuration files when they are not beside the page; ``unfitted``/``not_fitted``: the
+    axes of an IMU refused for motion and not fitted, and why (:func:`_unfitted_parts`)."""
     from gmwm.exports import kalibr_text
 
     h = "#" * lv
@@ -478,6 +513,11 @@ def _imu_section(out: Path, axes: Mapping[str, Mapping[str, Any]], exp: Any, *,
                *([legend, ""] if legend else [])]
         body += [f"<p><strong>{html.escape(caption)}</strong></p>", html_table(headers, summary),
                  *([f"<p>{html.escape(legend)}</p>"] if legend else [])]
+    if unfitted:
+        umd, ubody, ufigs = _unfitted_parts(out, unfitted, not_fitted, h, prefix)
+        md += umd
+        body += ubody
+        figures += ufigs
     for name, a in axes.items():
         res = a["result"]
         png = wv_figure_path(out, name, prefix)
@@ -576,7 +616,8 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
                  title: str, timing: Sequence[str] | None = None, stationarity: Any = None,
                  topic: str | None = None, targets: str | Sequence[str] = ("kalibr",),
                  inflation: Any = None, drawn: Sequence[str | os.PathLike] = (),
-                 verdict: Any = None) -> list[Path]:
+                 verdict: Any = None, unfitted: Mapping[str, Any] | None = None,
+                 not_fitted: str | None = None) -> list[Path]:
     """Write ``report.md``, ``report.html``, the filter configuration files of ``targets``
     (:func:`gmwm.exports.parse_targets`; default the Kalibr ``imu.yaml``) and one
     ``<axis>_wv.png`` per axis to ``outdir``; return the paths.
@@ -595,27 +636,32 @@ def write_report(outdir: str | os.PathLike, axes: Mapping[str, Mapping[str, Any]
     ``drawn``: figure files already written for this page (:func:`warm_up`), not drawn again.
     ``verdict``: a :class:`gmwm.verdict.Verdict`: its line and caveats open the page, the
     caveats open every configuration file, and a verdict that refuses them leaves them unwritten
-    (the report is written, saying why). Several IMUs on one page: :func:`write_multi_report`.
+    (the report is written, saying why). ``unfitted``: axis -> its
+    :class:`gmwm.calibrate.UnfittedAxis` when the IMU was refused for motion and not fitted
+    (``axes`` empty; the page shows their WVs and ``not_fitted``, the reason). Several IMUs on
+    one page: :func:`write_multi_report`.
     """
     from gmwm.atomic import write_text_atomic
     from gmwm.exports import parse_targets, write_exports
 
     out = report_dir(outdir)
     out.mkdir(parents=True, exist_ok=True)
-    freq = _freq(axes)
+    freq = _freq(axes, unfitted=unfitted)
     # the configuration files' inputs are checked before any file is written
     names = parse_targets(targets)
     exp = _export(axes, freq, topic, inflation, source, verdict)
     vmd, vbody = _verdict_lines(verdict)
+    n_axes = len(axes) or len(unfitted or {})
     md = [f"# {title}", "", *vmd,
-          (f"Input `{source}`, sampling frequency {freq:g} Hz, {len(axes)} axes; "
+          (f"Input `{source}`, sampling frequency {freq:g} Hz, {n_axes} axes; "
            f"GMWM fits by gmwm {__version__}. " + _INTRO), ""]
     body: list[str] = [f"<h1>{html.escape(title)}</h1>", *vbody,
                        (f"<p>Input <code>{html.escape(source)}</code>, sampling frequency {freq:g} "
-                        f"Hz, {len(axes)} axes; GMWM fits by gmwm {html.escape(__version__)}.</p>")]
+                        f"Hz, {n_axes} axes; GMWM fits by gmwm {html.escape(__version__)}.</p>")]
     smd, sbody, figures = _imu_section(
         out, axes, exp, timing=timing, stationarity=stationarity,
-        refused=() if verdict is None or verdict.written else verdict.reasons)
+        refused=() if verdict is None or verdict.written else verdict.reasons,
+        unfitted=unfitted, not_fitted=not_fitted)
     written = _render(figures, [Path(p) for p in drawn])
     md += smd
     body += sbody
@@ -672,11 +718,14 @@ def write_multi_report(outdir: str | os.PathLike, imus: Mapping[str, Any], *,
         return write_report(outdir, sec.axes, source=source, title=title, timing=sec.timing,
                             stationarity=sec.stationarity, topic=sec.rostopic, targets=targets,
                             inflation=inflation, drawn=drawn,
-                            verdict=getattr(sec, "verdict", None))
+                            verdict=getattr(sec, "verdict", None),
+                            unfitted=getattr(sec, "unfitted", None),
+                            not_fitted=getattr(sec, "not_fitted", None))
     out = report_dir(outdir)
     names = parse_targets(targets)
     folders = imu_folders(list(imus))
-    freqs = {t: _freq(sec.axes, f"IMU {t}") for t, sec in done.items()}
+    freqs = {t: _freq(sec.axes, f"IMU {t}", getattr(sec, "unfitted", None))
+             for t, sec in done.items()}
     verdicts = {t: getattr(sec, "verdict", None) for t, sec in done.items()}
     exps = {t: _export(sec.axes, freqs[t], sec.rostopic, inflation, f"{source} ({t})",
                        verdicts[t])
@@ -684,12 +733,13 @@ def write_multi_report(outdir: str | os.PathLike, imus: Mapping[str, Any], *,
     writes = {t: exps[t] is not None and bool(names) and (verdicts[t] is None
                                                           or verdicts[t].written) for t in done}
     out.mkdir(parents=True, exist_ok=True)
-    overview = [(t, sec.label or "–", f"{freqs[t]:g}", len(sec.axes),
+    overview = [(t, sec.label or "–", f"{freqs[t]:g}",
+                 len(sec.axes) or len(getattr(sec, "unfitted", None) or {}),
                  sum(len(_axis_warnings(a)) for a in sec.axes.values()),
                  "not static" if sec.stationarity is not None and sec.stationarity.moving
                  else "static" if sec.stationarity is not None else "not checked",
-                 f"{folders[t]}/" if writes[t] else "NOT written" if exps[t] is not None
-                 and names else "–")
+                 f"{folders[t]}/" if writes[t] else "NOT written"
+                 if (exps[t] is not None or getattr(sec, "not_fitted", None)) and names else "–")
                 if t in done else
                 (t, f"FAILED: {sec.reason}", "–", 0, "–", "–", "–")
                 for t, sec in imus.items()]
@@ -719,7 +769,8 @@ def write_multi_report(outdir: str | os.PathLike, imus: Mapping[str, Any], *,
             body.append(f'<p style="color:#D55E00"><strong>{html.escape(why)}</strong></p>')
             continue
         line = (f"{sec.label + ', ' if sec.label else ''}sampling frequency {freqs[t]:g} Hz, "
-                f"{len(sec.axes)} axes" + (f", ROS topic {sec.rostopic}" if sec.rostopic else "")
+                f"{len(sec.axes) or len(getattr(sec, 'unfitted', None) or {})} axes"
+                + (f", ROS topic {sec.rostopic}" if sec.rostopic else "")
                 + ".")
         md += [line, ""]
         body.append(f"<p>{html.escape(line)}</p>")
@@ -729,7 +780,8 @@ def write_multi_report(outdir: str | os.PathLike, imus: Mapping[str, Any], *,
         smd, sbody, files = _imu_section(
             out, sec.axes, exps[t], timing=sec.timing, stationarity=sec.stationarity, lv=3,
             prefix=folders[t] + "_", config_dir=folders[t] if writes[t] else None,
-            refused=() if verdicts[t] is None or verdicts[t].written else verdicts[t].reasons)
+            refused=() if verdicts[t] is None or verdicts[t].written else verdicts[t].reasons,
+            unfitted=getattr(sec, "unfitted", None), not_fitted=getattr(sec, "not_fitted", None))
         md += smd
         body += sbody
         figures += files
@@ -789,6 +841,8 @@ def write_calibration(outdir: str | os.PathLike, result: Any, *, title: str | No
                             timing=sec.timing, stationarity=sec.stationarity,
                             topic=rostopic or sec.rostopic, targets=targets,
                             inflation=inflation, drawn=drawn,
-                            verdict=getattr(sec, "verdict", None))
+                            verdict=getattr(sec, "verdict", None),
+                            unfitted=getattr(sec, "unfitted", None),
+                            not_fitted=getattr(sec, "not_fitted", None))
     return write_multi_report(outdir, topics, source=result.source, title=title,
                               targets=targets, inflation=inflation, drawn=drawn)

@@ -399,8 +399,6 @@ def decide(axes: Mapping[str, Any], *, n_samples: int,
     ``n_samples`` where the caller already has it (computed beside the fit). Adds: too short (refusal), every candidate rejected with
     the misfit, terms not identifiable at this length, fast terms folded into the noise density,
     unit mix-ups."""
-    from gmwm.gof import fmt_p
-
     reasons = list(refusals)
     short = too_short(n_samples)
     if short:
@@ -413,6 +411,8 @@ def decide(axes: Mapping[str, Any], *, n_samples: int,
             res = getattr(obj, "result", obj)
             gof = getattr(res, "gof", None)
             if gof is not None and gof.rejected():
+                from gmwm.gof import fmt_p  # here: a verdict without fits needs no scipy
+
                 lines.append(f"{ch}: model {res.model.spec} REJECTED by the goodness-of-fit test "
                              f"(p {fmt_p(gof.p_value)}): {misfit(res).describe()}")
             if identified is not None and ch in identified:

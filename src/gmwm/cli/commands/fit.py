@@ -68,11 +68,13 @@ def fit_options(args: argparse.Namespace) -> dict[str, Any]:
 
 def calibrate_input(args: argparse.Namespace, err: TextIO, *, require_time: str | None,
                     readings: bool = False, draw: Any = None,
-                    while_waiting: Callable[[Any], None] | None = None) -> Any:
+                    while_waiting: Callable[[Any], None] | None = None,
+                    fit_refused: bool = True) -> Any:
     """The :class:`gmwm.calibrate.CalibrationResult` of the command line: the input (a
     recording, or a WV table / streamed input / raw binary as :func:`gmwm.cli.inputs.
     read_fit_data` gives it) and its options passed to :func:`gmwm.calibrate.calibrate`; its
-    messages printed. ``readings``, ``draw``, ``while_waiting``: as ``calibrate`` takes them."""
+    messages printed. ``readings``, ``draw``, ``while_waiting``, ``fit_refused``: as
+    ``calibrate`` takes them."""
     from gmwm.calibrate import calibrate, start_warm_server, stop_warm_server
 
     options = fit_options(args)
@@ -101,7 +103,7 @@ def calibrate_input(args: argparse.Namespace, err: TextIO, *, require_time: str 
             require_time=require_time, name=args.input, progress=say,
             while_waiting=while_waiting,
             motion_share=getattr(args, "motion_share", 0.05),
-            allow_motion=getattr(args, "allow_motion", False))
+            allow_motion=getattr(args, "allow_motion", False), fit_refused=fit_refused)
     finally:
         stop_warm_server()
 

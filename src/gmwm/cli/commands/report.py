@@ -2,7 +2,10 @@
 topic, several ``--topic`` or ``--topic all``) and write the calibration report
 (:func:`gmwm.report.write_calibration`: Markdown, HTML, figures and the filter configuration
 files of ``--export``, default the Kalibr ``imu.yaml``, with ``--inflate`` factors). A topic that
-cannot be calibrated is listed with its reason while the others are; exit status 4 then."""
+cannot be calibrated is listed with its reason while the others are; exit status 4 then. A topic
+refused for motion (beyond ``--motion-share``, without ``--allow-motion``) is not fitted: its page
+shows the WVs and says why, and the verdict line and ``--json`` (``"not_fitted"``) say so; exit
+status 5, as for any configuration not written."""
 
 from __future__ import annotations
 
@@ -27,8 +30,10 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
                       + (f", {len(failed)} not calibrated ({', '.join(failed)})" if failed
                          else "") + " written to: " + ", ".join(shown) + "\n")
         else:
-            out.write(f"report of {len(result.only().axes)} axes of {args.input} written to: "
-                      + ", ".join(shown) + "\n")
+            sec = result.only()
+            out.write(f"report of {len(sec.axes) or len(sec.unfitted)} axes of {args.input}"
+                      + (" (not fitted: refused for motion)" if sec.not_fitted else "")
+                      + " written to: " + ", ".join(shown) + "\n")
     return verdicts(result, err, calibration_status(result, err, True))
 
 
@@ -57,7 +62,7 @@ def calibrate_and_write(args: argparse.Namespace, err: TextIO) -> tuple[Any, lis
     result = calibrate_input(
         args, err, require_time="a calibration report", readings=True,
         draw=FigureDrawer(str(report_dir(args.output))) if in_workers else None,
-        while_waiting=while_waiting)
+        while_waiting=while_waiting, fit_refused=False)
     args.progress(f"writing the report to {args.output}")
     started = time.perf_counter()
     files = write_calibration(args.output, result, title=args.title, targets=targets,
@@ -93,19 +98,46 @@ def _fits(args: argparse.Namespace, axes: Any) -> dict[str, Any]:
             for c, a in axes.items()}
 
 
+def _verdict_json(sec: Any) -> dict[str, Any]:
+    """The topic's configuration verdict as the terminal's last line says it: ``"verdict"``
+    (status, line, reasons, caveats); nothing when there is none."""
+    from gmwm.cli.errors import as_flags
+
+    v = sec.verdict
+    if v is None:
+        return {}
+    return {"verdict": {"status": v.status, "line": as_flags(v.line()),
+                        "reasons": [as_flags(r) for r in v.reasons],
+                        "caveats": [as_flags(c) for c in v.caveats]}}
+
+
+def _not_fitted(sec: Any) -> dict[str, Any]:
+    """A topic refused for motion and not fitted: ``"not_fitted"``, the reason and per axis its
+    unit and WV (:meth:`gmwm.wv.WaveletVariance.to_dict`); nothing for a fitted topic."""
+    if not sec.not_fitted:
+        return {}
+    return {"not_fitted": {"reason": sec.not_fitted,
+                           "axes": {c: {"units": a.units, "wv": a.wv.to_dict()}
+                                    for c, a in sec.unfitted.items()}}}
+
+
 def report_json(args: argparse.Namespace, result: Any, files: Any) -> dict[str, Any]:
-    """``--json``: per axis the fit, its datasheet and choice; several topics: per topic (the
-    failed ones under ``"failed"``, topic -> reason)."""
+    """``--json``: per axis the fit, its datasheet and choice (a topic refused for motion and
+    not fitted: no fits, ``"not_fitted"`` with the reason and the WVs); the verdict; several
+    topics: per topic (the failed ones under ``"failed"``, topic -> reason)."""
     obj: dict[str, Any] = {"command": "report", "input": args.input,
                            "files": [str(p) for p in files], "seconds": result.seconds}
     if not result.several:
         sec = result.only()
         obj["fits"] = _fits(args, sec.axes)
+        obj.update(_not_fitted(sec))
+        obj.update(_verdict_json(sec))
         if sec.stationarity is not None:
             obj["stationarity"] = sec.stationarity.to_json_dict()
         return obj
     obj["imus"] = {t: {"stationarity": None if s.stationarity is None
-                       else s.stationarity.to_json_dict(), "fits": _fits(args, s.axes)}
+                       else s.stationarity.to_json_dict(), "fits": _fits(args, s.axes),
+                       **_not_fitted(s), **_verdict_json(s)}
                    for t, s in result.calibrated.items()}
     obj["failed"] = result.failed
     return obj
