@@ -67,6 +67,7 @@ def coverage(k: int, tau: float, s_lo: float, s_hi: float, reps: int, seed: int
     rng = np.random.default_rng([seed, k, int(tau * 1000)])
     mu = math.log(1e-4)
     hit_tau = hit_mu = hit_pi = 0
+    zero = hit_pi_zero = 0  # fleets whose tau^2 estimate is 0, and their prediction hits
     for _ in range(reps):
         s = rng.uniform(s_lo, s_hi, k)
         y = mu + rng.normal(0.0, tau, k) + rng.normal(0.0, s)
@@ -76,8 +77,16 @@ def coverage(k: int, tau: float, s_lo: float, s_hi: float, reps: int, seed: int
         hit_mu += re.ci_mu[0] <= mu <= re.ci_mu[1]
         new = mu + rng.normal(0.0, tau)  # a new unit's true log value
         pi = re.pi
-        hit_pi += pi[0] <= new <= pi[1]
-    out = {}
+        hit = pi[0] <= new <= pi[1]
+        hit_pi += hit
+        if re.tau2 <= 0.0:
+            zero += 1
+            hit_pi_zero += hit
+    out: dict[str, float] = {"tau2_zero_share": zero / reps,
+                             "prediction_given_zero": hit_pi_zero / zero if zero else math.nan,
+                             "prediction_given_positive":
+                                 (hit_pi - hit_pi_zero) / (reps - zero) if reps > zero
+                                 else math.nan}
     for name, h in (("tau2_qprofile", hit_tau), ("mu", hit_mu), ("prediction", hit_pi)):
         p = h / reps
         out[name] = p
@@ -298,11 +307,14 @@ def _markdown(a: argparse.Namespace, rows: list[dict[str, float]], t_big: float,
            (f"Coverage of nominal 95 % intervals, R = {a.reps} simulated fleets per design (MC SE "
            "in brackets; 95 % +- 2 MC SE is the target):"), "",
            ("| units k | tau | unit SE range | tau^2 (Q-profile) | typical value mu "
-           "(PM, mod. HK) | new unit (prediction) |"), "|---|---|---|---|---|---|"]
+           "(PM, mod. HK) | new unit (prediction) | tau^2 estimated 0 | prediction given "
+           "tau^2 = 0 / > 0 |"), "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         out.append(f"| {r['k']} | {r['tau']:g} | {r['s_lo']:g}-{r['s_hi']:g} | "
                    + " | ".join(f"{r[n]:.3f} ({r[n + '_mcse']:.3f})"
-                                for n in ("tau2_qprofile", "mu", "prediction")) + " |")
+                                for n in ("tau2_qprofile", "mu", "prediction"))
+                   + f" | {r['tau2_zero_share']:.3f} | {r['prediction_given_zero']:.3f} / "
+                   f"{r['prediction_given_positive']:.3f} |")
     out += ["", (f"`fleet_table` CPU: {a.table_units} units x 1 coefficient {t_big:.2f} s "
             f"(whole-fleet band); 500 units {t_loo:.2f} s (leave-one-out band).")]
     return "\n".join(out)
