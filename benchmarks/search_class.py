@@ -1,7 +1,8 @@
 """Does the default fit reach the best known objective on a whole class of replicates?
 
     python benchmarks/search_class.py [--reps 200 100 100] [--models sim2 weak_sin gm_rw_short]
-                                      [--jobs 2] [--json out.json] [--write]
+                                      [--jobs 2] [--json out.json] [--baseline old.json] [--write]
+    python benchmarks/search_class.py --jobs 2 --json search_class.json --write   # the full run
 
 Issue 40, item 5: the default fit's objective against the best objective known from a search
 with 10x the default budget, on fresh replicates (seeds of this script, not the studies') of
@@ -248,13 +249,13 @@ def summary(design: Design, rows: list[dict]) -> dict:
 
 
 def table(sums: list[dict]) -> list[str]:
-    lines = [("| design | T | R | reach (1e-6) | share [95 % Wilson] | reach (1e-9) | largest "
+    lines = [("| design | fit settings | T | R | reach (1e-6) | share [95 % Wilson] | reach (1e-9) | largest "
               "excess (replicate) | default CPU/fit median / mean [s] | 10x search CPU/fit "
-              "median / mean [s] |"), "|---|---|---|---|---|---|---|---|---|"]
+              "median / mean [s] |"), "|---|---|---|---|---|---|---|---|---|---|"]
     for s in sums:
         lo, hi = s["wilson95"]
         lines.append(
-            f"| {s['label']} | {s['T']:,} | {s['replicates']} | {s['reaching']} | "
+            f"| {s['label']} | {s['weights']} weights, {s['n_starts']} starts | {s['T']:,} | {s['replicates']} | {s['reaching']} | "
             f"{100 * s['share']:.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] | "
             f"{s['reaching_tight']} | {s['largest_excess']:.2g} ({s['largest_excess_replicate']}) "
             f"| {s['cpu_default_median']:.3f} / {s['cpu_default_mean']:.3f} | "
@@ -263,6 +264,29 @@ def table(sums: list[dict]) -> list[str]:
     for s in sums:
         lines.append(f"Missing replicates of {s['model']} (base seed {BASE_SEED}): "
                      + (", ".join(map(str, s["misses"])) or "none") + ".")
+    return lines
+
+
+def compare(rows: list[dict], baseline: dict) -> list[str]:
+    """Lines comparing this run's default fits with a baseline run's (``--json`` of another
+    commit) on the replicates both ran: CPU per fit (ratio of the medians and of the means) and
+    the objectives (lower, equal within 1e-9 relative, higher)."""
+    old = {(r["model"], r["replicate"], r["T"]): r for r in baseline["rows"]}
+    lines = ["", f"Against the baseline run (commit {baseline.get('commit', '?')}):", "",
+             ("| design | replicates | default CPU/fit median ratio | mean ratio | objective "
+              "lower / equal (1e-9) / higher | largest relative rise |"), "|---|---|---|---|---|---|"]
+    for m in dict.fromkeys(r["model"] for r in rows):
+        pairs = [(r, old[(r["model"], r["replicate"], r["T"])]) for r in rows
+                 if r["model"] == m and (r["model"], r["replicate"], r["T"]) in old]
+        if not pairs:
+            continue
+        new_cpu = np.array([a["cpu_default"] for a, _ in pairs])
+        old_cpu = np.array([b["cpu_default"] for _, b in pairs])
+        rel = np.array([a["default"] / b["default"] - 1 for a, b in pairs])
+        lines.append(f"| {m} | {len(pairs)} | {np.median(new_cpu) / np.median(old_cpu):.2f} | "
+                     f"{new_cpu.mean() / old_cpu.mean():.2f} | {int((rel < -1e-9).sum())} / "
+                     f"{int((abs(rel) <= 1e-9).sum())} / {int((rel > 1e-9).sum())} | "
+                     f"{max(rel.max(), 0.0):.2g} |")
     return lines
 
 
@@ -275,6 +299,8 @@ def main() -> int:
     ap.add_argument("--first", type=int, default=0, help="first replicate id")
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--json", type=Path, help="write every row and the summaries here")
+    ap.add_argument("--baseline", type=Path, help="a --json of another commit: compare CPU "
+                    "per default fit and objectives on the replicates both ran")
     ap.add_argument("--write", action="store_true",
                     help="replace this benchmark's section of benchmarks/README.md")
     args = ap.parse_args()
@@ -312,23 +338,26 @@ def main() -> int:
     cpu = time.process_time() - cpu0 + sum(r["cpu_simulate"] + r["cpu_default"]
                                            + r["cpu_search"] for r in rows)
     lines = table(sums)
+    if args.baseline:
+        lines += compare(rows, json.loads(args.baseline.read_text()))
     print("\n".join(lines))
     print(f"wall {wall:.0f} s, CPU {cpu:.0f} s (replicates; worker warm-up excluded), load "
           f"{load0:.2f} at the start, {os.getloadavg()[0]:.2f} at the end")
     if args.json:
         tmp = args.json.with_suffix(args.json.suffix + ".tmp")
-        tmp.write_text(json.dumps({"_about": __doc__.splitlines()[0], "base_seed": BASE_SEED,
+        tmp.write_text(json.dumps({"_about": __doc__.splitlines()[0], "commit": bs.commit(),
+                                   "load": [load0, os.getloadavg()[0]], "wall": wall,
+                                   "cpu": cpu, "base_seed": BASE_SEED,
                                    "factor": FACTOR, "tol": TOL, "tol_tight": TOL_TIGHT,
                                    "summaries": sums, "rows": rows}, indent=1) + "\n")
         os.replace(tmp, args.json)
     if args.write:
-        reps_arg = " ".join(map(str, reps))
-        head = (f"Generated by `python benchmarks/search_class.py --models {' '.join(args.models)}"
-                f" --reps {reps_arg} --jobs {args.jobs} --write` (commit {bs.commit()}, "
+        head = (f"Generated by `python benchmarks/search_class.py {' '.join(sys.argv[1:])}` "
+                f"(commit {bs.commit()}, "
                 f"{wall:.0f} s wall, {cpu:.0f} s CPU over the replicates, 1-minute load "
                 f"{load0:.1f} at the start and {os.getloadavg()[0]:.1f} at the end). Fresh "
                 f"replicates (base seed {BASE_SEED}); reach = default objective <= best known "
-                f"x (1 + tol); best known = the {FACTOR}x search of the script's docstring (the "
+                f"x (1 + {TOL:g}), tight: x (1 + {TOL_TIGHT:g}); best known = the {FACTOR}x search of the script's docstring (the "
                 f"{FACTOR}x-start fit, solves from the truth and both estimates, {FACTOR} x "
                 "n_starts random projected starts, each SIN's frequency profile) on the "
                 "default's own objective. CPU per fit: `time.process_time` of one "
