@@ -23,7 +23,10 @@ three designs with weak components (:func:`designs`):
 
 The last two are simulated by :func:`gmwm.fused.simulate_wv` too, on the stream
 ``SeedSequence([4040, k, r])`` (k = 1, 2 the design), the fit's seed from
-``SeedSequence([4040, k, r, 1])``.
+``SeedSequence([4040, k, r, 1])``. The Simulation 2 fit is the study's: with ``--simulator
+fast`` (``simulate_fast`` + ``wvar``, the committed record's simulator before config switched to
+``fused``) and base seed 20240601, replicate 0's default objective is the committed one
+(0.1098025721, reports/sim2/replicates/estimates_T10000000.csv).
 
 The 10x search (per replicate, on the default fit's own objective: same WV, same weight matrix
 Omega, :meth:`gmwm.GMWMResult.problem`), with n0 = the default's ``n_starts``:
@@ -74,8 +77,13 @@ import gmwm
 from gmwm.fused import simulate_wv
 from gmwm.model import Model
 from gmwm.settings import FitSettings
-from gmwm.wv import WaveletVariance
-from gmwm_studies.montecarlo import STUDY_WV_CI, check_truth, estimator_settings
+from gmwm.wv import WaveletVariance, wvar
+from gmwm_studies.montecarlo import (
+    STUDY_WV_CI,
+    check_truth,
+    estimator_settings,
+    simulate_replicate,
+)
 from gmwm_studies.seeds import replicate_rng, replicate_seed
 
 #: base seed of this script's replicates (the studies use 20240601)
@@ -148,20 +156,29 @@ def designs() -> dict[str, Design]:
     return {d.name: d for d in (sim2, weak_sin, gm_rw)}
 
 
-def replicate_wv(design: Design, theta: np.ndarray, r: int, T: int) -> WaveletVariance:
-    """Replicate ``r``'s WV (fused simulation + WV pass), rebuilt as a study's cached WV is."""
-    v = simulate_wv(design.model(), theta, T, design.rng(r, T))
+def replicate_wv(design: Design, theta: np.ndarray, r: int, T: int,
+                 simulator: str = "fused") -> WaveletVariance:
+    """Replicate ``r``'s WV, rebuilt as a study's cached WV is (``simulator``: ``"fused"``, the
+    fused simulation + WV pass of config/config.yaml, or ``"fast"``, ``simulate_fast`` + ``wvar``
+    as the committed Simulation 2 record and ``audit_sim2_misses.py`` use)."""
+    J = int(T).bit_length() - 2  # gmwm_studies.montecarlo.simulate_wv_chunk: floor(log2 T) - 1
+    if simulator == "fused":
+        v = simulate_wv(design.model(), theta, T, design.rng(r, T), J)
+    else:
+        x = simulate_replicate(design.model(), theta, T, design.rng(r, T), simulator)
+        v = wvar(x, levels=J, ci=STUDY_WV_CI).variance
+        del x
     tau = 2.0 ** np.arange(1, v.size + 1)
     return WaveletVariance.from_table(tau, v, n_samples=T, freq=design.freq, ci=STUDY_WV_CI)
 
 
 def replicate(design: Design, theta: np.ndarray, r: int, T: int | None = None,
-              factor: int = FACTOR, n_profile: int = N_PROFILE) -> dict:
+              factor: int = FACTOR, n_profile: int = N_PROFILE, simulator: str = "fused") -> dict:
     """Default fit and best known objective (the ``factor``-x search) of one replicate."""
     T = T or design.T
     model = design.model()
     c0 = time.process_time()
-    wv = replicate_wv(design, theta, r, T)
+    wv = replicate_wv(design, theta, r, T, simulator)
     cpu_sim = time.process_time() - c0
     seed = design.fit_seed(r, T)
     c0 = time.process_time()
@@ -189,6 +206,7 @@ def replicate(design: Design, theta: np.ndarray, r: int, T: int | None = None,
         how, best, best_theta = "default", default, cands["default"][1]
     excess = default / best - 1 if best > 0 else (0.0 if default == best else math.inf)
     return {"model": design.name, "replicate": int(r), "T": int(T), "base_seed": BASE_SEED,
+            "simulator": simulator,
             "default": default, "best": float(best), "excess": float(excess),
             "reaches": bool(excess <= TOL), "reaches_tight": bool(excess <= TOL_TIGHT),
             "best_from": how, "hard_search_improved_by": wins,
@@ -215,9 +233,9 @@ def _init(names: list[str], thetas: dict[str, list[float]]) -> None:
                  seed=0)
 
 
-def _task(item: tuple[str, int]) -> dict:
-    name, r = item
-    return replicate(_DESIGNS[name], _THETAS[name], r)
+def _task(item: tuple[str, int, str]) -> dict:
+    name, r, simulator = item
+    return replicate(_DESIGNS[name], _THETAS[name], r, simulator=simulator)
 
 
 def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
@@ -298,6 +316,9 @@ def main() -> int:
                     "default 200 for sim2, 100 for the others)")
     ap.add_argument("--first", type=int, default=0, help="first replicate id")
     ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--simulator", choices=["fused", "fast"], default="fused",
+                    help="fused: config/config.yaml's (default); fast: simulate_fast + wvar, the "
+                    "committed Simulation 2 record's and audit_sim2_misses.py's")
     ap.add_argument("--json", type=Path, help="write every row and the summaries here")
     ap.add_argument("--baseline", type=Path, help="a --json of another commit: compare CPU "
                     "per default fit and objectives on the replicates both ran")
@@ -318,7 +339,7 @@ def main() -> int:
         print(f"{m}: {d.spec}, T = {d.T}, {d.freq:g} Hz, truth "
               + ", ".join(f"{k} {v:.4g}" for k, v in d.model().as_dict(thetas[m]).items()),
               flush=True)
-    work = [(m, r) for m, n in zip(args.models, reps, strict=True)
+    work = [(m, r, args.simulator) for m, n in zip(args.models, reps, strict=True)
             for r in range(args.first, args.first + n)]
     init = (args.models, {m: list(map(float, t)) for m, t in thetas.items()})
     rows: list[dict] = []
@@ -335,13 +356,15 @@ def main() -> int:
             _progress(rows[-1])
     sums = [summary(all_designs[m], [r for r in rows if r["model"] == m]) for m in args.models]
     wall = time.perf_counter() - t0
-    cpu = time.process_time() - cpu0 + sum(r["cpu_simulate"] + r["cpu_default"]
-                                           + r["cpu_search"] for r in rows)
+    cpu = time.process_time() - cpu0  # serial: the replicates ran in this process
+    if args.jobs > 1:  # the workers' replicates (their warm-up fits not counted)
+        cpu += sum(r["cpu_simulate"] + r["cpu_default"] + r["cpu_search"] for r in rows)
     lines = table(sums)
     if args.baseline:
         lines += compare(rows, json.loads(args.baseline.read_text()))
     print("\n".join(lines))
-    print(f"wall {wall:.0f} s, CPU {cpu:.0f} s (replicates; worker warm-up excluded), load "
+    print(f"wall {wall:.0f} s, CPU {cpu:.0f} s (with --jobs > 1 the workers' warm-up is not "
+          f"counted), load "
           f"{load0:.2f} at the start, {os.getloadavg()[0]:.2f} at the end")
     if args.json:
         tmp = args.json.with_suffix(args.json.suffix + ".tmp")
@@ -354,7 +377,7 @@ def main() -> int:
     if args.write:
         head = (f"Generated by `python benchmarks/search_class.py {' '.join(sys.argv[1:])}` "
                 f"(commit {bs.commit()}, "
-                f"{wall:.0f} s wall, {cpu:.0f} s CPU over the replicates, 1-minute load "
+                f"{wall:.0f} s wall, {cpu:.0f} s CPU, 1-minute load "
                 f"{load0:.1f} at the start and {os.getloadavg()[0]:.1f} at the end). Fresh "
                 f"replicates (base seed {BASE_SEED}); reach = default objective <= best known "
                 f"x (1 + {TOL:g}), tight: x (1 + {TOL_TIGHT:g}); best known = the {FACTOR}x search of the script's docstring (the "
