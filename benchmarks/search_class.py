@@ -15,9 +15,11 @@ three designs with weak components (:func:`designs`):
   ``estimators.gmwm`` (CI-eta3 weights, 8 starts, no reweighting) and the starts' seed from
   stream 1 of the replicate, as :func:`gmwm_studies.montecarlo.fit_chunk` does). Base seed 4040
   instead of the study's 20240601: the same design with other signals.
-* ``weak_sin``: a weak SIN beside two AR1s, 2*AR1+SIN at T = 2^18 (AR1 phi 0.6 and 0.999, the
-  SIN's period 300 samples, within the slow AR1's time scale), its amplitude set to an expected
-  z-value of 4 (``bench_selection.calibrate``); :func:`gmwm.fit`'s defaults.
+* ``weak_sin``: a weak slow SIN beside two AR1s, 2*AR1+SIN at T = 2^18 (AR1 phi 0.6 with
+  sigma2 1 and phi 0.9999 with sigma2 1e-5; the SIN's period 5000 samples, on the slow AR1's
+  time scale of 1e4 samples: the pattern of Simulation 2's hard cases, a slow SIN that the
+  phi ~ 1 AR1 can absorb), its amplitude set to an expected z-value of 4
+  (``bench_selection.calibrate``: alpha 0.068); :func:`gmwm.fit`'s defaults.
 * ``gm_rw_short``: WN + GM + RW at 100 Hz with a short record (T = 2^16, 11 min), GM (beta
   0.5 Hz) and RW both at an expected z-value of 4; :func:`gmwm.fit`'s defaults.
 
@@ -147,9 +149,9 @@ def designs() -> dict[str, Design]:
                   estimator_settings(cfg["estimators"][s2["estimators"][0]]))
     default = FitSettings.of()
     weak_sin = Design("weak_sin", "weak SIN beside AR1s (2*AR1+SIN)", "2*AR1+SIN",
-                      {"AR1[1].phi": 0.6, "AR1[1].sigma2": 1.0, "AR1[2].phi": 0.999,
-                       "AR1[2].sigma2": 1e-4, "SIN[1].alpha": 0.05,
-                       "SIN[1].beta": 2 * math.pi / 300}, 2**18, 1.0, default, ("SIN[1]",), 1)
+                      {"AR1[1].phi": 0.6, "AR1[1].sigma2": 1.0, "AR1[2].phi": 0.9999,
+                       "AR1[2].sigma2": 1e-5, "SIN[1].alpha": 0.02,
+                       "SIN[1].beta": 2 * math.pi / 5000}, 2**18, 1.0, default, ("SIN[1]",), 1)
     gm_rw = Design("gm_rw_short", "GM + RW, short record (WN+GM+RW, 100 Hz)", "WN+GM+RW",
                    {"WN[1].sigma2": 1e-4, "GM[1].beta": 0.5, "GM[1].sigma2": 1e-6,
                     "RW[1].gamma2": 1e-9}, 2**16, 100.0, default, ("GM[1]", "RW[1]"), 2)
