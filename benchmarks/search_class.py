@@ -237,7 +237,10 @@ def _init(names: list[str], thetas: dict[str, list[float]]) -> None:
 
 def _task(item: tuple[str, int, str]) -> dict:
     name, r, simulator = item
-    return replicate(_DESIGNS[name], _THETAS[name], r, simulator=simulator)
+    try:
+        return replicate(_DESIGNS[name], _THETAS[name], r, simulator=simulator)
+    except Exception as exc:  # noqa: BLE001 -- one failed replicate is reported, not fatal
+        return {"model": name, "replicate": int(r), "error": f"{type(exc).__name__}: {exc}"}
 
 
 def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
@@ -252,7 +255,12 @@ def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
 
 
 def summary(design: Design, rows: list[dict]) -> dict:
+    errors = [r for r in rows if "error" in r]
+    rows = [r for r in rows if "error" not in r]
     n = len(rows)
+    if n == 0:
+        raise SystemExit(f"{design.name}: every replicate failed: "
+                         + "; ".join(r["error"] for r in errors[:3]))
     k = sum(r["reaches"] for r in rows)
     worst = max(rows, key=lambda r: r["excess"])
     cd = np.array([r["cpu_default"] for r in rows])
@@ -265,7 +273,8 @@ def summary(design: Design, rows: list[dict]) -> dict:
             "largest_excess": worst["excess"], "largest_excess_replicate": worst["replicate"],
             "cpu_default_median": float(np.median(cd)), "cpu_default_mean": float(cd.mean()),
             "cpu_search_median": float(np.median(cs)), "cpu_search_mean": float(cs.mean()),
-            "misses": [r["replicate"] for r in rows if not r["reaches"]]}
+            "misses": [r["replicate"] for r in rows if not r["reaches"]],
+            "errors": {r["replicate"]: r["error"] for r in errors}}
 
 
 def table(sums: list[dict]) -> list[str]:
@@ -284,6 +293,9 @@ def table(sums: list[dict]) -> list[str]:
     for s in sums:
         lines.append(f"Missing replicates of {s['model']} (base seed {BASE_SEED}): "
                      + (", ".join(map(str, s["misses"])) or "none") + ".")
+        if s["errors"]:
+            lines.append(f"Failed replicates of {s['model']} (not counted above): " + "; ".join(
+                f"{r}: {e}" for r, e in s["errors"].items()) + ".")
     return lines
 
 
@@ -291,7 +303,8 @@ def compare(rows: list[dict], baseline: dict) -> list[str]:
     """Lines comparing this run's default fits with a baseline run's (``--json`` of another
     commit) on the replicates both ran: CPU per fit (ratio of the medians and of the means) and
     the objectives (lower, equal within 1e-9 relative, higher)."""
-    old = {(r["model"], r["replicate"], r["T"]): r for r in baseline["rows"]}
+    old = {(r["model"], r["replicate"], r["T"]): r for r in baseline["rows"] if "error" not in r}
+    rows = [r for r in rows if "error" not in r]
     lines = ["", f"Against the baseline run (commit {baseline.get('commit', '?')}):", "",
              ("| design | replicates | default CPU/fit median ratio | mean ratio | objective "
               "lower / equal (1e-9) / higher | largest relative rise |"), "|---|---|---|---|---|---|"]
@@ -360,7 +373,8 @@ def main() -> int:
     wall = time.perf_counter() - t0
     cpu = time.process_time() - cpu0  # serial: the replicates ran in this process
     if args.jobs > 1:  # the workers' replicates (their warm-up fits not counted)
-        cpu += sum(r["cpu_simulate"] + r["cpu_default"] + r["cpu_search"] for r in rows)
+        cpu += sum(r["cpu_simulate"] + r["cpu_default"] + r["cpu_search"] for r in rows
+                   if "error" not in r)
     lines = table(sums)
     if args.baseline:
         lines += compare(rows, json.loads(args.baseline.read_text()))
@@ -392,6 +406,9 @@ def main() -> int:
 
 
 def _progress(row: dict) -> None:
+    if "error" in row:
+        print(f"{row['model']:<12} rep {row['replicate']:4d}: FAILED {row['error']}", flush=True)
+        return
     print(f"{row['model']:<12} rep {row['replicate']:4d}: default {row['default']:.10g} best "
           f"{row['best']:.10g} ({row['best_from']}) excess {row['excess']:.2e} cpu "
           f"{row['cpu_default']:.2f} / {row['cpu_search']:.2f} s"
