@@ -208,7 +208,7 @@ def replicate(design: Design, theta: np.ndarray, r: int, T: int | None = None,
         how, best, best_theta = "default", default, cands["default"][1]
     excess = default / best - 1 if best > 0 else (0.0 if default == best else math.inf)
     return {"model": design.name, "replicate": int(r), "T": int(T), "base_seed": BASE_SEED,
-            "simulator": simulator,
+            "simulator": simulator, "truth": model.as_dict(theta),
             "default": default, "best": float(best), "excess": float(excess),
             "reaches": bool(excess <= TOL), "reaches_tight": bool(excess <= TOL_TIGHT),
             "best_from": how, "hard_search_improved_by": wins,
@@ -302,15 +302,19 @@ def table(sums: list[dict]) -> list[str]:
 def compare(rows: list[dict], baseline: dict) -> list[str]:
     """Lines comparing this run's default fits with a baseline run's (``--json`` of another
     commit) on the replicates both ran: CPU per fit (ratio of the medians and of the means) and
-    the objectives (lower, equal within 1e-9 relative, higher)."""
-    old = {(r["model"], r["replicate"], r["T"]): r for r in baseline["rows"] if "error" not in r}
+    the objectives (lower, equal within 1e-9 relative, higher). Replicates match on design,
+    truth, length, simulator and seed."""
+    def key(r: dict) -> tuple:  # the same replicate: design, truth, length, simulator, seed
+        return (r["model"], r["replicate"], r["T"], r.get("simulator"), r.get("base_seed"),
+                tuple(sorted((r.get("truth") or {}).items())))
+
+    old = {key(r): r for r in baseline["rows"] if "error" not in r}
     rows = [r for r in rows if "error" not in r]
     lines = ["", f"Against the baseline run (commit {baseline.get('commit', '?')}):", "",
              ("| design | replicates | default CPU/fit median ratio | mean ratio | objective "
               "lower / equal (1e-9) / higher | largest relative rise |"), "|---|---|---|---|---|---|"]
     for m in dict.fromkeys(r["model"] for r in rows):
-        pairs = [(r, old[(r["model"], r["replicate"], r["T"])]) for r in rows
-                 if r["model"] == m and (r["model"], r["replicate"], r["T"]) in old]
+        pairs = [(r, old[key(r)]) for r in rows if r["model"] == m and key(r) in old]
         if not pairs:
             continue
         new_cpu = np.array([a["cpu_default"] for a, _ in pairs])
