@@ -2,7 +2,7 @@
 
     python benchmarks/search_class.py [--reps 200 100 100] [--models sim2 weak_sin gm_rw_short]
                                       [--jobs 2] [--json out.json] [--baseline old.json] [--write]
-    python benchmarks/search_class.py --jobs 2 --json search_class.json --write   # the full run
+    python benchmarks/search_class.py --jobs 2 --json benchmarks/search_class.json --write  # full
 
 Issue 40, item 5: the default fit's objective against the best objective known from a search
 with 10x the default budget, on fresh replicates (seeds of this script, not the studies') of
