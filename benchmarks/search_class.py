@@ -212,7 +212,7 @@ def replicate(design: Design, theta: np.ndarray, r: int, T: int | None = None,
             "simulator": simulator, "truth": model.as_dict(theta),
             "default": default, "best": float(best), "excess": float(excess),
             "reaches": bool(excess <= TOL), "reaches_tight": bool(excess <= TOL_TIGHT),
-            "best_from": how, "hard_search_improved_by": wins,
+            "best_from": how, "wide_fit": wide_obj, "hard_search_improved_by": wins,
             "cpu_simulate": cpu_sim, "cpu_default": cpu_default, "cpu_search": cpu_search,
             "default_params": res.as_dict(), "best_params": model.as_dict(best_theta),
             "variance": [float(v) for v in wv.variance], "freq": design.freq}
