@@ -202,8 +202,9 @@ def null_drop(args: tuple[Setting, int, int, str]) -> tuple[float, float, float,
     key = sum(map(ord, setting.label))
     x = sub.simulate_fast(sub.theta(vals), T, np.random.default_rng([2041, key, T, r]))
     ranking = rank_models(wvar(x, freq=setting.freq), [model.spec, sub.spec])
-    full = next(e for e in ranking.ranked if e.model == model.spec)
-    z = realised_z(full.result)[[c.name for c in model.components].index(f"{kind}[{n_kind}]")]
+    full = next((e for e in ranking.ranked if e.model == model.spec), None)
+    z = (realised_z(full.result)[[c.name for c in model.components].index(f"{kind}[{n_kind}]")]
+         if full is not None else np.nan)
     return (*drop_evidence(ranking.ranked, model.spec)[kind], z)
 
 
