@@ -88,6 +88,7 @@ __all__ = [
     "find_quotes",
     "format_like",
     "main",
+    "navigation_counts",
     "plain_numbers",
     "plan_refresh",
     "quoted_matches",
@@ -95,6 +96,7 @@ __all__ = [
     "refresh_quotes",
     "render_counts_markdown",
     "study_counts",
+    "svo_counts",
     "write_counts",
 ]
 
@@ -276,8 +278,112 @@ def study_counts(study: str, df: pd.DataFrame, record: Mapping[str, Any], source
                                  f"converged fits with a {kind} component in another {kind}'s "
                                  "column (the tables' n_switched of its parameters)", source))
         out += _sin_counts(ok, prefix, truth, J, source)
+        if record.get("kind") == "mle_comparison":
+            out += _sim1_fit_counts(sub, prefix, source)
         if "sensor" in record:
             out += _wild_counts(ok, prefix, params, record, source)
+    return out
+
+
+def _mean(x: Any) -> float | None:
+    x = np.asarray(x, dtype=float)
+    x = x[np.isfinite(x)]
+    return _num(x.mean()) if x.size else None
+
+
+def _sim1_fit_counts(sub: pd.DataFrame, prefix: str, source: str) -> list[Count]:
+    """Simulation 1, one method at one T (rows where it ran; replicates.SIM1_COLUMNS): wrong
+    optima and the mean clocks over all attempts and over the converged fits (converged and not
+    at a wrong optimum: the set the study's statistics and ``*_conv`` time columns use)."""
+    conv = sub["converged"].astype(bool).to_numpy()
+    wrong = sub["wrong_optimum"].fillna(0).astype(bool).to_numpy()
+    ok = conv & ~wrong
+    out = [Count(f"{prefix}.wrong_optimum", int(wrong.sum()),
+                 "converged fits whose log-likelihood is more than wrong_optimum_ll below the "
+                 "best any MLE reached on the same signal (wrong_optimum column)", source),
+           Count(f"{prefix}.n_ok", int(ok.sum()),
+                 "fits converged to the best optimum (converged and not wrong_optimum)", source)]
+    if sub["iterations"].notna().any():
+        it = sub["iterations"].to_numpy(float)
+        out.append(Count(f"{prefix}.iterations_max", _num(np.nanmax(it)),
+                         "largest number of optimiser iterations (iterations column; the "
+                         "maxiter cap when a fit was stopped by it)", source))
+    for col, what in (("seconds", "wall time"), ("cpu_seconds", "CPU time")):
+        x = sub[col].to_numpy(float)
+        out.append(Count(f"{prefix}.mean_{col}", _mean(x),
+                         f"mean {what} of the point estimate [s] over every attempted fit "
+                         "(failed and capped ones included)", source))
+        out.append(Count(f"{prefix}.mean_{col}_conv", _mean(x[ok]),
+                         f"mean {what} of the point estimate [s] over the fits converged to the "
+                         "best optimum", source))
+    return out
+
+
+def svo_counts(case: str, fits: pd.DataFrame, coverage: pd.DataFrame | None,
+               sources: Mapping[str, str]) -> list[Count]:
+    """Counts of one SVO case's per-replicate files (svo_study.virtual_fit_table and
+    coverage_replicate_table). ``svo.<case>.n_signals``; per method and parameter ``lowest`` (the
+    virtual signals on which the method's estimate is the lowest of the methods: the
+    ``share_lowest`` of gmwm_estimates.csv) and ``lowest_pct``; per MBB scheme
+    ``coverage.<scheme>.n`` (replications), per gyro ``gyro<i>.covered`` and ``gyro<i>.coverage``,
+    and ``coverage.<scheme>.min`` / ``.max`` over the gyros. ``sources``: ``fits`` and
+    ``coverage`` file names (relative to the counts file)."""
+    out: list[Count] = []
+    p = f"svo.{case}"
+    wide = {prm: fits.pivot_table(index=["replicate", "test"], columns="method", values=prm,
+                                  sort=False) for prm in ("sigma2", "gamma2")}
+    n = len(wide["gamma2"])
+    out.append(Count(f"{p}.n_signals", n, "out-of-sample virtual signals (training array x test "
+                     "array) with a GMWM fit per method", sources["fits"]))
+    for prm, w in wide.items():
+        lowest = w.idxmin(axis=1).to_numpy()
+        for m in w.columns:
+            k = int(np.sum(lowest == m))
+            out.append(Count(f"{p}.{m}.{prm}.lowest", k, f"virtual signals on which {m}'s GMWM "
+                             f"{prm} is the lowest of the {w.shape[1]} methods", sources["fits"]))
+            out.append(Count(f"{p}.{m}.{prm}.lowest_pct", _num(100.0 * k / n) if n else None,
+                             f"the same in percent of the {n} signals", sources["fits"]))
+    if coverage is not None:
+        for scheme, g in coverage.groupby("mbb", sort=False):
+            q = f"{p}.coverage.{scheme}"
+            cov = g.groupby("gyro")["covered"].agg(["sum", "count"])
+            out.append(Count(f"{q}.n", int(g["replicate"].nunique()),
+                             f"coverage replications ({scheme} MBB)", sources["coverage"]))
+            shares = []
+            for gyro, r in cov.iterrows():
+                shares.append(r["sum"] / r["count"])
+                out.append(Count(f"{q}.gyro{gyro}.covered", int(r["sum"]),
+                                 f"replications whose {scheme}-MBB interval for coefficient "
+                                 f"{gyro} covers c0 (covered column)", sources["coverage"]))
+                out.append(Count(f"{q}.gyro{gyro}.coverage", _num(shares[-1]),
+                                 f"their share (coverage of coefficient {gyro})",
+                                 sources["coverage"]))
+            out.append(Count(f"{q}.min", _num(min(shares)), "smallest coverage over the gyros",
+                             sources["coverage"]))
+            out.append(Count(f"{q}.max", _num(max(shares)), "largest coverage over the gyros",
+                             sources["coverage"]))
+    return out
+
+
+def navigation_counts(df: pd.DataFrame, source: str, models: Sequence[str] | None = None
+                      ) -> list[Count]:
+    """Counts of the navigation emulation's per-iteration table
+    (navigation.iteration_table): ``navigation.n_iterations``, ``n_dropped``, ``n_used`` and
+    ``ratio_at_peak``, the ratio of the first model's mean ``err_at_peak_m`` to the second's over
+    the used iterations (= ratio_max.csv's whole-flight ``max_ratio``)."""
+    its = df.groupby("iteration")["dropped"].max()
+    out = [Count("navigation.n_iterations", int(its.size), "configured iterations", source),
+           Count("navigation.n_dropped", int(its.sum()),
+                 "iterations dropped (a fit did not converge or its AR1 phi is outside (0, 1))",
+                 source),
+           Count("navigation.n_used", int((its == 0).sum()), "iterations emulated", source)]
+    models = list(models or dict.fromkeys(df["model"]))
+    used = df[df["dropped"] == 0]
+    if len(models) == 2 and len(used):
+        e = [used.loc[used["model"] == m, "err_at_peak_m"].to_numpy(float) for m in models]
+        out.append(Count("navigation.ratio_at_peak", _num(e[0].mean() / e[1].mean()),
+                         f"mean position error of {models[0]} over {models[1]} at the epoch of "
+                         "the ratio's whole-flight maximum (err_at_peak_m)", source))
     return out
 
 

@@ -34,6 +34,7 @@ __all__ = [
     "emulate",
     "filter_setup",
     "gnss_schedule",
+    "iteration_table",
     "make_trajectory",
     "plot_fig7",
     "plot_fig8",
@@ -376,6 +377,43 @@ def ratio_summary(ds: xr.Dataset, models: tuple[str, str] = ("model1", "model2")
             "share_ratio_ci_above_1": float(np.mean(ci["lo"][mask] > 1)),
         })
     return pd.DataFrame(rows)
+
+
+def iteration_table(ds: xr.Dataset, dropped: Mapping[int, str], iterations: Sequence[int],
+                    peak_time: float, outage: tuple[float, float] = (160.0, 210.0)
+                    ) -> pd.DataFrame:
+    """One row per configured iteration and model (``reports/navigation/replicates/
+    iterations.csv``): ``dropped`` (1/0) and its ``reason`` (:func:`filter_params_from_fits`), the
+    filter's AR1 + RW parameters (per IMU sample, signal units; empty when dropped) and the
+    iteration's position errors [m]: ``err_at_peak_m`` at ``peak_time`` (the epoch of the ratio's
+    maximum, so the ratio of the two models' means there is the table's ``max_ratio``),
+    ``max_err_m`` over the flight and ``mean_err_outage_m`` over the outage."""
+    models = [str(m) for m in ds["model"].values]
+    t = ds["time"].values
+    k = int(np.argmin(np.abs(t - float(peak_time))))
+    out_mask = (t >= outage[0]) & (t <= outage[1])
+    kept = {int(i): n for n, i in enumerate(ds["iteration"].values)}
+    unknown = sorted((set(kept) | {int(i) for i in dropped}) - {int(i) for i in iterations})
+    if unknown:
+        raise InputError(f"navigation: iterations {unknown[:5]} are not configured ones")
+    rows = []
+    for it in sorted(int(i) for i in iterations):
+        if it not in kept and it not in dropped:
+            raise InputError(f"navigation: iteration {it} is neither in the results nor dropped")
+        for m, model in enumerate(models):
+            row: dict[str, Any] = {"iteration": it, "model": model, "dropped": int(it not in kept),
+                                   "reason": dropped.get(it, "")}
+            if it in kept:
+                n = kept[it]
+                e = ds["pos_err_norm"].values[n, m]
+                row.update({p: float(v) for p, v in zip(BASIC, ds["filter_params"].values[n, m],
+                                                         strict=True)})
+                row.update({"err_at_peak_m": float(e[k]), "max_err_m": float(e.max()),
+                            "mean_err_outage_m": float(e[out_mask].mean())})
+            rows.append(row)
+    cols = ["iteration", "model", "dropped", "reason", *BASIC, "err_at_peak_m", "max_err_m",
+            "mean_err_outage_m"]
+    return pd.DataFrame(rows).reindex(columns=cols)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -18,6 +18,11 @@ converged, at_boundary[, label_switched]``
   another component's column, ``;``-joined, empty if none; only for models with two components of
   one type (the rule of the tables' ``n_switched``).
 
+Simulation 1 (kind ``mle_comparison``) has rows for the GMWM, every MLE variant and the
+statsmodels baseline, each where it ran, and per fit the columns of :data:`SIM1_COLUMNS`
+(log-likelihood, wrong optimum, iterations, both clocks); its ``objective`` is minus the
+log-likelihood for the MLEs, empty for the GMWM.
+
 A ``truth_T<T>.json`` beside each CSV holds what the counts need besides the estimates: the model,
 the true values, the number of WV levels J and, for STIM-300, the sensor and sampling rate.
 """
@@ -26,6 +31,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -38,6 +44,7 @@ from gmwm.errors import InputError
 
 __all__ = [
     "FLOAT_FORMAT",
+    "SIM1_COLUMNS",
     "bootstrap_draw_table",
     "dataset_table",
     "read_replicates",
@@ -95,6 +102,51 @@ def _truth_of(ds: xr.Dataset) -> dict[str, float]:
                                              strict=True)}
 
 
+#: Simulation 1's per-fit columns beside the estimates (kind ``mle_comparison``), and their meaning.
+SIM1_COLUMNS = {
+    "loglike": "exact Gaussian log-likelihood of the MLE fit (empty for the GMWM)",
+    "wrong_optimum": "1: converged, but the log-likelihood is more than wrong_optimum_ll below the "
+                     "best any MLE (variant or statsmodels) reached on the same signal "
+                     "(sim1.wrong_optimum)",
+    "iterations": "optimiser iterations as its message reports them (BFGS: first run + polish; "
+                  "statsmodels: L-BFGS), empty if not reported",
+    "seconds": "wall time of the point estimate [s] (GMWM: WV + search)",
+    "cpu_seconds": "process CPU time of the point estimate [s]",
+    "seconds_se": "wall time with the standard errors [s]",
+    "cpu_seconds_se": "process CPU time with the standard errors [s]",
+}
+_ITERATIONS = re.compile(r"(\d+)(?:\+(\d+))?\s+(?:BFGS\s+)?iterations")
+
+
+def _iterations(message: str) -> float:
+    """Iterations named in an MLE message ("12+3 BFGS iterations", "statsmodels lbfgs, 50
+    iterations"), NaN when it names none."""
+    m = _ITERATIONS.search(str(message))
+    return float(int(m.group(1)) + int(m.group(2) or 0)) if m else np.nan
+
+
+def _mle_comparison_rows(ds: xr.Dataset, method: str) -> pd.DataFrame:
+    """Rows of one Simulation 1 method: the replicates where it ran, with :data:`SIM1_COLUMNS`."""
+    from gmwm_studies.sim1 import wrong_optimum
+
+    wrong = wrong_optimum(ds).sel(estimator=method).values
+    sub = ds.sel(estimator=method)
+    keep = np.flatnonzero(np.asarray(sub["ran"].values, dtype=bool))
+    sub, wrong = sub.isel(replicate=keep), wrong[keep]
+    part = sub.drop_vars(["objective"], errors="ignore")
+    # the GMWM's objective is not stored by this study; the MLE's is -log-likelihood
+    part["objective"] = np.nan * sub["loglike"] if str(method) == "gmwm" else -sub["loglike"]
+    part.attrs = dict(ds.attrs)
+    df = dataset_table(part, estimator=str(method))
+    df["loglike"] = np.asarray(sub["loglike"].values, dtype=float)
+    df["wrong_optimum"] = wrong.astype(np.int8)
+    df["iterations"] = pd.array([_iterations(m) for m in sub["message"].values], dtype="Int64") \
+        if str(method) != "gmwm" else pd.array([pd.NA] * len(df), dtype="Int64")
+    for col in ("seconds", "cpu_seconds", "seconds_se", "cpu_seconds_se"):
+        df[col] = np.asarray(sub[col].values, dtype=float)
+    return df
+
+
 def study_table(kind: str, paths: Sequence[str | os.PathLike], *,
                 extra: Mapping[str, Any] | None = None) -> tuple[pd.DataFrame, dict[str, Any]]:
     """Per-replicate table and truth record of one study at one sample size.
@@ -102,7 +154,8 @@ def study_table(kind: str, paths: Sequence[str | os.PathLike], *,
     ``kind``: the study kind of config/config.yaml; ``paths``: its gathered estimates at that T
     (wv_montecarlo: one file per estimator; misspec: one per fitted model, in
     ``extra["fit_models"]`` order; stim300 and bootstrap_coverage: its chunk files;
-    mle_comparison: the gathered GMWM + MLE file, rows only where a method ran). ``extra``: kind-specific settings (stim300: ``sensor``, ``freq``;
+    mle_comparison: the gathered GMWM + MLE file and, where it ran at that T, the gathered
+    statsmodels baseline, rows only where a method ran, with :data:`SIM1_COLUMNS`). ``extra``: kind-specific settings (stim300: ``sensor``, ``freq``;
     misspec: ``fit_models`` labels and the study ``truth``).
     """
     from gmwm_studies.montecarlo import gather
@@ -146,18 +199,22 @@ def study_table(kind: str, paths: Sequence[str | os.PathLike], *,
         frames = [dataset_table(ds, estimator=str(extra.get("estimator", "gmwm")))]
         record = {"model": ds.attrs["model"], "truth": _truth_of(ds)}
     elif kind == "mle_comparison":
+        from gmwm_studies.sim1 import add_baseline
+
         ds = read_dataset(paths[0])
-        for method in ds["estimator"].values:
-            sub = ds.sel(estimator=method)
-            sub = sub.isel(replicate=np.flatnonzero(np.asarray(sub["ran"].values, dtype=bool)))
-            part = sub.drop_vars(["objective"], errors="ignore")
-            # the GMWM's objective is not stored by this study; the MLE's is -log-likelihood
-            part["objective"] = (np.nan * sub["loglike"] if str(method) == "gmwm"
-                                 else -sub["loglike"])
-            part.attrs = dict(ds.attrs)
-            frames.append(dataset_table(part, estimator=str(method)))
+        if len(paths) > 2:
+            raise InputError(f"mle_comparison: the gathered results and at most one statsmodels "
+                             f"baseline file, got {len(paths)} files")
+        if len(paths) == 2:
+            ds = add_baseline(ds, read_dataset(paths[1]))
+        frames = [_mle_comparison_rows(ds, method) for method in ds["estimator"].values]
         record = {"model": ds.attrs["model"], "truth": _truth_of(ds),
-                  "objective": "GMWM: not stored; MLE: minus the log-likelihood"}
+                  "objective": "GMWM: not stored; MLE variants and statsmodels: minus the "
+                               "log-likelihood (loglike)",
+                  "wrong_optimum_ll": float(ds.attrs["wrong_optimum_ll"]),
+                  "mle_settings": json.loads(ds.attrs.get("mle_settings", "{}")),
+                  "baseline_settings": json.loads(ds.attrs.get("baseline_settings", "{}")),
+                  "columns": SIM1_COLUMNS}
     else:
         raise InputError(f"no per-replicate table for study kind {kind!r}")
     df = pd.concat(frames, ignore_index=True)
@@ -165,14 +222,16 @@ def study_table(kind: str, paths: Sequence[str | os.PathLike], *,
     params = [c for c in df.columns if "[" in c]
     params.sort(key=lambda n: list(record["truth"]).index(n) if n in record["truth"] else 1 << 30)
     ids = [c for c in ("replicate", "estimator", "fit_model", "T", "J") if c in df.columns]
-    tail = [c for c in ("objective", "converged", "at_boundary", "label_switched") if c in df.columns]
+    tail = [c for c in ("objective", "converged", *SIM1_COLUMNS, "at_boundary", "label_switched")
+            if c in df.columns]
     df = df[[*ids, *params, *tail]]
     T = int(df["T"].iloc[0])
     if (df["T"] != T).any():
         raise InputError(f"estimates of several sample sizes given: {sorted(set(df['T']))}")
     J = None if df["J"].isna().all() else int(df["J"].max())
     record.update({"kind": kind, "T": T, "J": J,
-                   "columns": {"at_boundary": "parameters at the boundary (montecarlo."
+                   "columns": {**record.get("columns", {}),
+                               "at_boundary": "parameters at the boundary (montecarlo."
                                "replicate_flags, the tables' n_boundary rule)"}})
     return df, record
 

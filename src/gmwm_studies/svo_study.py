@@ -474,6 +474,60 @@ def coverage_table(cov: Mapping[str, np.ndarray], conf: float = 0.95) -> list[di
     return rows
 
 
+# --- per-replicate files (reports/svo/<case>/replicates/; docs/pipeline.md "Per-replicate
+# tables and counts"): what the tables above summarise, one row per array or replication ---------
+PER_REPLICATE_FORMAT = "%.10g"
+"""Ten significant digits, as the other per-replicate tables (gmwm_studies.replicates)."""
+
+
+def array_coef_table(res: Mapping[str, np.ndarray]) -> list[dict[str, Any]]:
+    """One row per training array and method: the coefficient vector (``c1..cp``, the columns of
+    :func:`coef_table`'s summaries)."""
+    rows = []
+    for a, r in enumerate(np.asarray(res["replicates"]).tolist()):
+        for b, m in enumerate(METHODS):
+            rows.append({"replicate": int(r), "method": m,
+                         **{f"c{i + 1}": float(c) for i, c in enumerate(res["coef"][a, b])}})
+    return rows
+
+
+def virtual_fit_table(res: Mapping[str, np.ndarray]) -> list[dict[str, Any]]:
+    """One row per out-of-sample virtual signal (training array ``replicate``, test array ``test``)
+    and method: the WN+RW GMWM estimates ``sigma2``, ``gamma2`` (per sample) that
+    :func:`gmwm_table` summarises (its ``share_lowest`` compares the methods on each signal)."""
+    rows = []
+    for a, r in enumerate(np.asarray(res["replicates"]).tolist()):
+        for k in range(res["gmwm"].shape[1]):
+            for b, m in enumerate(METHODS):
+                sigma2, gamma2 = res["gmwm"][a, k, b]
+                rows.append({"replicate": int(r), "test": k, "method": m,
+                             "sigma2": float(sigma2), "gamma2": float(gamma2)})
+    return rows
+
+
+def coverage_replicate_table(cov: Mapping[str, np.ndarray], alpha: float
+                             ) -> list[dict[str, Any]]:
+    """One row per MBB scheme, coverage replication and coefficient: the estimate, its MBB SE,
+    the interval ``coef -+ z se`` (z the normal ``1 - alpha/2`` quantile) and ``covered`` (1/0:
+    c0 inside, the ``hit`` :func:`coverage_table` averages; c0 per gyro is in that table)."""
+    hits = np.asarray(cov["hit"], dtype=bool)
+    if hits.ndim == 2:
+        hits = hits[None]
+    ses = np.asarray(cov["se"]).reshape(hits.shape)
+    schemes = [str(x) for x in np.atleast_1d(cov.get("schemes", ["paper"]))]
+    z = float(ndtri(1.0 - alpha / 2.0))
+    reps = np.asarray(cov["replicates"]).tolist()
+    rows = []
+    for s_i, scheme in enumerate(schemes):
+        for a, r in enumerate(reps):
+            for i in range(hits.shape[2]):
+                c, se = float(cov["coef"][a, i]), float(ses[s_i, a, i])
+                rows.append({"mbb": scheme, "replicate": int(r), "gyro": i + 1, "coef": c,
+                             "se": se, "ci_low": c - z * se, "ci_high": c + z * se,
+                             "covered": int(hits[s_i, a, i])})
+    return rows
+
+
 def _colors() -> dict[str, str]:
     from gmwm.plots import PALETTE
 

@@ -4,7 +4,8 @@
 #   iteration b uses replicate b, simulated from Table 5 at T = 2,879,999 and fitted by GMWM)
 #   -> nav_chunk (per chunk of iterations: simulate the AR1+RW gyro errors and sensor noise, run
 #      both EKFs on the same measurements, vectorised over the chunk)
-#   -> nav_report (Fig. 7 trajectory, Fig. 8 ratio with 95 % CI, table of its maximum).
+#   -> nav_report (Fig. 7 trajectory, Fig. 8 ratio with 95 % CI, table of its maximum, and the
+#      per-iteration table reports/navigation/replicates/iterations.csv that rule counts counts).
 # Iteration b draws from SeedSequence(seed, spawn_key=(crc32(name), b)): chunking changes nothing.
 # Registered in the index and the archive with register_section (common.smk).
 
@@ -36,6 +37,7 @@ def nav_targets():
         "reports/navigation/ratio_max.csv",
         "reports/navigation/ratio_max.md",
         "reports/navigation/ratio_series.csv",
+        "reports/navigation/replicates/iterations.csv",
         *[f"reports/navigation/fig7_trajectory.{fmt}" for fmt in FIG_FORMATS],
         *[f"reports/navigation/fig8_ratio.{fmt}" for fmt in FIG_FORMATS],
     ]
@@ -120,6 +122,8 @@ rule nav_report:
         ),
         md="reports/navigation/ratio_max.md",
         series="reports/navigation/ratio_series.csv",
+        # per iteration and model: dropped?, filter parameters, errors (counts: rule counts)
+        iterations="reports/navigation/replicates/iterations.csv",
     params:
         nav=NAV,
         formats=FIG_FORMATS,

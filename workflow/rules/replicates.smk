@@ -2,8 +2,10 @@
 # (gmwm_studies.replicates, gmwm_studies.counts; docs/pipeline.md "Per-replicate tables"):
 #   replicates  one study at one T: its gathered estimates -> reports/<study>/replicates/
 #               estimates_T<T>.csv (one row per replicate and estimator) + truth_T<T>.json
-#   counts      every table -> reports/counts.json and reports/counts.md (an input of the index,
-#               so every run that rebuilds the index recounts)
+#   counts      every table, and the SVO (reports/svo/<case>/replicates/) and navigation
+#               (reports/navigation/replicates/) per-replicate files -> reports/counts.json and
+#               reports/counts.md (an input of the index, so every run that rebuilds the index
+#               recounts)
 #   navchip_draws, counts_navchip   the Navchip bootstrap draws (label-aligned refits, one row per
 #               fit and draw) -> reports/navchip/replicates/, reports/navchip/counts.{json,md}.
 #               Requested with uncertainty_navchip_targets (rule all only, not the index): they
@@ -34,8 +36,9 @@ def replicates_inputs(w):
         return [f"results/{name}/allan/T{T}_c{c}.nc" for c in chunks]
     if kind == "bootstrap_coverage":
         return [f"results/{name}/coverage/T{T}_c{c}.nc" for c in chunks]
-    if kind == "mle_comparison":
-        return [f"results/{name}/gmwm_mle/all_T{T}.nc"]
+    if kind == "mle_comparison":  # + the statsmodels baseline where it ran at this T
+        base = sim1_baselines(name).get(int(T))
+        return [f"results/{name}/gmwm_mle/all_T{T}.nc", *([base] if base else [])]
     raise WorkflowError(f"no per-replicate table for study kind {kind!r} (study {name!r})")
 
 
@@ -54,6 +57,17 @@ COUNTS_FILES = ["reports/counts.json", "reports/counts.md"]
 NAVCHIP_DRAWS = ["reports/navchip/replicates/bootstrap_draws.csv",
                  "reports/navchip/replicates/bootstrap_estimates.csv"]
 NAVCHIP_COUNTS = ["reports/navchip/counts.json", "reports/navchip/counts.md"]
+
+# the per-replicate files of the SVO and navigation studies (written by svo_report,
+# svo_coverage_report and nav_report), counted beside the estimate tables
+COUNTS_SVO = [
+    {"case": case, "fits": f"reports/svo/{case}/replicates/virtual_fits.csv",
+     "coverage": (f"reports/svo/{case}/replicates/coverage.csv"
+                  if case in SVO_COV["cases"] else None)}
+    for case in (SVO["cases"] if SVO["enabled"] else [])
+]
+COUNTS_NAV = ({"csv": "reports/navigation/replicates/iterations.csv", "models": list(NAV["models"])}
+              if _NAV_ON else None)
 
 COUNTS_TABLES = [
     {"study": name, "csv": f"reports/{name}/replicates/estimates_T{T}.csv",
@@ -92,11 +106,15 @@ rule replicates:
 rule counts:
     input:
         [f for name in STUDIES for f in replicates_files(name)],
+        [f for c in COUNTS_SVO for f in (c["fits"], c["coverage"]) if f],
+        [COUNTS_NAV["csv"]] if COUNTS_NAV else [],
     output:
         json=COUNTS_FILES[0],
         md=COUNTS_FILES[1],
     params:
         tables=COUNTS_TABLES,
+        svo=COUNTS_SVO,
+        navigation=COUNTS_NAV,
     log:
         "logs/counts.log",
     benchmark:

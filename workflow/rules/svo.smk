@@ -7,7 +7,10 @@
 #   svo_coverage  coverage replicates [a, b): c_hat(omega_2) with MBB 95 % CIs against c0
 #   svo_report    per case: Fig. 2/7 (mean WV + ratio), Fig. 4/8 (coefficient boxplots), Fig. 3
 #                 (GMWM WN+RW of the virtual signals) and their tables (coefficients, WV, GMWM
-#                 estimates); svo_coverage_report: coverage table and figure (Wilson MC intervals)
+#                 estimates); svo_coverage_report: coverage table and figure (Wilson MC intervals);
+#                 both also write the per-replicate files under reports/svo/<case>/replicates/
+#                 (coefficient vectors per array, GMWM fits per virtual signal, intervals per
+#                 coverage replication) that rule counts counts
 #   svo_inputs    per case: Fig. 1 (Case 1: |corr| of Q) / Fig. 6 (Case 2: |corr| of P_1..P_3),
 #                 drawn from the App. C matrices the simulations use, and their table
 # Every array has its own SeedSequence keyed by (svo, case, role, replicate[, k]) under `seed`.
@@ -38,11 +41,13 @@ def svo_report_files(case):
              for fmt in FIG_FORMATS]
     files += [f"reports/svo/{case}/{t}.{ext}" for t in ("coefficients", "wv", "gmwm_estimates")
               for ext in ("csv", "md")]
+    files += [f"reports/svo/{case}/replicates/{t}.csv" for t in ("coefficients", "virtual_fits")]
     files += [f"reports/svo/{case}/fig_input_correlation.{fmt}" for fmt in FIG_FORMATS]
     files += [f"reports/svo/{case}/input_correlation.{ext}" for ext in ("csv", "md")]
     if case in SVO_COV["cases"]:
         files += [f"reports/svo/{case}/coverage.{ext}" for ext in ("csv", "md")]
         files += [f"reports/svo/{case}/fig_coverage.{fmt}" for fmt in FIG_FORMATS]
+        files.append(f"reports/svo/{case}/replicates/coverage.csv")
     return files
 
 
@@ -167,6 +172,10 @@ rule svo_report:
         wv_md="reports/svo/{svo_case}/wv.md",
         gmwm_csv="reports/svo/{svo_case}/gmwm_estimates.csv",
         gmwm_md="reports/svo/{svo_case}/gmwm_estimates.md",
+        # per-replicate files (counts: rule counts): coefficient vectors per training array,
+        # GMWM estimates per virtual signal
+        array_coefs="reports/svo/{svo_case}/replicates/coefficients.csv",
+        virtual_fits="reports/svo/{svo_case}/replicates/virtual_fits.csv",
     params:
         levels=int(SVO["levels"]),
         freq=float(SVO["freq"]),
@@ -194,6 +203,7 @@ rule svo_coverage_report:
             labels={"figure": "coverage of the MBB confidence intervals"},
         ),
         *[f"reports/svo/{{svo_case}}/fig_coverage.{fmt}" for fmt in FIG_FORMATS if fmt != "png"],
+        replicates="reports/svo/{svo_case}/replicates/coverage.csv",  # per replication and gyro
     params:
         formats=FIG_FORMATS,
         alpha=float(SVO_COV["alpha"]),

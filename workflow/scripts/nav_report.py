@@ -15,6 +15,7 @@ from gmwm.atomic import save_figure, write_text_atomic
 from gmwm_studies.montecarlo import write_table
 from gmwm_studies.navigation import (
     gnss_schedule,
+    iteration_table,
     make_trajectory,
     plot_fig7,
     plot_fig8,
@@ -54,6 +55,9 @@ series = pd.DataFrame({"time_s": ds["time"].values, "ratio": ci["ratio"], "ci_lo
                        "mean_sd_model1_m": ds["pos_sd"].sel(model=models[0]).values.mean(0),
                        "mean_sd_model2_m": ds["pos_sd"].sel(model=models[1]).values.mean(0)})
 write_text_atomic(out.series, series.to_csv(index=False, float_format="%.8g"))
+per_it = iteration_table(ds, {int(k): v for k, v in dropped.items()}, range(int(nav["iterations"])),
+                         float(table["time_s"].iloc[0]), outage)
+write_text_atomic(out.iterations, per_it.to_csv(index=False, float_format="%.10g"))
 log.info("%d iterations (%d dropped: %s); chunk seconds %s", ds.sizes["iteration"], len(dropped),
          dropped, [round(float(p.attrs.get("seconds", 0)), 1) for p in parts])
 log.info("\n%s", table.to_string())

@@ -10,12 +10,15 @@ import pandas as pd
 from gmwm.atomic import save_figure, write_text_atomic
 from gmwm_studies.montecarlo import format_markdown_table
 from gmwm_studies.svo_study import (
+    PER_REPLICATE_FORMAT,
+    array_coef_table,
     coef_table,
     figure_coefs,
     figure_gmwm,
     figure_wv,
     gmwm_table,
     merge,
+    virtual_fit_table,
     wv_table,
 )
 
@@ -29,6 +32,10 @@ for rows, csv, md in ((coef_table(res, case, p.levels), out.coefs_csv, out.coefs
     df = pd.DataFrame(rows)
     write_text_atomic(csv, df.to_csv(index=False))  # atomic: a killed job leaves no half file
     write_text_atomic(md, format_markdown_table(df) + "\n")
+for rows, csv in ((array_coef_table(res), out.array_coefs),
+                  (virtual_fit_table(res), out.virtual_fits)):
+    write_text_atomic(csv, pd.DataFrame(rows).to_csv(index=False,
+                                                     float_format=PER_REPLICATE_FORMAT))
 folder = Path(out[0]).parent
 for fig, stem in ((figure_wv(res, p.freq, case), "fig_wv"),
                   (figure_coefs(res, case, p.levels), "fig_coefs"), (figure_gmwm(res), "fig_gmwm")):
