@@ -305,7 +305,7 @@ def _sim1_fit_counts(sub: pd.DataFrame, prefix: str, source: str) -> list[Count]
                  "fits converged to the best optimum (converged and not wrong_optimum)", source)]
     if sub["iterations"].notna().any():
         it = sub["iterations"].to_numpy(float)
-        out.append(Count(f"{prefix}.iterations_max", _num(np.nanmax(it)),
+        out.append(Count(f"{prefix}.iterations_max", int(np.nanmax(it)),
                          "largest number of optimiser iterations (iterations column; the "
                          "maxiter cap when a fit was stopped by it)", source))
     for col, what in (("seconds", "wall time"), ("cpu_seconds", "CPU time")):
