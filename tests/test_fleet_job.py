@@ -82,3 +82,16 @@ def test_python_warnings_reach_the_status_after_the_error(tmp_path, monkeypatch)
     code, obj, err = report(FleetSettings(model="WN").report_argv(str(rec), str(tmp_path / "o")))
     assert (code, obj) == (1, None)
     assert err.splitlines() == ["gmwm: error: too short", "gmwm: warning: a reader's caveat"]
+
+
+def test_fleet_snakemake_command_uses_the_greedy_scheduler(tmp_path):
+    # the ILP scheduler doubles Snakemake's own CPU at ~1000 alike jobs; Snakemake's own parser
+    # must accept the command as built
+    snakemake_cli = pytest.importorskip("snakemake.cli")
+    from gmwm.fleet.run import snakemake_argv
+
+    for kw in ({"cores": 2}, {"profile": str(tmp_path)}):
+        argv = snakemake_argv(tmp_path / "out", tmp_path / "fleet.yaml", **kw)
+        assert argv[argv.index("--scheduler") + 1] == "greedy"
+        args = snakemake_cli.get_argument_parser().parse_args(argv[3:])
+        assert args.scheduler == "greedy"
