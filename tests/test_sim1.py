@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
 import xarray as xr
 
@@ -25,6 +26,7 @@ from gmwm_studies.sim1 import (
     standardized_by_method,
     study_tables,
     summarize_comparison,
+    variant_replicate_caps,
     wrong_optimum,
 )
 
@@ -120,6 +122,65 @@ def test_input_errors():
         run_replicate(MODEL, TRUTH, 1000, 0, "s", 0, GMWM, {"variants": {"m": "truth"}})
     with pytest.raises(InputError, match="cap"):
         run_chunk(MODEL, TRUTH, 1000, [0], "s", 0, GMWM, MLE, n_mle=-1)
+
+
+def test_variant_cap_runs_the_variant_on_its_first_replicates_only(whole):
+    capped = run_chunk(MODEL, TRUTH, T_TINY, [0, 1, 2], study="t_sim1", base_seed=11,
+                       gmwm_settings=GMWM, mle_settings=MLE, n_mle=2,
+                       variant_replicates={"mle_default": 1})
+    ran = capped["ran"].sel(estimator="mle_default").values
+    assert list(ran) == [True, False, False]
+    assert "variant's replicate cap" in str(capped["message"].sel(estimator="mle_default",
+                                                                  replicate=1).values)
+    assert np.isnan(capped["loglike"].sel(estimator="mle_default", replicate=1))
+    # the headline, the GMWM-started MLE and the GMWM: the same fits, every replicate
+    same = ["gmwm", "mle", "mle_gmwm"]
+    for var in ("estimate", "se", "converged", "ran", "loglike", "start"):
+        np.testing.assert_array_equal(capped[var].sel(estimator=same).values,
+                                      whole[var].sel(estimator=same).values)
+    # and the same numbers in the tables (times aside: clocks differ run to run); the capped
+    # variant is counted over the replicates where it ran
+    _, comp_whole = study_tables([whole])
+    _, comp_capped = study_tables([capped])
+    clocks = [c for c in comp_whole if c.endswith("_s") or c.startswith("speedup")]
+    keep = comp_whole.variant.isin(["mle", "mle_gmwm"])
+    pd.testing.assert_frame_equal(comp_capped[keep].drop(columns=clocks),
+                                  comp_whole[keep].drop(columns=clocks))
+    row = comp_capped[comp_capped.variant == "mle_default"].iloc[0]
+    assert row.n_mle == 1 and row.n_used <= 1 and row.not_converged + row.wrong_optimum <= 1
+    long_whole = summarize_comparison(whole)
+    long_capped = summarize_comparison(capped)
+    cols = ["set", "variant", "method", "parameter", "n_used", "mean", "rmse", "mean_se"]
+    sel = long_whole.variant.isin(["", "mle", "mle_gmwm"])
+    pd.testing.assert_frame_equal(long_capped[sel][cols], long_whole[sel][cols])
+    text = counts_text(comp_capped, MLE)
+    assert "[mle_default] fitted on the first replicates only" in text
+    assert f"T = {T_TINY:,}: 1." in text
+    assert "fitted on the first replicates only (its own" not in counts_text(comp_whole, MLE)
+
+
+def test_variant_cap_checks():
+    caps = {10000: 500, 20000: 400}
+    variants = ["mle", "mle_sm", "mle_gmwm"]
+    assert variant_replicate_caps({"mle_sm": 100}, variants, caps) == {
+        "mle_sm": {10000: 100, 20000: 100}}
+    assert variant_replicate_caps({"mle_sm": [100, 50]}, variants, caps) == {
+        "mle_sm": {10000: 100, 20000: 50}}
+    assert variant_replicate_caps(None, variants, caps) == {}
+    with pytest.raises(InputError, match=r"MLE cap \(400\) at T = 20000"):
+        variant_replicate_caps({"mle_sm": 450}, variants, caps)
+    with pytest.raises(InputError, match="headline"):
+        variant_replicate_caps({"mle": 100}, variants, caps)
+    with pytest.raises(InputError, match="not one of mle.variants"):
+        variant_replicate_caps({"mle_x": 100}, variants, caps)
+    with pytest.raises(InputError, match="2 sample sizes"):
+        variant_replicate_caps({"mle_sm": [1, 2, 3]}, variants, caps)
+    # the runner refuses the same, per chunk
+    for bad, match in (({"mle": 1}, "headline"), ({"mle_x": 1}, "not an MLE variant"),
+                       ({"mle_default": 3}, "between 0 and the MLE cap")):
+        with pytest.raises(InputError, match=match):
+            run_chunk(MODEL, TRUTH, 1000, [0], "s", 0, GMWM, MLE, n_mle=2,
+                      variant_replicates=bad)
 
 
 # ---------------------------------------------------------------------------------------------

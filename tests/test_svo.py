@@ -423,6 +423,28 @@ def test_study_chunks_merge_and_wilson():
     assert len(rows) == 12 and {r["mbb"] for r in rows} == {"paper", "time"}
 
 
+def test_coverage_with_the_paper_scheme_only():
+    """The full profile runs the paper's MBB alone: its SEs are those of the two-scheme run bit for
+    bit (each scheme has its own draw stream), and the table and figure hold that scheme only."""
+    import matplotlib.pyplot as plt
+
+    from gmwm_studies.svo_study import coverage_chunk, coverage_table, figure_coverage
+
+    args = ("case1", [0, 1], 2**12, 10, 20, 5.0, 0.05, 3)
+    both = coverage_chunk(*args, ("paper", "time"))
+    paper = coverage_chunk(*args, ("paper",))
+    assert paper["se"].shape == (1, 2, 6) and list(paper["schemes"]) == ["paper"]
+    np.testing.assert_array_equal(paper["se"][0], both["se"][0])
+    np.testing.assert_array_equal(paper["coef"], both["coef"])
+    rows = coverage_table(paper)
+    assert len(rows) == 6 and {r["mbb"] for r in rows} == {"paper"}
+    assert all(np.isfinite(r["coverage"]) and np.isfinite(r["mean_se"]) for r in rows)
+    fig = figure_coverage(rows)
+    labels = fig.axes[0].get_legend_handles_labels()[1]
+    assert [x for x in labels if x.startswith("MBB")] == ["MBB paper: coverage (Wilson 95 %)"]
+    plt.close(fig)
+
+
 def test_svo_reuses_a_given_wccv_bit_for_bit():
     # coverage runs both MBB schemes on one array: the WCCV of the first fit is passed to the
     # second; the result must be the one computed from scratch

@@ -13,7 +13,9 @@ configured *variant*, i.e. per starting rule:
   project's filter and optimiser;
 * ``gmwm``: started at the GMWM estimate (labelled; not a like-for-like comparison).
 
-The first variant is the headline. Separately (:func:`run_baseline_chunk`, its own pipeline rule,
+The first variant is the headline. A variant other than the headline may run on fewer replicates
+(``variant_replicates``: the first ones, a cost cap); its comparison and counts are over the
+replicates where it ran. Separately (:func:`run_baseline_chunk`, its own pipeline rule,
 on a smaller subset of the same signals because it is slow) the general-purpose baseline
 ``statsmodels``: statsmodels' own estimator (:func:`gmwm_studies.mle.fit_statsmodels`), merged
 in by :func:`add_baseline`. Raw signals are never stored.
@@ -32,7 +34,8 @@ Results are xarray Datasets with dims ``(estimator, replicate, parameter)``; ``e
 variance and RW gamma2 only (the MLE treats the sinusoid as deterministic, as the paper's Hector
 MLE did). Following the paper, a replicate where a variant's MLE did not converge, or stopped at a
 wrong optimum (log-likelihood more than ``wrong_optimum_ll`` below the best any variant reached on
-that signal), is dropped from *both* methods in that variant's comparison, and counted.
+that signal), is dropped from *both* methods in that variant's comparison, and counted. The best
+is over the variants fitted to that signal, so a variant beyond its cap takes no part in it.
 """
 
 from __future__ import annotations
@@ -68,6 +71,7 @@ __all__ = [
     "standardized_by_method",
     "study_tables",
     "summarize_comparison",
+    "variant_replicate_caps",
     "variants_of",
     "wrong_optimum",
 ]
@@ -199,9 +203,11 @@ def run_replicate(
     base_seed: int,
     gmwm_settings: Mapping[str, Any],
     mle_settings: Mapping[str, Any] | None,
+    variants: Sequence[str] | None = None,
 ) -> dict[str, Any]:
     """Simulate replicate ``replicate``, fit the GMWM and (unless ``mle_settings`` is None) every
-    MLE variant.
+    MLE variant, or only those named in ``variants`` (the others are recorded as not run, beyond
+    their replicate cap).
 
     Returns ``{'mle_ran': bool, 'fits': {estimator: {...}}}`` where each fit has ``estimate``
     and ``se`` (canonical parameter order of the model; the MLE's known frequency is NaN),
@@ -244,7 +250,11 @@ def run_replicate(
         return {"mle_ran": False, "fits": fits}
     start = None if gmwm_theta is None else model.as_dict(gmwm_theta)
     for name, rule in settings["variants"].items():
-        fits[name] = _fit_variant(x, beta, rule, start, settings, names)
+        if variants is None or name in variants:
+            fits[name] = _fit_variant(x, beta, rule, start, settings, names)
+        else:
+            fits[name] = _empty_fit(len(names), False, "not run (beyond this variant's replicate "
+                                    "cap)")
     return {"mle_ran": True, "fits": fits}
 
 
@@ -285,11 +295,15 @@ def run_chunk(
     mle_settings: Mapping[str, Any],
     n_mle: int,
     progress: Progress | None = None,
+    variant_replicates: Mapping[str, int] | None = None,
 ) -> xr.Dataset:
     """Run :func:`run_replicate` on every replicate id in ``replicates``; the MLE only on ids < ``n_mle``.
 
+    ``variant_replicates``: ``{variant: cap}``, that variant only on ids < cap (<= ``n_mle``; not
+    the headline, which runs wherever the MLE does); a variant not named runs on ids < ``n_mle``.
     One row per replicate, none dropped: failed fits have NaN estimates, ``converged = False`` and
-    the reason in ``message``. Timings exclude one-off start-up costs (numba compilation, imports).
+    the reason in ``message``; fits not run have ``ran = False``. Timings exclude one-off start-up
+    costs (numba compilation, imports).
     """
     from gmwm.model import Model
     from gmwm_studies.montecarlo import estimator_settings
@@ -301,6 +315,7 @@ def run_chunk(
     if n_mle < 0:
         raise InputError(f"the MLE replicate cap must be >= 0, got {n_mle}")
     settings = _mle_settings(mle_settings)
+    caps = _variant_caps(variant_replicates, settings["variants"], n_mle)
     methods = ["gmwm", *settings["variants"]]
     model = Model(model_spec)
     names = list(model.param_names)
@@ -308,10 +323,11 @@ def run_chunk(
     rows = []
     for i, rep in enumerate(reps):
         row = run_replicate(model_spec, truth, n_samples, rep, study, base_seed, gmwm_settings,
-                            settings if rep < n_mle else None)
+                            settings if rep < n_mle else None,
+                            [v for v in settings["variants"] if rep < caps[v]])
         rows.append(row)
         done = "; ".join(f"{m} {f['seconds']:.2f} s conv={f['converged']}"
-                         for m, f in row["fits"].items())
+                         for m, f in row["fits"].items() if f["ran"])
         progress(f"{study} T={n_samples}: replicate {i + 1}/{len(reps)} (id {rep}): {done}")
     not_run = _empty_fit(len(names), False, "not run (beyond the MLE replicate cap)")
     ds = _dataset(rows, methods, reps, names, truth, not_run)
@@ -324,11 +340,60 @@ def run_chunk(
         "estimator": "+".join(methods),
         "n_mle": int(n_mle),
         "variants": json.dumps(settings["variants"]),
+        "variant_replicates": json.dumps(dict(variant_replicates or {})),
         "wrong_optimum_ll": float(settings["wrong_optimum_ll"]),
         "gmwm_settings": json.dumps(dict(gmwm_settings), sort_keys=True),
         "mle_settings": json.dumps(settings, sort_keys=True),
     })
     return ds
+
+
+def variant_replicate_caps(variant_replicates: Mapping[str, int | Sequence[int]] | None,
+                           variants: Sequence[str],
+                           mle_caps: Mapping[int, int]) -> dict[str, dict[int, int]]:
+    """{variant: {T: replicates with its fit}} from a study's ``mle.variant_replicates`` (one int
+    or one per sample size, in the order of ``mle_caps``, the MLE cap per T).
+
+    A cap above the MLE cap at that T, a cap on the headline (``variants[0]``) or on a name that
+    is not a variant is an error (one line); variants not named run on every MLE replicate.
+    """
+    sizes = list(mle_caps)
+    out: dict[str, dict[int, int]] = {}
+    for name, cap in (variant_replicates or {}).items():
+        if name not in variants:
+            raise InputError(f"mle.variant_replicates names {name!r}, not one of mle.variants "
+                             f"{list(variants)}")
+        if name == variants[0]:
+            raise InputError(f"mle.variant_replicates caps the headline variant {name!r}; lower "
+                             "mle.replicates instead")
+        caps = list(cap) if isinstance(cap, (list, tuple)) else [cap] * len(sizes)
+        if len(caps) != len(sizes):
+            raise InputError(f"mle.variant_replicates.{name} has {len(caps)} entries for "
+                             f"{len(sizes)} sample sizes")
+        out[name] = {int(T): int(c) for T, c in zip(sizes, caps, strict=True)}
+        for T, c in out[name].items():
+            if not 0 <= c <= int(mle_caps[T]):
+                raise InputError(f"mle.variant_replicates.{name} ({c}) is not between 0 and the "
+                                 f"MLE cap ({mle_caps[T]}) at T = {T}")
+    return out
+
+
+def _variant_caps(caps: Mapping[str, int] | None, variants: Mapping[str, str],
+                  n_mle: int) -> dict[str, int]:
+    """{variant: replicate ids below which it runs} for every variant (checked, one-line errors)."""
+    caps = dict(caps or {})
+    head = next(iter(variants))
+    for name, cap in caps.items():
+        if name not in variants:
+            raise InputError(f"variant_replicates names {name!r}, which is not an MLE variant "
+                             f"({list(variants)})")
+        if name == head:
+            raise InputError(f"variant_replicates: the headline variant {head!r} runs on every "
+                             "MLE replicate; lower the MLE cap instead")
+        if not 0 <= int(cap) <= n_mle:
+            raise InputError(f"variant_replicates: {name!r} cap {cap} must be between 0 and the "
+                             f"MLE cap ({n_mle})")
+    return {v: int(caps.get(v, n_mle)) for v in variants}
 
 
 def _dataset(rows: Sequence[Mapping[str, Any]], methods: Sequence[str], reps: Sequence[int],
@@ -707,8 +772,8 @@ def counts_text(comp: pd.DataFrame, mle_settings: Mapping[str, Any],
         f"MLE fitted on the first replicates only (cost cap): {per_t(first, 'n_mle')}. "
         f"MLE backend {settings['backend']!r} (exact likelihood, one start per variant). "
         f"A fit counts as a wrong optimum when its log-likelihood is more than "
-        f"{float(settings['wrong_optimum_ll']):g} below the best any variant reached on the same "
-        f"signal. Replicates whose MLE did not converge or stopped at a wrong optimum are dropped "
+        f"{float(settings['wrong_optimum_ll']):g} below the best any variant fitted to the same "
+        f"signal reached. Replicates whose MLE did not converge or stopped at a wrong optimum are dropped "
         f"from both methods' statistics for that variant (as in the paper)."
     )]
     caps = (f"maxiter = {int(settings['maxiter'])} per BFGS run and per polish for the project's "
@@ -740,6 +805,13 @@ def counts_text(comp: pd.DataFrame, mle_settings: Mapping[str, Any],
             f"'not converged' is statsmodels' own verdict.")
     for variant, df in comp.groupby("variant", sort=False):
         rule = str(df["start_rule"].iloc[0])
+        fewer = variant != BASELINE and (df["n_mle"].to_numpy()
+                                         < first.set_index("n_samples")["n_mle"]
+                                         .reindex(df["n_samples"]).to_numpy()).any()
+        if fewer:
+            lines.append(f"{method_label(variant, rule)} [{variant}] fitted on the first "
+                         f"replicates only (its own cost cap, config mle.variant_replicates): "
+                         f"{per_t(df, 'n_mle')}.")
         dropped = "; ".join(
             f"T = {int(r.n_samples):,}: {int(r.not_converged)} + {int(r.wrong_optimum)} of "
             f"{int(r.n_mle)}" for r in df.itertuples())

@@ -1,7 +1,7 @@
 # Simulation 1 of the vibration-noise paper (kind: mle_comparison): GMWM against the Kalman-filter
 # MLE on WN + RW + AR1 + SIN signals. Per chunk of replicates: simulate, fit GMWM (always) and each
 # MLE variant (own start, statsmodels' start, GMWM start; only replicates below the study's MLE cap
-# at that T) -> gather per T -> tables -> figures. Beside it, on the first `statsmodels.replicates`
+# at that T, and below a variant's own cap, mle.variant_replicates, where it has one) -> gather per T -> tables -> figures. Beside it, on the first `statsmodels.replicates`
 # of the same signals (slow: ~1e-3 T s per fit), statsmodels' own estimator as the general-purpose
 # baseline (sim1_baseline_chunk -> sim1_baseline_gather), merged into the tables.
 # The statistics live in gmwm_studies.sim1; raw signals are never stored.
@@ -21,7 +21,24 @@ def sim1_mle_caps(name):
 
 
 def sim1_mle_settings(name):
-    return {k: v for k, v in STUDIES[name].get("mle", {}).items() if k != "replicates"}
+    return {k: v for k, v in STUDIES[name].get("mle", {}).items()
+            if k not in ("replicates", "variant_replicates")}
+
+
+def sim1_variant_caps(name):
+    """{variant: {T: replicates with its fit}} for the variants with their own cap (config
+    `mle.variant_replicates`; gmwm_studies.sim1.variant_replicate_caps checks it); every other
+    variant runs on all the MLE's replicates (`sim1_mle_caps`)."""
+    from gmwm.errors import InputError
+    from gmwm_studies.sim1 import DEFAULT_MLE, variant_replicate_caps
+
+    mle = STUDIES[name].get("mle", {})
+    try:
+        return variant_replicate_caps(mle.get("variant_replicates"),
+                                      list(mle.get("variants") or DEFAULT_MLE["variants"]),
+                                      sim1_mle_caps(name))
+    except InputError as exc:
+        raise WorkflowError(f"config: study {name!r}: {exc}") from None
 
 
 def sim1_baseline_caps(name):
@@ -75,6 +92,7 @@ SIM1_FIGURES = ("fig1_rmse", "fig2_runtime", "fig9_boxplot")
 
 
 def sim1_targets(name):
+    sim1_variant_caps(name)  # a wrong cap stops the run before any job starts
     # the first CSV/MD are what the index shows: the per-T speed-up and RMSE ratios
     return [
         f"reports/{name}/comparison.csv",
@@ -118,7 +136,10 @@ def sim1_chunk_runtime(w):
     reps = chunk_reps(w.study, w.chunk)
     n_mle = sum(r < sim1_chunk_n_mle(w) for r in reps)
     n_var = len(STUDIES[w.study].get("mle", {}).get("variants", {})) or 2
-    return max(10, int((n_mle * n_var * 4e-5 * int(w.T) + len(reps) * 1.0) / 60) + 5)
+    capped = sim1_variant_caps(w.study)
+    fits = n_mle * (n_var - len(capped)) + sum(
+        sum(r < min(c[int(w.T)], sim1_chunk_n_mle(w)) for r in reps) for c in capped.values())
+    return max(10, int((fits * 4e-5 * int(w.T) + len(reps) * 1.0) / 60) + 5)
 
 
 rule sim1_chunk:
@@ -135,6 +156,11 @@ rule sim1_chunk:
         # only the cap's effect on this chunk, so raising the cap at one T reruns only the chunks
         # it reaches
         mle_replicates=lambda w: [r for r in chunk_reps(w.study, w.chunk) if r < sim1_chunk_n_mle(w)],
+        # the same per capped variant
+        variant_replicates=lambda w: {
+            v: [r for r in chunk_reps(w.study, w.chunk) if r < caps[int(w.T)]]
+            for v, caps in sim1_variant_caps(w.study).items()
+        },
     log:
         "logs/{study}/sim1_chunk/T{T}_c{chunk}.log",
     benchmark:
@@ -273,6 +299,7 @@ rule sim1_figures:
     params:
         formats=FIG_FORMATS,
         mle_caps=lambda w: sim1_mle_caps(w.study),
+        variant_caps=lambda w: sim1_variant_caps(w.study),
     log:
         "logs/{study}/sim1_figures.log",
     benchmark:

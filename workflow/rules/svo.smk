@@ -207,6 +207,7 @@ rule svo_coverage_report:
     params:
         formats=FIG_FORMATS,
         alpha=float(SVO_COV["alpha"]),
+        schemes=list(SVO_COV["schemes"]),  # named in the caption
     log:
         "logs/svo/{svo_case}/coverage_report.log",
     resources:

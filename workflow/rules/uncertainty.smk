@@ -433,6 +433,9 @@ rule coverage_report:
         other=[f"reports/{{study}}/fig_coverage.{fmt}" for fmt in FIG_FORMATS if fmt != "png"],
     params:
         formats=FIG_FORMATS,
+        # named in the captions
+        replicates=lambda w: int(study(w)["replicates"]),
+        B=lambda w: cov_B(w.study),
     log:
         "logs/{study}/coverage_report.log",
     benchmark:
