@@ -154,8 +154,8 @@ def test_variant_cap_runs_the_variant_on_its_first_replicates_only(whole):
     sel = long_whole.variant.isin(["", "mle", "mle_gmwm"])
     pd.testing.assert_frame_equal(long_capped[sel][cols], long_whole[sel][cols])
     text = counts_text(comp_capped, MLE)
-    assert "[mle_default] fitted on the first replicates only" in text
-    assert f"T = {T_TINY:,}: 1." in text
+    assert "[mle_default], fitted on the first replicates only (its own cost cap" in text
+    assert f"mle.variant_replicates): T = {T_TINY:,}: 1;" in text
     assert "fitted on the first replicates only (its own" not in counts_text(comp_whole, MLE)
 
 

@@ -808,13 +808,12 @@ def counts_text(comp: pd.DataFrame, mle_settings: Mapping[str, Any],
         fewer = variant != BASELINE and (df["n_mle"].to_numpy()
                                          < first.set_index("n_samples")["n_mle"]
                                          .reindex(df["n_samples"]).to_numpy()).any()
-        if fewer:
-            lines.append(f"{method_label(variant, rule)} [{variant}] fitted on the first "
-                         f"replicates only (its own cost cap, config mle.variant_replicates): "
-                         f"{per_t(df, 'n_mle')}.")
+        own_cap = (f", fitted on the first replicates only (its own cost cap, config "
+                   f"mle.variant_replicates): {per_t(df, 'n_mle')};" if fewer else ":")
         dropped = "; ".join(
             f"T = {int(r.n_samples):,}: {int(r.not_converged)} + {int(r.wrong_optimum)} of "
             f"{int(r.n_mle)}" for r in df.itertuples())
-        lines.append(f"{method_label(variant, rule)} [{variant}]: not converged + wrong optimum: "
+        lines.append(f"{method_label(variant, rule)} [{variant}]{own_cap} not converged + wrong "
+                     f"optimum: "
                      f"{dropped}; compared: {per_t(df, 'n_used')}.")
     return " ".join(lines) + "\n"

@@ -58,7 +58,7 @@ sizes = ", ".join(f"{t / 1e4:g}" for t in T)
 note = (f"T = ({sizes}) x 1e4; MLE on {per_t(by_variant[head], 'n_mle')} of "
         f"{per_t(by_variant[head], 'n_replicates')} replicates; dropped from both (not converged "
         f"+ wrong optimum): " + "; ".join(
-            f"{label[v]} " + "/".join(f"{int(a)}+{int(b)}" for a, b in
+            f"{method_label(v, variants[v])} " + "/".join(f"{int(a)}+{int(b)}" for a, b in
                                      zip(df["not_converged"], df["wrong_optimum"], strict=True))
             + (f" of {per_t(df, 'n_mle')}" if fewer(v) else "")
             for v, df in by_variant.items()))
