@@ -428,7 +428,12 @@ def test_coverage_with_the_paper_scheme_only():
     bit (each scheme has its own draw stream), and the table and figure hold that scheme only."""
     import matplotlib.pyplot as plt
 
-    from gmwm_studies.svo_study import coverage_chunk, coverage_table, figure_coverage
+    from gmwm_studies.svo_study import (
+        coverage_chunk,
+        coverage_replicate_table,
+        coverage_table,
+        figure_coverage,
+    )
 
     args = ("case1", [0, 1], 2**12, 10, 20, 5.0, 0.05, 3)
     both = coverage_chunk(*args, ("paper", "time"))
@@ -438,6 +443,8 @@ def test_coverage_with_the_paper_scheme_only():
     np.testing.assert_array_equal(paper["coef"], both["coef"])
     rows = coverage_table(paper)
     assert len(rows) == 6 and {r["mbb"] for r in rows} == {"paper"}
+    per_rep = coverage_replicate_table(paper, 0.05)
+    assert len(per_rep) == 12 and {r["mbb"] for r in per_rep} == {"paper"}
     assert all(np.isfinite(r["coverage"]) and np.isfinite(r["mean_se"]) for r in rows)
     fig = figure_coverage(rows)
     labels = fig.axes[0].get_legend_handles_labels()[1]
