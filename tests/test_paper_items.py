@@ -48,7 +48,7 @@ def _stim_table(path: Path, rise: bool) -> Path:
                     sd = 1.5  # the SD grows with T in one cell
                 bias = {"gmwm_cf": -0.1, "armav": -0.2, "armav_ols": 0.05, "avsm": 1.0}[est] * k
                 rows.append({"sensor": "gyroscope", "estimator": est, "n_samples": T,
-                             "parameter": param, "symbol": sym, "bias": bias, "sd": sd,
+                             "parameter": param, "symbol": sym, "bias": bias, "sd": sd, "rel_sd": sd,
                              "rmse": math.hypot(bias, sd)})
     pd.DataFrame(rows).to_csv(path, index=False)
     return path
@@ -64,7 +64,7 @@ def test_sample_size_counts_cells_where_sd_and_rmse_fall(tmp_path):
     bias = items["bias"]
     assert bias["armav_larger"] == 4 and bias["armav_ols_larger"] == 0
     assert bias["gyro.K.T100"]["abs_bias_armav"] == pytest.approx(0.2)
-    assert items["cor1"]["cells"] == 4
+    assert items["cor1"]["cells"] == 4 and items["fig1"]["cells"] == 4
 
 
 def test_stim300_items_refuses_a_missing_cell_and_bad_lengths(tmp_path):

@@ -15,6 +15,8 @@ and SVO tables, so the rule costs seconds.
   does the SD fall, does the RMSE fall (the table's cells, Table I units).
 * ``p004/cor1``: weighted ARMAV / GMWM RMSE over the 12 cells (Corollary 1: both asymptotically
   efficient, hence equal RMSEs).
+* ``p004/fig1``: cells where the GMWM's and the weighted ARMAV's relative SDs print the same at
+  3 significant digits.
 * ``p004/bias``: Sec. III's bias argument (f(x) = x has the smaller bias): |bias| of each ARMAV
   against the GMWM's per cell, the excess in units of the GMWM's SD, and the signed bias
   difference on the same replicates (per-replicate tables, Table I units) over its paired Monte
@@ -115,7 +117,7 @@ def stim300_items(tables: Mapping[str, str | os.PathLike],
     (short, long) sample sizes)."""
     if len(lengths) != 2 or lengths[0] >= lengths[1]:
         raise InputError(f"STIM-300 lengths: need (short, long), got {list(lengths)}")
-    cells, cor1, bias = [], [], []
+    cells, cor1, bias, fig1 = [], [], [], []
     for sensor, path in tables.items():
         df = _table(path)
         sname = str(df["sensor"].iloc[0])
@@ -131,6 +133,9 @@ def stim300_items(tables: Mapping[str, str | os.PathLike],
             for T in lengths:
                 g = _cell(df, "gmwm_cf", T, param, "rmse")
                 cor1.append(_cell(df, "armav", T, param, "rmse") / g)
+                # Fig. 1: are the two relative SDs the same number at 3 significant digits?
+                rg, ra = (_cell(df, e, T, param, "rel_sd") for e in ("gmwm_cf", "armav"))
+                fig1.append(f"{rg:.3g}" == f"{ra:.3g}")
                 row: dict[str, Any] = {"sensor": sensor, "symbol": sym, "T": T,
                                        "abs_bias_gmwm": abs(_cell(df, "gmwm_cf", T, param, "bias"))}
                 sd_g = _cell(df, "gmwm_cf", T, param, "sd")
@@ -158,6 +163,7 @@ def stim300_items(tables: Mapping[str, str | os.PathLike],
         out_bias[f"{b['sensor']}.{b['symbol']}.T{b['T']}"] = b
     return {"sample_size": sample,
             "cor1": {"cells": len(cor1), "rmse_ratio_min": min(cor1), "rmse_ratio_max": max(cor1)},
+            "fig1": {"cells": len(fig1), "rel_sd_equal_3sig": sum(fig1)},
             "bias": out_bias}
 
 
@@ -224,6 +230,9 @@ def render_markdown(items: Mapping[str, Any]) -> str:
     lines += ["", "## Paper 004, Corollary 1: weighted ARMAV / GMWM RMSE",
               "", (f"{cor['rmse_ratio_min']:.4g} to {cor['rmse_ratio_max']:.4g} over "
               f"{cor['cells']} cells."), "",
+              "## Paper 004, Fig. 1: GMWM and weighted ARMAV relative SDs", "",
+              (f"equal at 3 significant digits in {items['p004']['fig1']['rel_sd_equal_3sig']} of "
+               f"{items['p004']['fig1']['cells']} cells."), "",
               "## Paper 004, Sec. III bias argument: |bias|, ARMAV against GMWM",
               "", (f"weighted ARMAV's |bias| larger in {bias['armav_larger']} of {bias['cells']} "
               f"cells, OLS ARMAV's in {bias['armav_ols_larger']}. z: the bias difference ARMAV - GMWM "
