@@ -106,6 +106,9 @@ def _paired_bias(replicates: Mapping[tuple[str, int], str | os.PathLike], sensor
     a, b = err(est), err(ref)
     common = a.index.intersection(b.index)
     d = (a[common] - b[common]).to_numpy()
+    if len(d) < 2:
+        raise InputError(f"{replicates[(sensor, T)]}: fewer than 2 replicates where both {est} "
+                         f"and {ref} converged")
     return {"bias_diff": float(d.mean()), "mc_se_diff": float(d.std(ddof=1) / math.sqrt(len(d))),
             "n_paired": len(d)}
 
@@ -159,7 +162,9 @@ def stim300_items(tables: Mapping[str, str | os.PathLike],
                         # signed bias difference on the same replicates, in its paired MC SE
                         p = _paired_bias(replicates, sname, T, param, est)
                         row[f"{est}_minus_gmwm_bias"] = p["bias_diff"]
-                        row[f"{est}_minus_gmwm_z"] = p["bias_diff"] / p["mc_se_diff"]
+                        # identical estimates on every replicate: no difference to weigh
+                        row[f"{est}_minus_gmwm_z"] = (p["bias_diff"] / p["mc_se_diff"]
+                                                      if p["mc_se_diff"] > 0 else math.nan)
                 bias.append(row)
     sample = {"cells": len(cells),
               "sd_falls": sum(c["sd_falls"] for c in cells),
