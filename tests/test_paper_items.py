@@ -49,6 +49,7 @@ def _stim_table(path: Path, rise: bool) -> Path:
                 bias = {"gmwm_cf": -0.1, "armav": -0.2, "armav_ols": 0.05, "avsm": 1.0}[est] * k
                 rows.append({"sensor": "gyroscope", "estimator": est, "n_samples": T,
                              "parameter": param, "symbol": sym, "bias": bias, "sd": sd, "rel_sd": sd,
+                             "mc_se_bias": sd / 10,
                              "rmse": math.hypot(bias, sd)})
     pd.DataFrame(rows).to_csv(path, index=False)
     return path
@@ -58,6 +59,7 @@ def test_sample_size_counts_cells_where_sd_and_rmse_fall(tmp_path):
     items = pi.stim300_items({"gyro": _stim_table(tmp_path / "a.csv", False)}, None, (100, 400))
     ss = items["sample_size"]
     assert (ss["cells"], ss["sd_falls"], ss["rmse_falls"]) == (6, 6, 6)  # avsm not counted
+    assert ss["abs_bias_falls"] == 6 and ss["abs_bias_grows_beyond_2se"] == 0
     items = pi.stim300_items({"gyro": _stim_table(tmp_path / "b.csv", True)}, None, (100, 400))
     ss = items["sample_size"]
     assert (ss["sd_falls"], ss["rmse_falls"], ss["both_fall"]) == (5, 5, 5)

@@ -12,7 +12,8 @@ and SVO tables, so the rule costs seconds.
   printed (3/2) and as the Lemma's own formula gives it (3/4), for c = 1 (AV) and c = 1/2 (WV).
 * ``p004/sample_size``: short (T = 2.5e6) -> long (6.3e6) for each GMWFM estimator (GMWM and both
   ARMAVs; the AVSM is the paper's reference, not a GMWFM estimator), each sensor and parameter:
-  does the SD fall, does the RMSE fall (the table's cells, Table I units).
+  does the SD fall, does the RMSE fall, how does |bias| move in its Monte Carlo SE (the table's
+  cells, Table I units).
 * ``p004/cor1``: weighted ARMAV / GMWM RMSE over the 12 cells (Corollary 1: both asymptotically
   efficient, hence equal RMSEs).
 * ``p004/fig1``: cells where the GMWM's and the weighted ARMAV's relative SDs print the same at
@@ -131,10 +132,14 @@ def stim300_items(tables: Mapping[str, str | os.PathLike],
             for est in GMWFM:
                 sd0, sd1 = (_cell(df, est, T, param, "sd") for T in lengths)
                 r0, r1 = (_cell(df, est, T, param, "rmse") for T in lengths)
+                b0, b1 = (abs(_cell(df, est, T, param, "bias")) for T in lengths)
+                se = math.hypot(*(_cell(df, est, T, param, "mc_se_bias") for T in lengths))
                 cells.append({"sensor": sensor, "symbol": sym, "parameter": param,
                               "estimator": est, "sd_short": sd0, "sd_long": sd1,
                               "rmse_short": r0, "rmse_long": r1, "sd_falls": sd1 < sd0,
-                              "rmse_falls": r1 < r0})
+                              "rmse_falls": r1 < r0, "abs_bias_short": b0, "abs_bias_long": b1,
+                              # the change of |bias| in its Monte Carlo SE (independent runs)
+                              "abs_bias_change_z": (b1 - b0) / se if se > 0 else math.nan})
             for T in lengths:
                 g = _cell(df, "gmwm_cf", T, param, "rmse")
                 cor1.append(_cell(df, "armav", T, param, "rmse") / g)
@@ -170,6 +175,8 @@ def stim300_items(tables: Mapping[str, str | os.PathLike],
               "sd_falls": sum(c["sd_falls"] for c in cells),
               "rmse_falls": sum(c["rmse_falls"] for c in cells),
               "both_fall": sum(c["sd_falls"] and c["rmse_falls"] for c in cells),
+              "abs_bias_falls": sum(c["abs_bias_long"] < c["abs_bias_short"] for c in cells),
+              "abs_bias_grows_beyond_2se": sum(c["abs_bias_change_z"] > 2 for c in cells),
               "per_cell": cells}
     out_bias: dict[str, Any] = {"cells": len(bias), "per_cell": bias}
     for est in ("armav", "armav_ols"):
@@ -237,14 +244,18 @@ def render_markdown(items: Mapping[str, Any]) -> str:
         "## Paper 004, Sec. IV sample size: short -> long, GMWFM estimators (GMWM, both ARMAVs)",
         "",
         (f"SD falls in {ss['sd_falls']} of {ss['cells']} cells, RMSE in {ss['rmse_falls']}, "
-        f"both in {ss['both_fall']}."),
+        f"both in {ss['both_fall']}; |bias| falls in {ss['abs_bias_falls']}, grows by more than "
+        f"2 Monte Carlo SEs in {ss['abs_bias_grows_beyond_2se']}."),
         "",
-        "| sensor | symbol | estimator | SD short | SD long | RMSE short | RMSE long |",
-        "|---|---|---|---|---|---|---|",
+        ("| sensor | symbol | estimator | SD short | SD long | RMSE short | RMSE long | \\|bias\\| "
+        "short | \\|bias\\| long | change / MC SE |"),
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for c in ss["per_cell"]:
         lines.append(f"| {c['sensor']} | {c['symbol']} | {c['estimator']} | {c['sd_short']:.4g} | "
-                     f"{c['sd_long']:.4g} | {c['rmse_short']:.4g} | {c['rmse_long']:.4g} |")
+                     f"{c['sd_long']:.4g} | {c['rmse_short']:.4g} | {c['rmse_long']:.4g} | "
+                     f"{c['abs_bias_short']:.4g} | {c['abs_bias_long']:.4g} | "
+                     f"{c['abs_bias_change_z']:+.2f} |")
     cor = items["p004"]["cor1"]
     lines += ["", "## Paper 004, Corollary 1: weighted ARMAV / GMWM RMSE",
               "", (f"{cor['rmse_ratio_min']:.4g} to {cor['rmse_ratio_max']:.4g} over "
