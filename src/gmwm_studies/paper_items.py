@@ -182,6 +182,10 @@ def stim300_items(tables: Mapping[str, str | os.PathLike],
     for est in ("armav", "armav_ols"):
         out_bias[f"{est}_larger"] = sum(b[f"abs_bias_{est}"] > b["abs_bias_gmwm"] for b in bias)
         out_bias[f"{est}_max_excess_over_sd"] = max(b[f"{est}_excess_over_sd"] for b in bias)
+        # the weakest paired evidence among the cells where the ARMAV's |bias| is the larger
+        zs = [abs(b[f"{est}_minus_gmwm_z"]) for b in bias
+              if b[f"abs_bias_{est}"] > b["abs_bias_gmwm"] and f"{est}_minus_gmwm_z" in b]
+        out_bias[f"{est}_min_abs_z_where_larger"] = min(zs) if zs else math.nan
     for b in bias:
         out_bias[f"{b['sensor']}.{b['symbol']}.T{b['T']}"] = b
     return {"sample_size": sample,
