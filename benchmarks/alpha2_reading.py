@@ -246,9 +246,10 @@ def main() -> None:
     load = os.getloadavg()
     print(f"\nCPU {cpu:.1f} s; load average {', '.join(f'{v:.2f}' for v in load)}")
     if args.json:
+        # no clock or load here: the same command must rewrite the committed file unchanged
         RESULT["run"] = {"reps": args.reps, "iterations": args.iterations,
                          "skip_mc": args.skip_mc, "skip_nav": args.skip_nav,
-                         "cpu_s": round(cpu, 1), "load_average": [round(v, 2) for v in load]}
+                         "gyro_axes": args.gyro_axes}
         args.json.parent.mkdir(parents=True, exist_ok=True)
         write_json_atomic(args.json, RESULT)
 
