@@ -48,6 +48,7 @@ include: "workflow/rules/svo.smk"
 include: "workflow/rules/allan.smk"
 include: "workflow/rules/replicates.smk"
 include: "workflow/rules/design.smk"
+include: "workflow/rules/paper_items.smk"
 include: "workflow/rules/report.smk"
 
 
@@ -68,3 +69,4 @@ rule all:
         navchip_targets(),  # not index/archive inputs: missing data fails only navchip
         uncertainty_navchip_targets(),  # likewise (bootstrap/identifiability of Navchip fits)
         design_targets(),  # likewise (its Navchip part reads the Navchip bootstrap draws)
+        paper_items_targets(),  # seconds; not an index/archive input, as design

@@ -2,7 +2,7 @@
 reproduces the paper's other numbers (docs/METHODS.md §13.1).
 
 Usage: python benchmarks/alpha2_reading.py [--reps 40] [--iterations 40] [--skip-mc] [--skip-nav]
-       [--gyro-axes x y z]
+       [--gyro-axes x y z] [--json reports/paper_items/alpha2_reading.json]
 
 Prints, for the candidate readings alpha_2 = 1.359012 x 10^e (e = -1, the project's; -2, -3; -9,
 the literal reading of the glyphs):
@@ -21,6 +21,9 @@ the literal reading of the glyphs):
    item 3 (Model 2 at the truth), the same flights for every reading: the maximum over the flight
    of the ratio of mean position errors, Model 1 / Model 2 (paper Fig. 8: 1.1789), with the
    mean position error of each filter at the end of the outage.
+With ``--json PATH`` the numbers of parts 2-5 are also written to PATH (keys by reading,
+``e-1`` ... ``e-9``), the committed evidence REPRODUCTION.md's Table 5 row links to
+(``reports/paper_items/alpha2_reading.json``, written with the defaults).
 Light: under a minute of CPU with the defaults.
 """
 
@@ -35,6 +38,7 @@ import numpy as np
 import yaml
 
 from gmwm import fit
+from gmwm.atomic import write_json_atomic
 from gmwm.model import Model
 from gmwm.wv import WaveletVariance, wvar
 from gmwm_studies import navigation as nv
@@ -49,6 +53,8 @@ MANTISSA = 1.359012
 EXPONENTS = (-1, -2, -3, -9)
 BASIC = ("AR1[1].phi", "AR1[1].sigma2", "RW[1].gamma2")
 FULL = "AR1+RW+2*SIN"
+#: What ``--json`` writes: filled by the parts as they print.
+RESULT: dict[str, dict] = {"wv": {}, "mc": {}, "nav": {}}
 
 #: Exponent glyphs of the same OCR file against values that are certain, and why they are.
 #: Table 1 writes one-digit exponents; Table 5's 7-digit mantissas look like R's "%e" output,
@@ -117,6 +123,12 @@ def part_wv(settings) -> dict[int, np.ndarray]:
         lim = basic(r1)
         limits[e] = lim
         rel = (lim - th_true) / th_true
+        RESULT["wv"][f"e{e}"] = {
+            "alpha2": MANTISSA * 10.0**e, "sin2_max_share": float(share[j]), "level": j + 1,
+            "sin2_wv_over_eta3_sd": float(z), "refit_weaker_alpha": float(d2[f"SIN[{k}].alpha"]),
+            "refit_weaker_beta": float(d2[f"SIN[{k}].beta"]),
+            "model1_limit": dict(zip(BASIC, map(float, lim))),
+            "model1_rel_bias": dict(zip(BASIC, map(float, rel)))}
         print(f"| {MANTISSA}e{e} | {share[j]:.3g} | {j + 1} | {z:.3g} | "
               f"{d2[f'SIN[{k}].alpha']:.4g}, {d2[f'SIN[{k}].beta']:.4g} | "
               f"{lim[0]:.4g}, {lim[1]:.4g}, {lim[2]:.3g} | "
@@ -150,6 +162,12 @@ def part_mc(settings, reps: int) -> None:
         sd2 = m2.std(axis=0, ddof=1)
         # the spread a percentile interval sees (Table 1's are bootstrap intervals)
         q2 = np.diff(np.quantile(m2, [0.025, 0.975], axis=0), axis=0)[0] / (2 * 1.959964)
+        RESULT["mc"][f"e{e}"] = {
+            "reps": reps, "sd_ratio_model1_over_model2": dict(zip(BASIC, map(float, ratio))),
+            "model1_gamma2_at_zero": int(np.sum(m1[:, 2] == 0)),
+            "model2_sd": dict(zip(BASIC, map(float, sd2))),
+            "model2_q_spread": dict(zip(BASIC, map(float, q2))),
+            "model2_phi_off_0.01": int(np.sum(np.abs(m2[:, 0] - TABLE5["AR1[1].phi"]) > 0.01))}
         print(f"| {MANTISSA}e{e} | {ratio[0]:.3g}, {ratio[1]:.3g}, {ratio[2]:.3g} | "
               f"{mean1[0]:.4g}, {mean1[1]:.4g}, {mean1[2]:.3g} | "
               f"{int(np.sum(m1[:, 2] == 0))}/{reps} | "
@@ -186,9 +204,16 @@ def part_nav(limits: dict[int, np.ndarray], iterations: int, axes: list[str] | N
     print("| alpha_2 | max ratio (time) | ratio at the outage's start, end | max in the outage | "
           "ratio before the outage (min-max) | Model 1 error at outage end [m] |")
     print("|---|---|---|---|---|---|")
+    RESULT["nav"]["iterations"] = iterations
+    RESULT["nav"]["gyro_axes"] = list(cfg["gyro_axes"])
     for i, e in enumerate(exps, start=1):
         ratio = err[i] / err[0]
         k = int(np.argmax(ratio))
+        RESULT["nav"][f"e{e}"] = {
+            "max_ratio": float(ratio[k]), "max_ratio_time_s": float(t[k]),
+            "ratio_outage_start": float(ratio[start]), "ratio_outage_end": float(ratio[end]),
+            "max_in_outage": float(ratio[start:end + 1].max()),
+            "model1_error_outage_end_m": float(err[i, end])}
         print(f"| {MANTISSA}e{e} | {ratio[k]:.3f} ({t[k]:.1f} s) | "
               f"{ratio[start]:.3f}, {ratio[end]:.3f} | {ratio[start:end + 1].max():.3f} | "
               f"{ratio[before].min():.3f}-{ratio[before].max():.3f} | {err[i, end]:.1f} |")
@@ -202,6 +227,7 @@ def main() -> None:
     ap.add_argument("--skip-nav", action="store_true")
     ap.add_argument("--gyro-axes", nargs="+", choices=["x", "y", "z"],
                     help="gyros carrying the error model (default: the config's)")
+    ap.add_argument("--json", type=Path, help="also write the numbers of parts 2-5 to this file")
     args = ap.parse_args()
     t0 = time.process_time()
     cfg = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
@@ -216,8 +242,16 @@ def main() -> None:
         part_mc(settings, args.reps)
     if not args.skip_nav:
         part_nav(limits, args.iterations, args.gyro_axes)
-    print(f"\nCPU {time.process_time() - t0:.1f} s; load average "
-          f"{', '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    cpu = time.process_time() - t0
+    load = os.getloadavg()
+    print(f"\nCPU {cpu:.1f} s; load average {', '.join(f'{v:.2f}' for v in load)}")
+    if args.json:
+        # no clock or load here: the same command must rewrite the committed file unchanged
+        RESULT["run"] = {"reps": args.reps, "iterations": args.iterations,
+                         "skip_mc": args.skip_mc, "skip_nav": args.skip_nav,
+                         "gyro_axes": args.gyro_axes}
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        write_json_atomic(args.json, RESULT)
 
 
 if __name__ == "__main__":

@@ -75,7 +75,7 @@ rule archive:
         archive_root="reports/archive",
         # the run's tracked outputs that rule all requests after (or beside) the archive: not
         # archived (they need the Navchip data), but rewriting them does not make git.txt dirty
-        produced=[*design_targets(), *NAVCHIP_DRAWS, *NAVCHIP_COUNTS],
+        produced=[*design_targets(), *paper_items_targets(), *NAVCHIP_DRAWS, *NAVCHIP_COUNTS],
     log:
         "logs/archive.log",
     script:
