@@ -48,6 +48,7 @@ include: "workflow/rules/svo.smk"
 include: "workflow/rules/allan.smk"
 include: "workflow/rules/replicates.smk"
 include: "workflow/rules/design.smk"
+include: "workflow/rules/lemmas000.smk"
 include: "workflow/rules/report.smk"
 
 
