@@ -78,3 +78,20 @@ def test_ridge_rows_selects_long_periods():
     r = L.ridge_rows(df, J=10, estimators=["a", "b"])
     assert sorted(r["replicate"]) == [0, 1, 2, 3, 4]
     assert set(r["estimator"]) == {"b"} and set(r["sin"]) == {1}
+
+
+@pytest.mark.slow  # a real simulation and GMWM fit (~3 s with the JIT loads)
+def test_ridge_study_refits_and_flags_a_table_it_does_not_reproduce():
+    truth = {"WN[1].sigma2": 1.0, "SIN[1].alpha": 0.5, "SIN[1].beta": 0.3}
+    table = pd.DataFrame([{"replicate": 3, "estimator": "g", "converged": 1, "WN[1].sigma2": 1.0,
+                           "SIN[1].alpha": 1e3, "SIN[1].beta": 1e-9, "objective": 1.0}])
+    record = {"truth": truth, "J": 10, "T": 4096, "model": "WN+SIN"}
+    settings = {"g": {"method": "gmwm", "weights": "ci-eta3", "n_starts": 1, "reweight": 0}}
+    betas = np.array([1e-12, 1e-10])
+    prof, points = L.ridge_study(table, record, settings, "t", 7, "fast", betas, max_fits=1)
+    assert list(prof.columns) == L.RIDGE_COLUMNS
+    assert list(prof["point"]) == ["ridge", "ridge", "fit", "truth_sin", "truth"]
+    assert not prof["matches_table"].any()  # the table's objective 1.0 is not the refit's
+    fit = prof[prof["point"] == "fit"].iloc[0]
+    assert fit["rel_increase"] == 0 and fit["objective"] == pytest.approx(fit["refit_objective"])
+    assert list(points) == ["rep3_g"]

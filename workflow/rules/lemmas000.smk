@@ -36,6 +36,7 @@ def _lemmas_sim2():
     s = STUDIES[name]
     return {"study": name, "T": max(s["n_samples"]), "seed": int(s["seed"]),
             "simulator": LEMMAS["sim2_simulator"] or s.get("simulator", "fast"),
+            "levels": s.get("levels"),
             "estimators": {e: dict(config["estimators"][e]) for e in
                            (LEMMAS["base_estimator"], LEMMAS["efficient_estimator"])},
             "base": LEMMAS["base_estimator"], "efficient": LEMMAS["efficient_estimator"]}

@@ -36,7 +36,8 @@ if p.sim2:
     points["truth"] = dict(record["truth"])
     betas = 10.0 ** np.arange(cfg["ridge_log10_beta"][0], cfg["ridge_log10_beta"][1] + 1e-9, 0.5)
     ridge, fits = L.ridge_study(df, record, s2["estimators"], s2["study"], s2["seed"],
-                                s2["simulator"], betas, int(cfg["ridge_max_fits"]), log)
+                                s2["simulator"], betas, int(cfg["ridge_max_fits"]),
+                                levels=s2["levels"], log=log)
     points.update(fits)
     tables["remarkA_efficiency"] = L.efficiency(df, record["truth"], s2["base"], s2["efficient"],
                                                 int(cfg["seed"]), n_boot=int(cfg["n_boot"]))
@@ -45,9 +46,7 @@ if jac_model is None:  # no Simulation 2: the Jacobian at a one-sinusoid model o
     a, b = next(iter(cases.values()))
     points["truth"] = {"SIN[1].alpha": a, "SIN[1].beta": b}
 tables["lemma2_jacobian"] = L.lemma2_jacobian(jac_model, points, jac_levels)
-tables["lemma2_ridge"] = ridge if ridge is not None else pd.DataFrame(
-    columns=["replicate", "estimator", "sin", "point", "alpha", "beta", "objective",
-             "rel_increase"])
+tables["lemma2_ridge"] = ridge if ridge is not None else pd.DataFrame(columns=L.RIDGE_COLUMNS)
 if "remarkA_efficiency" not in tables:
     tables["remarkA_efficiency"] = pd.DataFrame(columns=["parameter"])
 if p.sim1:
