@@ -255,7 +255,7 @@ def efficiency(table: pd.DataFrame, truth: Mapping[str, float], base: str, other
     common = a.index.intersection(b.index)
     both = common[(a.loc[common, "converged"] == 1).to_numpy()
                   & (b.loc[common, "converged"] == 1).to_numpy()]
-    if len(both) < 10:
+    if len(both) < 3:
         raise InputError(f"{base} and {other}: only {len(both)} replicates converged in both")
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(1,)))
     idx = rng.integers(0, len(both), size=(n_boot, len(both)))
