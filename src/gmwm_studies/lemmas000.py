@@ -58,6 +58,12 @@ _SIN = Sinusoid()
 _CHUNK = 16
 
 
+def _resolved(x: float, tol: float = 1e-12) -> float:
+    """``x`` or 0 when |x| < tol: a relative objective change below float64 resolution (sums of
+    22 squared residuals) is rounding, which would differ between runs in its last bits."""
+    return 0.0 if abs(x) < tol else float(x)
+
+
 def _boot_ci(x: np.ndarray) -> tuple[float, float]:
     return float(np.quantile(x, 0.025)), float(np.quantile(x, 0.975))
 
@@ -185,8 +191,12 @@ def lemma2_jacobian(model_spec: str, points: Mapping[str, Mapping[str, float]], 
         base = {"model": model_spec, "point": point, "levels": levels}
         rows.append({**base, "quantity": "rank", "value": rank})
         rows.append({**base, "quantity": "n_params", "value": theta.size})
-        rows.append({**base, "quantity": "sv_min", "value": float(s[-1])})
-        rows.append({**base, "quantity": "condition", "value": float(s[0] / s[-1])})
+        # below the rank tolerance the smallest singular value is rounding noise (it moves with
+        # the last bits of a ridge fit's WV): reported as 0, the condition number as inf
+        sv_min = float(s[-1]) if rank == s.size else 0.0
+        rows.append({**base, "quantity": "sv_min", "value": sv_min})
+        rows.append({**base, "quantity": "condition",
+                     "value": float(s[0] / sv_min) if sv_min > 0 else math.inf})
         names = m.param_names if hasattr(m, "param_names") else list(m.as_dict(theta))
         for k in range(1, m.count("SIN") + 1):
             ia, ib = names.index(f"SIN[{k}].alpha"), names.index(f"SIN[{k}].beta")
@@ -232,14 +242,14 @@ def lemma2_ridge(problem: Any, theta_fit: np.ndarray, sin: int, truth: Mapping[s
         th[ia], th[ib] = c / b, b
         q = float(problem.objective(th))
         rows.append({"point": "ridge", "alpha": c / b, "beta": float(b), "objective": q,
-                     "rel_increase": q / q0 - 1})
+                     "rel_increase": _resolved(q / q0 - 1)})
     th = theta_fit.copy()
     th[ia], th[ib] = truth[f"SIN[{sin}].alpha"], truth[f"SIN[{sin}].beta"]
     tt = m.theta(dict(truth))
     for point, t in (("fit", theta_fit), ("truth_sin", th), ("truth", tt)):
         q = float(problem.objective(t))
         rows.append({"point": point, "alpha": float(t[ia]), "beta": float(t[ib]), "objective": q,
-                     "rel_increase": q / q0 - 1})
+                     "rel_increase": _resolved(q / q0 - 1)})
     return pd.DataFrame(rows)
 
 
