@@ -49,6 +49,7 @@ include: "workflow/rules/allan.smk"
 include: "workflow/rules/replicates.smk"
 include: "workflow/rules/design.smk"
 include: "workflow/rules/paper_items.smk"
+include: "workflow/rules/lemmas000.smk"
 include: "workflow/rules/report.smk"
 
 
