@@ -58,15 +58,20 @@ __all__ = [
     "AdevResult",
     "AmbiguityResult",
     "MLEFit",
+    "additivity_study",
+    "adev_replicates",
     "adev_study",
+    "allan_counts",
     "ambiguity_study",
     "arma11_acvf",
     "arma11_as_wn_ar1",
     "arma11_spectrum",
     "av_continuous",
     "av_from_acvf",
+    "av_lemma41_sampled",
     "av_quadratic_form",
     "av_spectral",
+    "avsm_consistency_study",
     "bartlett_lrv",
     "dense_cost",
     "dyadic_pair_acvf",
@@ -79,6 +84,8 @@ __all__ = [
     "haar_levels",
     "interval_kinds",
     "interval_study",
+    "items_numbers",
+    "lemma41_study",
     "lemma42_study",
     "ma1_acvf",
     "ma1_as_qn_wn",
@@ -86,6 +93,8 @@ __all__ = [
     "ma1_study",
     "ma_coefficients",
     "mle_study",
+    "moav_asymptotics_study",
+    "moav_at",
     "model_av",
     "moment_start",
     "readings_table",
@@ -309,6 +318,8 @@ class AdevResult:
     fit: Any  # GMWMResult of replicate 0
     replicates: pd.DataFrame  # one row per replicate
     summary: pd.DataFrame  # one row per quantity: truth, replicate 0, MC mean / SD
+    # per replicate: the readings' 95 % intervals (N_ci_low, N_ci_high, K_ci_low, K_ci_high)
+    reading_cis: pd.DataFrame | None = None
 
 
 def adev_study(which: str, n_samples: int = 100_000, replicates: int = 100, seed: int = 0
@@ -321,7 +332,7 @@ def adev_study(which: str, n_samples: int = 100_000, replicates: int = 100, seed
     model_str, truth = _FIGS[which]
     model = gmwm.Model(model_str)
     theta = model.theta(truth)
-    rows, first = [], None
+    rows, cis, first = [], [], None
     for r in range(int(replicates)):
         x = model.simulate(theta, n_samples, rng=_rng(which, n_samples, r, seed))
         wv = wvar(x)
@@ -330,6 +341,8 @@ def adev_study(which: str, n_samples: int = 100_000, replicates: int = 100, seed
         rd = allan_readings(av)
         fit = gmwm.fit(wv, model, seed=replicate_seed(f"allan/{which}", n_samples, r, seed))
         row = {"replicate": r, "N": rd["N"].get("value"), "K": rd["K"].get("value")}
+        cis.append({"replicate": r, **{f"{k}_ci_{end}": (rd[k].get("ci95") or [np.nan] * 2)[i]
+                                      for k in ("N", "K") for i, end in enumerate(("low", "high"))}})
         if which == "fig41":
             row["slope_all"] = _slope(m, av.avar, np.ones(m.size, bool))
         else:
@@ -354,7 +367,24 @@ def adev_study(which: str, n_samples: int = 100_000, replicates: int = 100, seed
         for q in table.columns if q != "replicate"
         if not (which == "fig41" and q == "K")])
     av0, rd0, fit0 = first
-    return AdevResult(which, av0, rd0, fit0, table, summary)
+    return AdevResult(which, av0, rd0, fit0, table, summary, pd.DataFrame(cis, dtype=float))
+
+
+def adev_replicates(results: Sequence[AdevResult]) -> pd.DataFrame:
+    """Per-replicate table of Figs 4.1-4.2 (``reports/allan/replicates/readings.csv``): figure,
+    replicate, the IEEE 952 readings N and K (empty where not read) with their 95 % intervals,
+    the slopes and the GMWM estimates (columns of :attr:`AdevResult.replicates`)."""
+    out = []
+    for res in results:
+        t = res.replicates.copy()
+        if res.reading_cis is not None:
+            cis = res.reading_cis.drop(columns="replicate")
+            for c in cis.columns:
+                t.insert(t.columns.get_loc(c.split("_")[0]) + 1 + c.endswith("high"), c,
+                         cis[c].to_numpy())
+        t.insert(0, "figure", res.which)
+        out.append(t)
+    return pd.concat(out, ignore_index=True)
 
 
 def readings_table(res: AdevResult) -> pd.DataFrame:
@@ -637,7 +667,9 @@ def interval_study(n_samples: int = 100_000, replicates: int = 200, seed: int = 
       the filter length 2m (for WN + RW the squared differences are independent beyond 2m - 1
       lags, so Bartlett weights >= 1 - 1/lrv_bandwidth cover their whole dependence);
     * each chi-square kind of :func:`interval_kinds` (twice the WV interval).
-    Returns the table and replicate 0's intervals (for the figure)."""
+    Returns the table and replicate 0's intervals (for the figure), whose key ``replicates``
+    holds every replicate's intervals (replicate, m, true_av, ``<kind>_low``, ``<kind>_high``;
+    ``reports/allan/replicates/intervals.csv``)."""
     if not 0 < alpha < 1:
         raise InputError(f"alpha must be in (0, 1), got {alpha}")
     from scipy.special import ndtri
@@ -680,6 +712,13 @@ def interval_study(n_samples: int = 100_000, replicates: int = 200, seed: int = 
                      "eta": eta}
     m = first["m"]
     true = model_av(model, FIG42, m)
+    n_rep = len(lows[types[0]])
+    per = {"replicate": np.repeat(np.arange(n_rep), m.size), "m": np.tile(m.astype(int), n_rep),
+           "true_av": np.tile(true, n_rep)}
+    for t in types:
+        per[f"{t}_low"] = np.concatenate(lows[t])
+        per[f"{t}_high"] = np.concatenate(highs[t])
+    first["replicates"] = pd.DataFrame(per)
     rows = []
     for t in types:
         lo, hi = np.array(lows[t]), np.array(highs[t])
@@ -1275,6 +1314,33 @@ def summary_table(numbers: Mapping[str, Any]) -> pd.DataFrame:
         rows += [("Remark 4.3", f"{t}: share of lower bounds <= 0 at m = {v['m_last']}",
                   v["share_low_le_0_last"], None),
                  ("Remark 4.3", f"{t}: coverage at m = {v['m_last']}", v["coverage_last"], 0.95)]
+    for name, v in numbers.get("lemma41", {}).items():
+        rows += [("Lemma 4.1", f"{name}: continuous-kernel AV / exact AV - 1 at m = 1",
+                  v["rel_continuous_m1"], 0.0),
+                 ("Lemma 4.1", f"{name}: same at m = {v['m_max']}", v["rel_continuous_mmax"], 0.0)]
+    if "cor41" in numbers:
+        c = numbers["cor41"]
+        rows += [("Cor 4.1", "max rel. diff. exact AV of the sum vs sum of AVs", c["max_rel_exact"],
+                  0.0),
+                 ("Cor 4.1", f"max abs z of the mean cross term ({c['replicates']} replicates)",
+                  c["max_abs_z_cross"], None)]
+    for tkey, by_m in numbers.get("moav", {}).items():
+        for mkey, v in by_m.items():
+            rows += [("Lemma 4.3", f"{tkey} {mkey}: RMSE / AV", v["rel_rmse"], None),
+                     ("Lemma 4.4", f"{tkey} {mkey}: skewness of AV_hat", v["skewness"], 0.0),
+                     ("Sec 4.3.3", f"{tkey} {mkey}: coverage, Bartlett LRV interval",
+                      v["coverage_lrv"], 0.95),
+                     ("Sec 4.3.3", f"{tkey} {mkey}: coverage, printed width sigma_T / T",
+                      v["coverage_printed"], 0.95)]
+    for tkey, by_meth in numbers.get("consistency", {}).items():
+        for meth, by_p in by_meth.items():
+            for par, v in by_p.items():
+                if v["mean_ratio"] is not None:
+                    rows.append(("Sec 4.1", f"{tkey} {meth} {par}: mean / truth", v["mean_ratio"],
+                                 1.0))
+                if meth == "avsm":
+                    rows.append(("Sec 4.1", f"{tkey} avsm {par}: noise-free value / truth",
+                                 v["noise_free_ratio"], 1.0))
     if "mle" in numbers:
         for setting, by_t in numbers["mle"]["fits"].items():
             for n, by_m in by_t.items():
@@ -1290,3 +1356,334 @@ def summary_table(numbers: Mapping[str, Any]) -> pd.DataFrame:
         rows.append(("Example 4.1", f"dense likelihood: projected s at T={dn['target']}",
                      dn["projected_seconds_at_target"], None))
     return pd.DataFrame(rows, columns=["item", "quantity", "value", "reference"])
+
+
+# ==================================================================================================
+# Items added for the chapter's remaining claims: Lemma 4.1, Corollary 4.1, Lemmas 4.3-4.4 with the
+# Sec. 4.3.3 interval, and Sec. 4.1's "AV-based methods are inconsistent"
+# ==================================================================================================
+
+#: Sampled processes of the Lemma 4.1 check: (name, ARMA(1,1) phi, theta), innovation variance 1.
+LEMMA41_PROCESSES: tuple[tuple[str, float, float], ...] = (
+    ("WN", 0.0, 0.0), ("MA1(0.5)", 0.0, 0.5), ("AR1(0.9)", 0.9, 0.0), ("AR1(0.99)", 0.99, 0.0))
+
+
+def av_lemma41_sampled(spectrum: Callable[[np.ndarray], np.ndarray], m: int, nodes: int = 32
+                       ) -> float:
+    """[AV-chapter] Lemma 4.1 as printed (continuous-time kernel sin^4(pi f tau) / (pi f tau)^2)
+    applied to a sampled series: its two-sided spectral density S(f) on [-1/2, 1/2] (zero beyond
+    the Nyquist frequency), tau = m samples: 4 int_0^{1/2} S(f) sin^4(pi f m) / (pi f m)^2 df.
+    Same quadrature panels as :func:`av_spectral`, whose discrete kernel differs by the factor
+    (pi f / sin(pi f))^2."""
+    m = int(m)
+    edges = np.arange(m + 1) / (2.0 * m)
+    edges = np.unique(np.r_[0.0, edges[1] * np.geomspace(1e-9, 1.0, 40), edges[1:]])
+    f, w = _gauss_panels(edges, nodes)
+    kern = np.sin(np.pi * f * m) ** 4 / (np.pi * f * m) ** 2
+    return float(4.0 * np.sum(w * spectrum(f) * kern))
+
+
+def lemma41_study(levels: int = 15) -> pd.DataFrame:
+    """Lemma 4.1 on sampled series, per process of :data:`LEMMA41_PROCESSES` and cluster
+    m = 1..2**(levels-1): the exact AV (Lemma 4.2 on the closed-form autocovariance), the printed
+    continuous-time formula (:func:`av_lemma41_sampled`) and the discrete-kernel integral
+    (:func:`av_spectral`); ``rel_continuous`` = continuous / exact - 1 (signed),
+    ``rel_discrete`` = |discrete / exact - 1|."""
+    rows = []
+    for name, phi, theta in LEMMA41_PROCESSES:
+        spec = arma11_spectrum(phi, theta, 1.0)
+        for mk in _clusters(levels):
+            exact = av_from_acvf(arma11_acvf(phi, theta, 1.0, 2 * mk), mk)
+            cont = av_lemma41_sampled(spec, mk)
+            disc = av_spectral(spec, mk)
+            rows.append({"process": name, "m": int(mk), "exact": exact, "continuous": cont,
+                         "discrete_kernel": disc, "rel_continuous": cont / exact - 1.0,
+                         "rel_discrete": abs(disc / exact - 1.0)})
+    return pd.DataFrame(rows)
+
+
+#: Corollary 4.1's sum: independent WN, AR1 and RW (per-sample parameters).
+COR41_PARTS: dict[str, dict[str, float]] = {
+    "WN": {"WN[1].sigma2": 1.0}, "AR1": {"AR1[1].phi": 0.9, "AR1[1].sigma2": 0.1},
+    "RW": {"RW[1].gamma2": 1e-4}}
+
+
+def additivity_study(n_samples: int = 16384, replicates: int = 200, seed: int = 0,
+                     levels: int = 12) -> pd.DataFrame:
+    """Corollary 4.1 on Z = WN + AR1 + RW (:data:`COR41_PARTS`, independent), per cluster
+    m = 1..2**(levels-1): the exact AV of the sum model against the sum of the parts' exact AVs
+    (``rel_exact``), and over ``replicates`` simulated triples the mean of
+    AV_hat(Z) - sum AV_hat(parts) (the cross terms; mean 0 under independence) with its z, and
+    the mean AV_hat(Z) against the sum of exact AVs (z)."""
+    m = _clusters(levels)
+    parts = {k: (gmwm.Model(k), p) for k, p in COR41_PARTS.items()}
+    every = {k: v for p in COR41_PARTS.values() for k, v in p.items()}
+    exact_sum = sum(model_av(mod, p, m) for mod, p in parts.values())
+    exact_model = model_av("WN+AR1+RW", every, m)
+    cross, total = [], []
+    for r in range(int(replicates)):
+        rng = _rng("cor41", n_samples, r, seed)
+        xs = [mod.simulate(mod.theta(p), n_samples, rng=rng) for mod, p in parts.values()]
+        avs = 2.0 * wvar_many(np.stack([*xs, np.sum(xs, axis=0)]), levels)
+        cross.append(avs[-1] - avs[:-1].sum(axis=0))
+        total.append(avs[-1])
+    cross, total = np.array(cross), np.array(total)
+    n = cross.shape[0]
+    c_se = cross.std(axis=0, ddof=1) / math.sqrt(n)
+    t_se = total.std(axis=0, ddof=1) / math.sqrt(n)
+    return pd.DataFrame({
+        "m": m.astype(int), "exact_sum_of_parts": exact_sum, "exact_sum_model": exact_model,
+        "rel_exact": np.abs(exact_model / exact_sum - 1.0),
+        "mean_cross": cross.mean(axis=0), "se_cross": c_se, "z_cross": cross.mean(axis=0) / c_se,
+        "mean_av_sum": total.mean(axis=0), "z_av_sum": (total.mean(axis=0) - exact_sum) / t_se,
+        "replicates": n})
+
+
+def moav_at(x: np.ndarray, m: int) -> np.ndarray:
+    """Half the squared differences of the overlapping m-means, Y_k = (Xbar_k - Xbar_{k-m})^2 / 2, k = 2m..T ([AV-chapter] Definition 4.3; their
+    mean is the MOAV at cluster m)."""
+    s = np.r_[0.0, np.cumsum(np.asarray(x, dtype=float))]
+    means = (s[m:] - s[:-m]) / m  # Xbar over x[k-m+1..k], k = m..T
+    d = means[m:] - means[:-m]
+    return 0.5 * d * d
+
+
+def moav_asymptotics_study(n_samples: Sequence[int] = (1000, 10_000, 100_000),
+                           clusters: Sequence[int] = (1, 16, 256), replicates: int = 200,
+                           seed: int = 0, alpha: float = 0.05) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Lemmas 4.3 (consistency) and 4.4 (asymptotic normality) of the MOAV and the Sec. 4.3.3
+    interval, on the Fig. 4.2 model (WN + RW: its differences are stationary, strongly mixing,
+    with all moments), per T and cluster m over ``replicates`` series:
+
+    * ``rel_rmse``: RMSE / AV; ``sqrtT_rel_rmse`` = sqrt(T) x that (Lemma 4.4: tends to a
+      constant); ``skewness`` of AV_hat (0 for a normal law);
+    * coverage of the 1 - alpha intervals AV_hat -+ z se with se = the exact SD of AV_hat
+      (``exact``), sqrt(LRV_hat / M), LRV_hat the Bartlett long-run variance of the Y_k of
+      :func:`moav_at` with bandwidth 2m (``lrv``, the interval read with the Lemma 4.4 scaling),
+      and the printed width sigma_T / T with sigma_T^2 the long-run variance of the squared
+      differences 2 Y_k (``printed``).
+
+    Returns the summary and the per-replicate table (replicate, T, m, AV_hat, the three
+    half-widths)."""
+    from scipy.special import ndtri
+    from scipy.stats import skew
+
+    from gmwm.wvcov import wv_covariance
+
+    z = float(ndtri(1.0 - alpha / 2.0))
+    model = gmwm.Model("WN+RW")
+    theta = model.theta(FIG42)
+    rows, reps = [], []
+    for n in n_samples:
+        n = int(n)
+        ms = [int(c) for c in clusters if 2 * int(c) < n]
+        sd = 2.0 * np.sqrt(np.diag(wv_covariance(model, theta, 2.0 * np.array(ms, float), n)))
+        for r in range(int(replicates)):
+            x = model.simulate(theta, n, rng=_rng("moav", n, r, seed))
+            for k, mk in enumerate(ms):
+                y = moav_at(x, mk)
+                lrv = bartlett_lrv(y, 2 * mk)
+                reps.append({"replicate": r, "n_samples": n, "m": mk, "av_hat": float(y.mean()),
+                             "half_exact": z * sd[k], "half_lrv": z * math.sqrt(lrv / y.size),
+                             "half_printed": z * math.sqrt(4.0 * lrv) / n})
+    per = pd.DataFrame(reps)
+    for (n, mk), d in per.groupby(["n_samples", "m"], sort=True):
+        tv = float(model_av(model, FIG42, mk)[0])
+        est = d.av_hat.to_numpy()
+        row = {"n_samples": int(n), "m": int(mk), "true_av": tv,
+               "rel_bias": float(est.mean() / tv - 1.0),
+               "rel_rmse": float(np.sqrt(np.mean((est - tv) ** 2)) / tv)}
+        row["sqrtT_rel_rmse"] = row["rel_rmse"] * math.sqrt(n)
+        row["skewness"] = float(skew(est))
+        for kind in ("exact", "lrv", "printed"):
+            h = d[f"half_{kind}"].to_numpy()
+            row[f"coverage_{kind}"] = float(np.mean(np.abs(est - tv) <= h))
+        row["replicates"] = len(d)
+        rows.append(row)
+    return pd.DataFrame(rows), per
+
+
+class _ExactWV:
+    """A noise-free WV (the probability limit of the WV estimator) in the shape :func:`gmwm.avsm
+    .fit_avsm` reads: scales 2**j, variance, M_j = T - 2**j + 1, freq 1."""
+
+    def __init__(self, model: gmwm.Model, params: Mapping[str, float], n_samples: int,
+                 levels: int):
+        self.levels = np.arange(1, levels + 1)
+        self.scales = 2.0 ** self.levels
+        self.variance = model.wv(model.theta(dict(params)), self.scales)
+        self.n = n_samples - self.scales + 1
+        self.freq = 1.0
+
+
+#: Sec. 4.1's consistency check: WN + RW with the crossover at m* = sqrt(3 sigma2 / gamma2) = 173.
+CONSISTENCY_MODEL: tuple[str, dict[str, float]] = (
+    "WN+RW", {"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-4})
+
+
+def avsm_consistency_study(n_samples: Sequence[int] = (10_000, 100_000, 1_000_000),
+                           replicates: int = 100, seed: int = 0,
+                           limit_n_samples: Sequence[int] = (10_000_000,)
+                           ) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """[AV-chapter] Sec. 4.1: AV-based (log-log line fit) estimators are inconsistent. The AV
+    slope method (:func:`gmwm.avsm.fit_avsm`, fixed-slope line fits) and the GMWM on the same
+    WN + RW series (:data:`CONSISTENCY_MODEL`) at growing T, and the AVSM applied to the exact WV
+    at the same T (its probability limit for that T; also at ``limit_n_samples``, no simulation).
+    Returns the summary (per T, method, parameter: mean / truth, SD / truth, RMSE / truth, and the
+    AVSM's noise-free value / truth; the mean is carried by rare wild AVSM readings, the median
+    is not) and the per-replicate estimates."""
+    from gmwm.avsm import fit_avsm
+
+    model_str, truth = CONSISTENCY_MODEL
+    model = gmwm.Model(model_str)
+    theta = model.theta(truth)
+    names = list(model.param_names)
+    reps = []
+    for n in n_samples:
+        n = int(n)
+        for r in range(int(replicates)):
+            x = model.simulate(theta, n, rng=_rng("avsm_consistency", n, r, seed))
+            wv = wvar(x)
+            a = fit_avsm(wv, model)
+            g = gmwm.fit(wv, model, seed=replicate_seed("allan/avsm_consistency", n, r, seed))
+            for meth, vals in (("avsm", dict(zip(a.param_names, a.params, strict=True))),
+                               ("gmwm", g.as_dict())):
+                reps.append({"replicate": r, "n_samples": n, "method": meth,
+                             **{k: float(vals[k]) for k in names}})
+    per = pd.DataFrame(reps)
+    rows = []
+    for n in [*map(int, n_samples), *map(int, limit_n_samples)]:
+        J = math.floor(math.log2(n)) - 1  # gmwm.wvar's default number of levels
+        lim = fit_avsm(_ExactWV(model, truth, n, J), model)
+        limit = dict(zip(lim.param_names, lim.params, strict=True))
+        d_n = per[per.n_samples == n]
+        for meth in ("avsm", "gmwm"):
+            d = d_n[d_n.method == meth]
+            for k in names:
+                tv = truth[k]
+                est = d[k].to_numpy(float) / tv
+                rows.append({
+                    "n_samples": n, "method": meth, "parameter": k, "truth": tv,
+                    "mean_ratio": float(est.mean()) if est.size else np.nan,
+                    "median_ratio": float(np.median(est)) if est.size else np.nan,
+                    "sd_ratio": float(est.std(ddof=1)) if est.size > 1 else np.nan,
+                    "rmse_ratio": (float(np.sqrt(np.mean((est - 1.0) ** 2))) if est.size
+                                   else np.nan),
+                    "mc_se_mean_ratio": (float(est.std(ddof=1) / math.sqrt(est.size))
+                                         if est.size > 1 else np.nan),
+                    "noise_free_ratio": (float(limit[k] / tv) if meth == "avsm" else 1.0),
+                    "replicates": int(est.size)})
+    return pd.DataFrame(rows), per
+
+
+def items_numbers(lemma41: pd.DataFrame, cor41: pd.DataFrame, moav: pd.DataFrame,
+                  consistency: pd.DataFrame) -> dict[str, Any]:
+    """Key numbers of the four added items (the JSON REPRODUCTION.md quotes)."""
+    out: dict[str, Any] = {"lemma41": {}}
+    for name, d in lemma41.groupby("process", sort=False):
+        out["lemma41"][name] = {
+            "max_abs_rel_continuous": float(d.rel_continuous.abs().max()),
+            "rel_continuous_m1": float(d.rel_continuous.iloc[0]),
+            "rel_continuous_mmax": float(d.rel_continuous.iloc[-1]),
+            "max_rel_discrete": float(d.rel_discrete.max()), "m_max": int(d.m.max())}
+    out["cor41"] = {"max_rel_exact": float(cor41.rel_exact.max()),
+                    "max_abs_z_cross": float(cor41.z_cross.abs().max()),
+                    "max_abs_z_av_sum": float(cor41.z_av_sum.abs().max()),
+                    "replicates": int(cor41.replicates.iloc[0]), "levels": len(cor41)}
+    out["moav"] = {f"T{int(r.n_samples)}": {} for r in moav.itertuples()}
+    for r in moav.itertuples():
+        out["moav"][f"T{int(r.n_samples)}"][f"m{int(r.m)}"] = {
+            k: (float(getattr(r, k)) if k != "replicates" else int(r.replicates))
+            for k in ("rel_bias", "rel_rmse", "sqrtT_rel_rmse", "skewness", "coverage_exact",
+                      "coverage_lrv", "coverage_printed", "replicates")}
+    out["consistency"] = {}
+    for r in consistency.itertuples():
+        out["consistency"].setdefault(f"T{int(r.n_samples)}", {}).setdefault(r.method, {})[
+            r.parameter] = {"mean_ratio": _f(r.mean_ratio), "median_ratio": _f(r.median_ratio),
+                            "sd_ratio": _f(r.sd_ratio),
+                            "rmse_ratio": _f(r.rmse_ratio), "noise_free_ratio": _f(r.noise_free_ratio),
+                            "replicates": int(r.replicates)}
+    return out
+
+
+def allan_counts(readings: pd.DataFrame, intervals: pd.DataFrame, moav: pd.DataFrame,
+                 sources: Mapping[str, str], consistency: pd.DataFrame | None = None) -> list:
+    """The named counts the Allan rows quote (:class:`gmwm_studies.counts.Count`), recomputed from
+    the per-replicate files (``sources``: file of each table, relative to ``reports/allan``):
+
+    * ``allan.<fig>.n``; per reading R in N, K: ``allan.<fig>.<R>.n_read`` (replicates where the
+      IEEE 952 reading exists), ``.missing`` and ``.ci_covers`` (read and its 95 % interval holds
+      the truth sqrt(sigma2) or sqrt(gamma2));
+    * ``allan.intervals.n`` and per interval kind and cluster m ``allan.intervals.<kind>.m<m>
+      .low_le_0`` (lower bound <= 0) and ``.covered`` (low <= exact AV <= high);
+    * ``allan.moav.T<T>.m<m>.<kind>.covered`` (Sec. 4.3.3 intervals of
+      :func:`moav_asymptotics_study`: |AV_hat - AV| <= half-width);
+    * with ``consistency`` (:func:`avsm_consistency_study`'s replicates):
+      ``allan.consistency.T<T>.<method>.<param>.n``, ``.within1pct`` (|estimate / truth - 1|
+      <= 0.01) and ``.off10pct`` (> 0.1)."""
+    from gmwm_studies.counts import Count
+
+    out = []
+    src = sources["readings"]
+    for fig, d in readings.groupby("figure", sort=True):
+        truth = _FIGS[str(fig)][1]
+        out.append(Count(f"allan.{fig}.n", len(d), "replicates", src))
+        for key, par in (("N", "WN[1].sigma2"), ("K", "RW[1].gamma2")):
+            if par not in truth or key not in d.columns:
+                continue
+            v = d[key].to_numpy(float)
+            read = np.isfinite(v)
+            tv = math.sqrt(truth[par])
+            lo, hi = d[f"{key}_ci_low"].to_numpy(float), d[f"{key}_ci_high"].to_numpy(float)
+            out += [Count(f"allan.{fig}.{key}.n_read", int(read.sum()),
+                          f"replicates where the IEEE 952 {key} reading exists", src),
+                    Count(f"allan.{fig}.{key}.missing", int((~read).sum()),
+                          f"replicates without a {key} reading (no run of the local slope "
+                          "within its tolerance)", src),
+                    Count(f"allan.{fig}.{key}.ci_covers", int(np.sum(read & (lo <= tv)
+                                                                     & (tv <= hi))),
+                          f"replicates whose {key} reading's 95 % interval holds the truth "
+                          f"{tv:g}", src)]
+    src = sources["intervals"]
+    kinds = [c[:-4] for c in intervals.columns if c.endswith("_low")]
+    out.append(Count("allan.intervals.n", int(intervals.replicate.nunique()),
+                     "replicates of the Remark 4.3 interval study", src))
+    for kind in kinds:
+        for mk, d in intervals.groupby("m", sort=True):
+            lo, hi = d[f"{kind}_low"].to_numpy(float), d[f"{kind}_high"].to_numpy(float)
+            tv = d.true_av.to_numpy(float)
+            p = f"allan.intervals.{kind}.m{int(mk)}"
+            out += [Count(f"{p}.low_le_0", int(np.sum(lo <= 0.0)),
+                          f"replicates whose {kind} interval at m = {int(mk)} has a lower bound "
+                          "<= 0", src),
+                    Count(f"{p}.covered", int(np.sum((lo <= tv) & (tv <= hi))),
+                          f"replicates whose {kind} interval at m = {int(mk)} holds the exact AV",
+                          src)]
+    src = sources["moav"]
+    for (n, mk), d in moav.groupby(["n_samples", "m"], sort=True):
+        tv = float(model_av("WN+RW", FIG42, int(mk))[0])
+        err = np.abs(d.av_hat.to_numpy(float) - tv)
+        for kind in ("exact", "lrv", "printed"):
+            out.append(Count(f"allan.moav.T{int(n)}.m{int(mk)}.{kind}.covered",
+                             int(np.sum(err <= d[f"half_{kind}"].to_numpy(float))),
+                             f"replicates (of {len(d)}) whose Sec. 4.3.3 interval ({kind} "
+                             f"half-width) at T = {int(n)}, m = {int(mk)} holds the exact AV",
+                             src))
+    if consistency is not None:
+        src = sources["consistency"]
+        truth = CONSISTENCY_MODEL[1]
+        for (n, meth), d in consistency.groupby(["n_samples", "method"], sort=True):
+            for par, tv in truth.items():
+                dev = np.abs(d[par].to_numpy(float) / tv - 1.0)
+                p = f"allan.consistency.T{int(n)}.{meth}.{_pname(par)}"
+                out += [Count(f"{p}.n", len(d), "replicates", src),
+                        Count(f"{p}.within1pct", int(np.sum(dev <= 0.01)),
+                              f"replicates whose {meth} {par} is within 1 % of the truth", src),
+                        Count(f"{p}.off10pct", int(np.sum(dev > 0.1)),
+                              f"replicates whose {meth} {par} is more than 10 % off the truth",
+                              src)]
+    return out
+
+
+def _pname(name: str) -> str:
+    return name.replace("[", "").replace("]", "")

@@ -6,7 +6,12 @@
 #                  different spectra), Remark 4.3 (Gaussian AV intervals below 0): seconds
 #   allan_mle      Example 4.1: exact MLE of WN + AR1 (Kalman filter; the dense T x T route timed)
 #                  beside the GMWM on the same signals: about a minute on an idle core
-#   allan_summary  the key numbers of both (summary.csv / .md / .json), the index's table
+#   allan_items    Lemma 4.1 (continuous-time kernel vs exact AV of sampled series), Cor 4.1
+#                  (additivity), Lemmas 4.3-4.4 and the Sec. 4.3.3 interval (MOAV as T grows),
+#                  Sec. 4.1 (AVSM vs GMWM as T grows): about 20 s
+#   allan_counts   the counts the rows quote, from the per-replicate files (replicates/*.csv)
+#                  -> counts.json / counts.md (gmwm_studies.counts' format)
+#   allan_summary  the key numbers of all (summary.csv / .md / .json), the index's table
 # Every signal has its own SeedSequence keyed by ("allan/<item>", T, replicate) under `seed`.
 # Paths are relative to the workdir (config `outdir`), like every other rule file.
 
@@ -15,6 +20,12 @@ ALLAN.setdefault("seed", config["seed"])
 ALLAN_DIR = "reports/allan"
 ALLAN_FIGS = ("fig41_adev", "fig42_adev", "fig_ma1", "fig_ambiguity", "fig_intervals")
 ALLAN_TABLES = ("adev", "readings", "ma1", "lemma42", "ambiguity", "intervals")
+ALLAN_ITEM_TABLES = ("lemma41", "cor41", "moav", "consistency")
+# per-replicate files (what the rows quote as counts): readings and intervals from allan_chapter,
+# moav and consistency from allan_items
+ALLAN_REPLICATES = {k: f"{ALLAN_DIR}/replicates/{k}.csv"
+                    for k in ("readings", "intervals", "moav", "consistency")}
+ALLAN_COUNTS = [f"{ALLAN_DIR}/counts.json", f"{ALLAN_DIR}/counts.md"]
 
 
 def allan_targets():
@@ -26,6 +37,9 @@ def allan_targets():
         *[f"{ALLAN_DIR}/{t}.{ext}" for t in ALLAN_TABLES for ext in ("csv", "md")],
         *[f"{ALLAN_DIR}/{t}.{ext}" for t in ("mle", "dense_cost") for ext in ("csv", "md")],
         f"{ALLAN_DIR}/mle_replicates.csv",
+        *[f"{ALLAN_DIR}/{t}.{ext}" for t in ALLAN_ITEM_TABLES for ext in ("csv", "md")],
+        *ALLAN_REPLICATES.values(),
+        *ALLAN_COUNTS,
         *[f"{ALLAN_DIR}/{f}.{fmt}" for f in ALLAN_FIGS for fmt in FIG_FORMATS],
     ]
 
@@ -33,7 +47,8 @@ def allan_targets():
 def allan_benchmarks():
     if not ALLAN["enabled"]:
         return []
-    return [f"{BENCH}/allan/{rule}.tsv" for rule in ("chapter", "mle", "summary")]
+    return [f"{BENCH}/allan/{rule}.tsv"
+            for rule in ("chapter", "mle", "items", "counts", "summary")]
 
 
 if ALLAN["enabled"]:
@@ -44,7 +59,9 @@ if ALLAN["enabled"]:
             "Allan-variance chapter ([AV-chapter]): AD of WN and WN + RW with the theoretical lines, "
             "IEEE 952 readings and GMWM (Figs 4.1-4.2); MA(1) AV (Example 4.2); Lemma 4.2 against "
             "the exact AV of ARMA(1,1); equal AV with different spectra (Sec. 4.2.2); Gaussian AV "
-            "intervals below 0 (Remark 4.3); MLE of WN + AR1 vs GMWM at T = "
+            "intervals below 0 (Remark 4.3); Lemma 4.1's kernel on sampled series, additivity "
+            "(Cor 4.1), MOAV consistency, normality and the Sec. 4.3.3 interval (Lemmas 4.3-4.4), "
+            "AVSM vs GMWM as T grows (Sec. 4.1); MLE of WN + AR1 vs GMWM at T = "
             + ", ".join(f"{t:g}" for t in _mle["n_samples"])
             + f" ({_mle['replicates']} replicates, Example 4.1). [summary](allan/summary.md)"
         ),
@@ -56,6 +73,7 @@ if ALLAN["enabled"]:
 
 
 localrules:
+    allan_counts,
     allan_summary,
 
 
@@ -94,6 +112,8 @@ rule allan_chapter:
         other_formats=[f"{ALLAN_DIR}/{f}.{fmt}" for f in ALLAN_FIGS for fmt in FIG_FORMATS
                        if fmt != "png"],
         tables=[f"{ALLAN_DIR}/{t}.{ext}" for t in ALLAN_TABLES for ext in ("csv", "md")],
+        replicates_readings=ALLAN_REPLICATES["readings"],
+        replicates_intervals=ALLAN_REPLICATES["intervals"],
         numbers="results/allan/chapter.json",
     params:
         n_samples=int(ALLAN["n_samples"]),
@@ -148,10 +168,51 @@ rule allan_mle:
         "../scripts/allan_mle.py"
 
 
+rule allan_items:
+    output:
+        tables=[f"{ALLAN_DIR}/{t}.{ext}" for t in ALLAN_ITEM_TABLES for ext in ("csv", "md")],
+        replicates_moav=ALLAN_REPLICATES["moav"],
+        replicates_consistency=ALLAN_REPLICATES["consistency"],
+        numbers="results/allan/items.json",
+    params:
+        cor41=dict(ALLAN["items"]["cor41"]),
+        moav=dict(ALLAN["items"]["moav"]),
+        consistency=dict(ALLAN["items"]["consistency"]),
+        seed=int(ALLAN["seed"]),
+    log:
+        "logs/allan/items.log",
+    benchmark:
+        f"{BENCH}/allan/items.tsv"
+    threads: 1
+    resources:
+        runtime=20,
+        mem_mb=2000,
+    script:
+        "../scripts/allan_items.py"
+
+
+rule allan_counts:
+    input:
+        **ALLAN_REPLICATES,
+    output:
+        json=ALLAN_COUNTS[0],
+        md=ALLAN_COUNTS[1],
+    log:
+        "logs/allan/counts.log",
+    benchmark:
+        f"{BENCH}/allan/counts.tsv"
+    resources:
+        runtime=10,
+        mem_mb=1000,
+    script:
+        "../scripts/allan_counts.py"
+
+
 rule allan_summary:
     input:
         chapter="results/allan/chapter.json",
         mle="results/allan/mle.json",
+        added="results/allan/items.json",
     output:
         csv=report(
             f"{ALLAN_DIR}/summary.csv",

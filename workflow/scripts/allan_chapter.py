@@ -7,9 +7,10 @@ from pathlib import Path
 
 import pandas as pd
 
-from gmwm.atomic import save_figure, write_json_atomic
+from gmwm.atomic import save_figure, write_json_atomic, write_text_atomic
 from gmwm_studies import allan_chapter as ac
 from gmwm_studies.montecarlo import write_table
+from gmwm_studies.replicates import FLOAT_FORMAT
 
 snakemake = globals()["snakemake"]  # injected by Snakemake
 log = get_logger(snakemake)
@@ -35,6 +36,8 @@ table(pd.concat([r.summary for r in adev.values()], ignore_index=True), "adev",
 readings = pd.concat([ac.readings_table(r) for r in adev.values()], ignore_index=True)
 table(readings, "readings", "Figs 4.1-4.2: IEEE 952 readings of replicate 0")
 numbers["readings"] = readings.to_dict(orient="records")
+write_text_atomic(out.replicates_readings, ac.adev_replicates(list(adev.values())).to_csv(
+    index=False, float_format=FLOAT_FORMAT))
 
 ma1 = ac.ma1_study(p.ma1_thetas, 1.0, p.ma1_n_samples, p.ma1_replicates, p.seed)
 table(ma1, "ma1", f"Example 4.2: AV of an MA(1), sigma2 = 1 ({p.ma1_replicates} replicates, "
@@ -58,6 +61,8 @@ table(intervals, "intervals", f"Remark 4.3: 95 % AV intervals on WN + RW ({p.rep
       f"replicates, T = {p.n_samples})")
 figure(ac.figure_intervals(intervals, first), "fig_intervals")
 numbers["intervals"] = ac.interval_numbers(intervals)
+write_text_atomic(out.replicates_intervals, first["replicates"].to_csv(
+    index=False, float_format=FLOAT_FORMAT))
 numbers["interval_kinds"] = list(ac.interval_kinds())
 
 write_json_atomic(out.numbers, numbers)

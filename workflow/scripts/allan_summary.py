@@ -17,6 +17,8 @@ with open(inp.chapter) as fh:
     numbers = json.load(fh)
 with open(inp.mle) as fh:
     numbers["mle"] = json.load(fh)
+with open(inp.added) as fh:
+    numbers |= json.load(fh)  # lemma41, cor41, moav, consistency
 write_json_atomic(out.json, numbers)
 table = ac.summary_table(numbers)
 write_table(table, out.csv, out.md, "Allan-variance chapter ([AV-chapter]): key numbers")
