@@ -41,6 +41,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from functools import lru_cache
 from math import comb
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -521,6 +522,28 @@ def wv_covariance(model: str | Model, theta: np.ndarray, scales: Iterable[float]
     model.check(theta)
     tau, T = _check_scales(scales, n_samples)
     excl = {str(e).upper() for e in exclude}
+    key = (model.spec, model.freq, theta.tobytes(), tau.tobytes(), T, tuple(sorted(excl)),
+           bool(sin_interaction))
+    if key in _MEMO:
+        return _MEMO[key].copy()
+    V = _wv_covariance(model, theta, tau, T, excl, sin_interaction)
+    if len(_MEMO) >= _MEMO_SIZE:
+        _MEMO.pop(next(iter(_MEMO)))  # the oldest
+    _MEMO[key] = V.copy()
+    return V
+
+
+#: covariances already computed in this process, by model, parameters, scales, length and
+#: options (first in, first out): an automatic model choice asks for the same one up to four
+#: times (the goodness-of-fit test of a candidate ranked in two stages, the chosen model's
+#: standard errors, the verdict's identifiability search at the fit's own length)
+_MEMO: dict[tuple[Any, ...], np.ndarray] = {}
+_MEMO_SIZE = 64
+
+
+def _wv_covariance(model: Model, theta: np.ndarray, tau: np.ndarray, T: int, excl: set[str],
+                   sin_interaction: bool) -> np.ndarray:
+    """:func:`wv_covariance` after its checks."""
     sins: list[tuple[Process, float, float]] = []
     wn = rw = qn = omega = 0.0
     ar_phi: list[float] = []
