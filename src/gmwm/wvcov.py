@@ -38,6 +38,7 @@ at load ~20 (benchmarks/bench_wvcov.py).
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterable
 from functools import lru_cache
 from math import comb
@@ -425,7 +426,7 @@ def _pair_sums(T: float, tj: float, tk: float, wn: float, rw: float, qn: float, 
     return s1, s2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # nogil: gmwm.plan computes several lengths side by side
 def _all_pairs(T: float, tau: np.ndarray, wn: float, rw: float, qn: float, ar_a, ar_neg, ar_p,
                ar_pl, ar_sm, gl_x, gl_w, grades, greg_l, greg_r):
     J = tau.shape[0]
@@ -524,12 +525,14 @@ def wv_covariance(model: str | Model, theta: np.ndarray, scales: Iterable[float]
     excl = {str(e).upper() for e in exclude}
     key = (model.spec, model.freq, theta.tobytes(), tau.tobytes(), T, tuple(sorted(excl)),
            bool(sin_interaction))
-    if key in _MEMO:
-        return _MEMO[key].copy()
+    hit = _MEMO.get(key)
+    if hit is not None:
+        return hit.copy()
     V = _wv_covariance(model, theta, tau, T, excl, sin_interaction)
-    if len(_MEMO) >= _MEMO_SIZE:
-        _MEMO.pop(next(iter(_MEMO)))  # the oldest
-    _MEMO[key] = V.copy()
+    with _MEMO_LOCK:  # threads may fill it (gmwm.plan)
+        if len(_MEMO) >= _MEMO_SIZE:
+            _MEMO.pop(next(iter(_MEMO)))  # the oldest
+        _MEMO[key] = V.copy()
     return V
 
 
@@ -539,6 +542,7 @@ def wv_covariance(model: str | Model, theta: np.ndarray, scales: Iterable[float]
 #: standard errors, the verdict's identifiability search at the fit's own length)
 _MEMO: dict[tuple[Any, ...], np.ndarray] = {}
 _MEMO_SIZE = 64
+_MEMO_LOCK = threading.Lock()
 
 
 def _wv_covariance(model: Model, theta: np.ndarray, tau: np.ndarray, T: int, excl: set[str],
