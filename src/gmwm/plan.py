@@ -323,14 +323,14 @@ def _prefetch_covariances(model: Any, theta: np.ndarray, lengths: Sequence[int])
     from concurrent.futures import ThreadPoolExecutor
 
     from gmwm.inference import nonzero_part
-    from gmwm.wvcov import _MEMO_SIZE, wv_covariance
+    from gmwm.wvcov import MEMO_SIZE, wv_covariance
 
     try:
         cores = len(os.sched_getaffinity(0))
     except AttributeError:  # not Linux
         cores = os.cpu_count() or 1
     sub, sub_theta = nonzero_part(model, theta)
-    todo = sorted(set(lengths), reverse=True)[:_MEMO_SIZE // 2]  # the costliest first
+    todo = sorted(set(lengths), reverse=True)[:MEMO_SIZE // 2]  # the costliest first
     if cores < 2 or sub is None or len(todo) < 2:
         return
 

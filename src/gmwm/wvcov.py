@@ -530,7 +530,7 @@ def wv_covariance(model: str | Model, theta: np.ndarray, scales: Iterable[float]
         return hit.copy()
     V = _wv_covariance(model, theta, tau, T, excl, sin_interaction)
     with _MEMO_LOCK:  # threads may fill it (gmwm.plan)
-        if len(_MEMO) >= _MEMO_SIZE:
+        if len(_MEMO) >= MEMO_SIZE:
             _MEMO.pop(next(iter(_MEMO)))  # the oldest
         _MEMO[key] = V.copy()
     return V
@@ -541,7 +541,7 @@ def wv_covariance(model: str | Model, theta: np.ndarray, scales: Iterable[float]
 #: times (the goodness-of-fit test of a candidate ranked in two stages, the chosen model's
 #: standard errors, the verdict's identifiability search at the fit's own length)
 _MEMO: dict[tuple[Any, ...], np.ndarray] = {}
-_MEMO_SIZE = 64
+MEMO_SIZE = 64
 _MEMO_LOCK = threading.Lock()
 
 
