@@ -1,10 +1,12 @@
 """End-to-end CLI timings: `gmwm --help` and `gmwm wv x.npy --json` on 1e7 samples against a plain
 NumPy script computing a naive cumulative-sum WV of the same file; with `--latency`, the three
 answers issue 39 sets goals for instead (`gmwm report` of the README's one-hour 200 Hz bag and of
-the EuRoC V101 file, `gmwm plan`'s README example), each with the report's own breakdown.
+the EuRoC V101 file, `gmwm plan`'s README example), each with the report's own breakdown;
+`--vs CMD` times a second CLI (e.g. `PYTHONPATH=<other tree>/src python -m gmwm` in a wrapper)
+with its runs alternating with the first's, so that a before/after pair sees the same load.
 
     python benchmarks/bench_cli.py [--n 10000000] [--runs 5] [--workdir /tmp/gmwm_bench_cli]
-    python benchmarks/bench_cli.py --latency [--runs 5] [--euroc PATH]
+    python benchmarks/bench_cli.py --latency [--runs 5] [--euroc PATH] [--cli CMD] [--vs CMD]
 
 Whole processes are timed from outside with `farm-bench` (paired A/B runs, median of --runs) when it
 is installed, else with `subprocess` wall and child CPU times (median). The signal and the NumPy
@@ -113,30 +115,39 @@ def latency(args: argparse.Namespace, gmwm: str) -> None:
     else:
         print(f"# {euroc} absent: the EuRoC case is skipped")
     cases["plan"] = ([gmwm, *PLAN], "README plan example")
+    clis = [("A: ", gmwm), ("B: ", args.vs)] if args.vs else [("", gmwm)]
     print(f"# load average {' '.join(f'{v:.2f}' for v in os.getloadavg())} before, "
-          f"{os.cpu_count()} cores, {args.runs} runs after a warm-up")
+          f"{os.cpu_count()} cores, {args.runs} runs after a warm-up"
+          + (f"; A = {gmwm}, B = {args.vs}, their runs alternating" if args.vs else ""))
     print("| command | wall median [min, max] s | CPU median s | goal s | breakdown (medians, s) |")
     print("|---|---|---|---|---|")
     for key, (cmd, what) in cases.items():
-        timed, parts = [], []
+        timed: dict[str, list] = {tag: [] for tag, _ in clis}
+        parts: dict[str, list] = {tag: [] for tag, _ in clis}
         for i in range(args.runs + 1):
-            before = resource.getrusage(resource.RUSAGE_CHILDREN)
-            t0 = time.perf_counter()
-            run = subprocess.run(cmd, capture_output=True, text=True, check=False)
-            wall = time.perf_counter() - t0
-            after = resource.getrusage(resource.RUSAGE_CHILDREN)
-            if run.returncode not in (0, 4, 5):
-                raise SystemExit(f"{' '.join(cmd)} failed ({run.returncode}): {run.stderr[-500:]}")
-            if i == 0:
-                continue  # the warm-up: file cache, Numba's cache files
-            timed.append((wall, (after.ru_utime - before.ru_utime)
-                          + (after.ru_stime - before.ru_stime)))
-            if "--json" in cmd and "seconds" in json.loads(run.stdout):  # older trees: none
-                parts.append(json.loads(run.stdout)["seconds"])
-        walls = [w for w, _ in timed]
-        split = ", ".join(f"{k} {v:.2f}" for k, v in _breakdown(parts).items()) if parts else ""
-        print(f"| {what} | {statistics.median(walls):.2f} [{min(walls):.2f}, {max(walls):.2f}] "
-              f"| {statistics.median(c for _, c in timed):.2f} | {GOALS[key]:g} | {split} |")
+            for tag, cli in clis:
+                c = [cli, *cmd[1:]]
+                before = resource.getrusage(resource.RUSAGE_CHILDREN)
+                t0 = time.perf_counter()
+                run = subprocess.run(c, capture_output=True, text=True, check=False)
+                wall = time.perf_counter() - t0
+                after = resource.getrusage(resource.RUSAGE_CHILDREN)
+                if run.returncode not in (0, 4, 5):
+                    raise SystemExit(f"{' '.join(c)} failed ({run.returncode}): "
+                                     f"{run.stderr[-500:]}")
+                if i == 0:
+                    continue  # the warm-up: file cache, Numba's cache files
+                timed[tag].append((wall, (after.ru_utime - before.ru_utime)
+                                   + (after.ru_stime - before.ru_stime)))
+                if "--json" in c and "seconds" in json.loads(run.stdout):  # older trees: none
+                    parts[tag].append(json.loads(run.stdout)["seconds"])
+        for tag, _ in clis:
+            walls = [w for w, _ in timed[tag]]
+            split = (", ".join(f"{k} {v:.2f}" for k, v in _breakdown(parts[tag]).items())
+                     if parts[tag] else "")
+            print(f"| {tag}{what} | {statistics.median(walls):.2f} [{min(walls):.2f}, "
+                  f"{max(walls):.2f}] | {statistics.median(c for _, c in timed[tag]):.2f} "
+                  f"| {GOALS[key]:g} | {split} |")
     print(f"# load average {' '.join(f'{v:.2f}' for v in os.getloadavg())} after")
 
 
@@ -148,6 +159,10 @@ def main() -> None:
     ap.add_argument("--cli", default=None,
                     help="command that runs the CLI (default: the installed 'gmwm'); e.g. a wrapper "
                          "running another checkout")
+    ap.add_argument("--vs", default=None,
+                    help="with --latency: a second command running the CLI (e.g. a wrapper "
+                         "running another checkout), its runs alternating with the first's, so "
+                         "that both see the same load")
     ap.add_argument("--latency", action="store_true",
                     help="time the report of the one-hour bag and of EuRoC V101, and gmwm plan")
     ap.add_argument("--euroc", default=str(Path(__file__).resolve().parent.parent.parent / "shared"

@@ -135,3 +135,17 @@ def test_random_walk_reading_interval_is_resampled_and_covers() -> None:
     assert len(hits) >= 60 and n_resampled >= 0.3 * len(hits)
     se = np.sqrt(0.95 * 0.05 / len(hits))
     assert abs(np.mean(hits) - 0.95) <= 3 * se, (np.mean(hits), len(hits))
+
+
+@pytest.mark.parametrize("kind", ["WN", "RW", "FN"])
+def test_power_law_cov_entries_remembered_exactly(kind):
+    """An entry taken from the per-process memo equals the one computed in a call over other
+    levels: a run of levels read from it is the submatrix of the full matrix, bit for bit."""
+    from gmwm import wvci
+
+    wvci._PAIRS.clear()
+    full = power_law_wv_cov(kind, np.arange(1, 12), 50_000)
+    wvci._PAIRS.clear()
+    run = power_law_wv_cov(kind, np.arange(3, 7), 50_000)
+    assert np.array_equal(run, full[2:6, 2:6])
+    assert np.array_equal(power_law_wv_cov(kind, np.arange(1, 12), 50_000), full)

@@ -5,6 +5,7 @@ with the identifiability rule, and the identifiability search keeps its ~5 % con
 from __future__ import annotations
 
 import math
+import os
 from types import SimpleNamespace
 
 import numpy as np
@@ -106,3 +107,23 @@ def test_a_negative_coefficient_gets_a_positive_relative_se():
     assert phi["value"] == -0.5 and phi["rse"] > 0
     lo, hi = phi["ci95"]
     assert phi["rse"] == pytest.approx((hi - lo) / (2 * 1.959963984540054 * 0.5), rel=1e-9)
+
+
+def test_prefetched_covariances_change_no_number(monkeypatch) -> None:
+    """The plan's covariances computed side by side in threads (into wv_covariance's memo) give
+    the plan computed one length after the other, to the bit."""
+    from gmwm import plan as plan_mod
+    from gmwm import wvcov
+
+    model = as_model("WN+GM+RW", freq=100.0)
+    theta = model.theta({"WN[1].sigma2": 4.9e-5, "GM[1].beta": 0.0131, "GM[1].sigma2": 3.6e-7,
+                         "RW[1].gamma2": 1e-12})
+    args = (model, theta, [600.0, 3600.0])
+    kw = {"targets": [("WN[1].sigma2", 0.01)], "max_search_s": 21600.0}
+    wvcov._MEMO.clear()
+    threaded = plan_mod.make_plan(*args, **kw).to_dict()
+    if len(os.sched_getaffinity(0)) > 1:
+        assert len(wvcov._MEMO) > 10  # the prefetch filled it
+    wvcov._MEMO.clear()
+    monkeypatch.setattr(plan_mod, "_prefetch_covariances", lambda *a: None)
+    assert plan_mod.make_plan(*args, **kw).to_dict() == threaded

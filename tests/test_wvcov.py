@@ -201,3 +201,24 @@ def test_bad_scales() -> None:
         wv_covariance("WN", np.array([1.0]), [3.0, 4.0], 100)
     with pytest.raises(InputError):
         wv_covariance("WN", np.array([1.0]), [2.0, 256.0], 100)
+
+
+def test_repeated_covariance_is_the_memo_copy():
+    """A repeated request returns the first result's values as a fresh array (a caller adding to
+    it cannot change the next answer)."""
+    from gmwm import wvcov
+
+    model = Model("WN+GM+RW", freq=100.0)
+    theta = model.theta({"WN[1].sigma2": 1e-4, "GM[1].beta": 0.5, "GM[1].sigma2": 1e-5,
+                         "RW[1].gamma2": 1e-10})
+    scales = 2.0 ** np.arange(1, 13)
+    wvcov._MEMO.clear()
+    first = wvcov.wv_covariance(model, theta, scales, 50_000)
+    kept = first.copy()
+    first += 1.0
+    again = wvcov.wv_covariance(model, theta, scales, 50_000)
+    assert np.array_equal(again, kept) and again is not first
+    wvcov._MEMO.clear()
+    assert np.array_equal(wvcov.wv_covariance(model, theta, scales, 50_000), kept)
+    other = wvcov.wv_covariance(model, theta, scales, 60_000)
+    assert not np.array_equal(other, kept)

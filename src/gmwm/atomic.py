@@ -115,6 +115,7 @@ def save_figure(
     formats: Sequence[str] = ("png", "pdf"),
     dpi: int = 200,
     tight: bool = True,
+    png_level: int | None = None,
 ) -> list[Path]:
     """Save a matplotlib figure atomically; return the paths written.
 
@@ -122,6 +123,8 @@ def save_figure(
     file is written; otherwise one file per entry of ``formats`` is written as ``path.<format>``.
     ``tight``: crop to the drawn content (``bbox_inches="tight"``, which draws the figure twice);
     False for a figure whose layout engine already fills it (about a third faster).
+    ``png_level``: zlib level of a PNG (0-9; None: Pillow's default, 6); the pixels are the same
+    at every level, a low one compresses in about half the time into a ~10 % larger file.
     """
     p = Path(path)
     ext = p.suffix.lower().lstrip(".")
@@ -129,8 +132,11 @@ def save_figure(
     for target in targets:
         with atomic_path(target) as tmp:
             # no creation date in the file: a rerun with the same numbers writes the same bytes
+            kind = target.suffix.lower().lstrip(".")
+            extra = {"pil_kwargs": {"compress_level": png_level}} if (
+                png_level is not None and kind == "png") else {}
             fig.savefig(tmp, dpi=dpi, bbox_inches="tight" if tight else None,
-                        metadata=_NO_DATE.get(target.suffix.lower().lstrip(".")))
+                        metadata=_NO_DATE.get(kind), **extra)
     return targets
 
 

@@ -35,13 +35,13 @@ from .errors import IdentifiabilityError, InputError
 from .inference import Problem, check_cov, omega_from_cov, weight_matrix, wv_cov
 from .model import Model, as_model
 from .results import check_alpha, freeze_arrays, json_safe
-from .search import Search
 from .settings import N_STARTS, FitSettings, prepare_wv
 from .wv import WaveletVariance
 
 if TYPE_CHECKING:
     from .avsm import AVSMResult
     from .gof import GOFResult
+    from .search import Search
 
 __all__ = ["N_STARTS", "GMWMResult", "fit", "weight_matrix"]
 
@@ -283,6 +283,10 @@ def _fit_gmwm(wv: WaveletVariance, model: Model, settings: FitSettings,
         # compiled kernels load before the clock starts, so that seconds_fit is the search's
         # time, as on every later fit
         c.process.load_kernels()
+    # here, not at the top: a process that only unpickles a result (the report's calling
+    # process) then does not import the search and scipy.optimize (~0.25 s)
+    from .search import Search
+
     search = Search(settings.n_starts, settings.seed, 1.0 if drift_sign is None else drift_sign,
                     settings.max_nfev, settings.nested)
     t0 = time.perf_counter()

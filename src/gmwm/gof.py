@@ -82,7 +82,6 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
-from scipy import integrate, optimize
 from scipy.special import chdtrc, gammainc, gammaincc, ndtr, ndtri
 
 __all__ = ["GOFResult", "generalised_wald", "gof_test", "objective_test", "weighted_chi2_sf"]
@@ -120,6 +119,8 @@ def _imhof_sf(x: float, lam: np.ndarray) -> float:
         ph, d = phi_rho(u)
         return math.cos(ph) / d
 
+    from scipy import integrate  # here: unpickling a result imports this module (the report)
+
     a = 8.0 * math.pi / w      # four periods of the carrier
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", integrate.IntegrationWarning)
@@ -136,6 +137,8 @@ def _saddle_sf(x: float, lam: np.ndarray) -> float:
 
     def k1(s: float) -> float:
         return float(np.sum(lam / (1.0 - 2.0 * s * lam)))
+
+    from scipy import optimize
 
     hi = (1.0 - 1e-12) / (2.0 * lmax)
     lo = min(0.0, -1.0 / x)

@@ -20,12 +20,13 @@ keep to, :attr:`Process.domain`) and the process's own diagnostics
 
 from __future__ import annotations
 
+import contextlib
 import math
+import sys
 from functools import cache, cached_property
 from typing import Any
 
 import numpy as np
-from scipy.special import expit, logit
 
 from . import diagnostics as dg
 from .errors import ModelError
@@ -42,6 +43,21 @@ def _exp(eta: np.ndarray | float) -> np.ndarray:
 #: Kinds of free coordinate: "log" p = e^eta (positive parameters), "phi" p = 2 expit(eta) - 1
 #: (AR1 phi in (-1, 1)), "pi" p = pi expit(eta) (SIN beta in (0, pi)).
 FREE_KINDS = ("log", "phi", "pi")
+
+
+def expit(x: np.ndarray) -> np.ndarray:
+    """SciPy's logistic function, imported on first use: scipy.special costs ~0.25 s to import,
+    and a command that never maps free coordinates (``gmwm plan``, ``gmwm wv``) need not pay it."""
+    from scipy.special import expit as f
+
+    return f(x)
+
+
+def logit(x: np.ndarray) -> np.ndarray:
+    """SciPy's logit (the inverse of :func:`expit`), imported on first use."""
+    from scipy.special import logit as f
+
+    return f(x)
 
 
 class FreeMap:
@@ -427,9 +443,60 @@ def _with_derivative(kernel: Any, x: float, tau: np.ndarray) -> tuple[np.ndarray
     return nu, dnu
 
 
+#: calls of :func:`ar1_wv_a` answered in Python before it loads the Numba kernel (see there)
+_PY_CALLS = 256
+_py_calls = 0
+
+
+def _ar1_a_py(a: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`gmwm._ar1kernels.ar1_a` in plain Python: the same operations in the same order on
+    the same libm functions, so the same bits (tests/test_processes_ar1py.py); ZeroDivisionError
+    or OverflowError where the kernel gives inf/nan (the caller then asks the kernel)."""
+    switch = 1e-2  # _ar1kernels.SERIES_SWITCH
+    phi = math.exp(-a)
+    u1 = -math.expm1(-a)
+    u2 = -math.expm1(-2 * a)
+    pp = u1 * u1 * u2
+    ppp = 2 * u1 * phi * u2 + 2 * (u1 * u1) * (phi * phi)
+    nu, dnu = [], []
+    for t in tau.tolist():
+        m = t / 2
+        ma = m * a
+        if ma < switch:  # _ar1kernels._series
+            c0 = m / 6 + 1 / (12 * m)
+            c1 = -(m * m) / 8 + m / 6 + 1 / (12 * m)
+            m2 = m * m
+            m3 = m2 * m
+            m4 = m3 * m
+            m5 = m4 * m
+            c2 = (7 * m4 - 15 * m3 + 5 * m2 + 3) / (120 * m)
+            c3 = (-30 * m5 + 84 * m4 - 45 * m3 - 20 * m2 - 4) / (1440 * m)
+            c4 = (m - 1) * (62 * m5 - 148 * m4 - m3 + 104 * m2 + 27 * m + 27) / (10080 * m)
+            nu.append(c0 + a * (c1 + a * (c2 + a * (c3 + a * c4))))
+            dnu.append(c1 + a * (2 * c2 + a * (3 * c3 + a * 4 * c4)))
+            continue
+        e = -math.expm1(-ma)
+        g = m * u2 - phi * e * (2 + e)  # _ar1kernels._g
+        gp = 2 * m * (phi * phi) + phi * e * (2 + e) - 2 * phi * m * (1 - e) * (1 + e)
+        t2 = t * t
+        nu.append(2 * g / (t2 * pp))
+        dnu.append(2 / t2 * (gp * pp - g * ppp) / (pp * pp))
+    return np.array(nu, dtype=np.float64), np.array(dnu, dtype=np.float64)
+
+
 def ar1_wv_a(a: float, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """WV of an AR1 with unit innovation variance and phi = exp(-a) > 0, and its derivative in
-    a."""
+    a.
+
+    Until the Numba kernels are loaded (a fit loads them, :meth:`Process.load_kernels`) the
+    first :data:`_PY_CALLS` calls are answered by :func:`_ar1_a_py`, bit for bit the kernel's
+    result: a process that only draws a fitted model's WV or plans a recording (a few hundred
+    calls) then never pays Numba's ~0.5 s start-up for this kernel."""
+    global _py_calls
+    if "gmwm._ar1kernels" not in sys.modules and _py_calls < _PY_CALLS:
+        _py_calls += 1
+        with contextlib.suppress(ZeroDivisionError, OverflowError):  # the kernel's inf/nan
+            return _ar1_a_py(float(a), _scales(tau))
     return _with_derivative(_kernels().ar1_a, a, tau)
 
 

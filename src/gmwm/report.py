@@ -128,6 +128,11 @@ class _Figure:
     data: tuple[Any, ...]
 
 
+#: zlib level of the report's PNG figures: the same pixels as the default level 6 in about half
+#: the encoding time (a report's seven figures: ~0.2 s of CPU less), files ~10 % larger
+PNG_LEVEL = 2
+
+
 def _draw(fig: _Figure) -> list[Path]:
     """Draw and save one report figure (in a worker process or not)."""
     from gmwm.atomic import save_figure
@@ -135,12 +140,13 @@ def _draw(fig: _Figure) -> list[Path]:
     from gmwm.wv import AllanVariance
 
     if fig.kind == "stationarity":
-        return save_figure(page_layout(plot_stationarity(fig.data[0])), fig.path, tight=False)
+        return save_figure(page_layout(plot_stationarity(fig.data[0])), fig.path, tight=False,
+                           png_level=PNG_LEVEL)
     if fig.kind == "wv-unfitted":
         name, wv, units = fig.data
         ax = plot_wv(wv, units=units)
         ax.set_title(f"{name}: WV (not fitted)")
-        return save_figure(page_layout(ax.figure), fig.path, tight=False)
+        return save_figure(page_layout(ax.figure), fig.path, tight=False, png_level=PNG_LEVEL)
     name, res, units, verdict = fig.data
     if fig.kind == "wv":
         ax = plot_wv(res.wv, result=res, units=units)
@@ -153,7 +159,7 @@ def _draw(fig: _Figure) -> list[Path]:
         add_datasheet_line(ax, verdict["curves"]["tau_s"], verdict["curves"]["adev"],
                            verdict["label"])
         ax.set_title(f"{name}: Allan deviation")
-    return save_figure(page_layout(ax.figure), fig.path, tight=False)
+    return save_figure(page_layout(ax.figure), fig.path, tight=False, png_level=PNG_LEVEL)
 
 
 def wv_figure_path(outdir: str | os.PathLike, name: str, prefix: str = "") -> Path:

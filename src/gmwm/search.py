@@ -54,7 +54,6 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares, nnls
 
 from .inference import Problem, Whitener, weight_matrix
 from .model import Model, spec_of
@@ -88,12 +87,21 @@ def _nnls_core() -> Any:
         return None
 
 
-_NNLS = _nnls_core()
+_UNSET: Any = object()
+#: the kernel of :func:`_nnls_core` (None: the public function), found on the first call, so
+#: that importing this module does not import scipy.optimize (~0.25 s; a process that only
+#: unpickles results, as the report's calling process does, imports it through gmwm.select)
+_NNLS: Any = _UNSET
 
 
 def _nnls(A: np.ndarray, b: np.ndarray, maxiter: int) -> tuple[np.ndarray, float]:
     """``scipy.optimize.nnls`` on finite C-contiguous float64 input."""
+    global _NNLS
+    if _NNLS is _UNSET:
+        _NNLS = _nnls_core()
     if _NNLS is None:
+        from scipy.optimize import nnls
+
         return nnls(A, b, maxiter=maxiter)
     x, rnorm, info = _NNLS(A, b, maxiter)
     if info == 3:
@@ -341,6 +349,8 @@ class _VP:
             return self.yw - self.cols @ self.cost()[1]
 
         x0 = np.clip([shapes[k] for k in idx], lo + 1e-9, hi - 1e-9)
+        from scipy.optimize import least_squares
+
         try:
             with np.errstate(all="ignore"):
                 sol = least_squares(resid, x0, bounds=(lo, hi), method="trf", diff_step=1e-6,

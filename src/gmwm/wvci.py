@@ -401,8 +401,14 @@ def power_law_wv_cov(kind: str, levels: np.ndarray, n_samples: int) -> np.ndarra
     T = int(n_samples)
     tau = (1 << lev).astype(np.float64)
     out = np.empty((lev.size, lev.size))
+    if len(_PAIRS) > 4096:
+        _PAIRS.clear()
     for i, tj in enumerate(tau):
         for k in range(i, lev.size):
+            key = (kind, T, int(lev[i]), int(lev[k]))
+            if key in _PAIRS:
+                out[i, k] = out[k, i] = _PAIRS[key]
+                continue
             tk = tau[k]
             offs_j = (0.0, tj / 2, tj)
             offs_k = (0.0, tk / 2, tk)
@@ -419,8 +425,14 @@ def power_law_wv_cov(kind: str, levels: np.ndarray, n_samples: int) -> np.ndarra
             count = np.minimum(T, T + h) - np.maximum(tj, tk + h) + 1.0
             val = 2.0 * float(np.sum(w * np.clip(count, 0.0, None) * g * g)) / (
                 (T - tj + 1.0) * (T - tk + 1.0))
-            out[i, k] = out[k, i] = val
+            out[i, k] = out[k, i] = _PAIRS[key] = val
     return out
+
+
+#: entries of :func:`power_law_wv_cov` already computed in this process, by (kind, T, level j,
+#: level k): each depends on nothing else, and the Allan readings of a recording's axes ask for
+#: overlapping runs of the same levels at the same length
+_PAIRS: dict[tuple[str, int, int, int], float] = {}
 
 
 def edof_for(ci: str, variance: np.ndarray, scales: np.ndarray, n: np.ndarray, n_samples: int,

@@ -38,9 +38,11 @@ at load ~20 (benchmarks/bench_wvcov.py).
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterable
 from functools import lru_cache
 from math import comb
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -424,7 +426,7 @@ def _pair_sums(T: float, tj: float, tk: float, wn: float, rw: float, qn: float, 
     return s1, s2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # nogil: gmwm.plan computes several lengths side by side
 def _all_pairs(T: float, tau: np.ndarray, wn: float, rw: float, qn: float, ar_a, ar_neg, ar_p,
                ar_pl, ar_sm, gl_x, gl_w, grades, greg_l, greg_r):
     J = tau.shape[0]
@@ -521,6 +523,31 @@ def wv_covariance(model: str | Model, theta: np.ndarray, scales: Iterable[float]
     model.check(theta)
     tau, T = _check_scales(scales, n_samples)
     excl = {str(e).upper() for e in exclude}
+    key = (model.spec, model.freq, theta.tobytes(), tau.tobytes(), T, tuple(sorted(excl)),
+           bool(sin_interaction))
+    hit = _MEMO.get(key)
+    if hit is not None:
+        return hit.copy()
+    V = _wv_covariance(model, theta, tau, T, excl, sin_interaction)
+    with _MEMO_LOCK:  # threads may fill it (gmwm.plan)
+        if len(_MEMO) >= MEMO_SIZE:
+            _MEMO.pop(next(iter(_MEMO)))  # the oldest
+        _MEMO[key] = V.copy()
+    return V
+
+
+#: covariances already computed in this process, by model, parameters, scales, length and
+#: options (first in, first out): an automatic model choice asks for the same one up to four
+#: times (the goodness-of-fit test of a candidate ranked in two stages, the chosen model's
+#: standard errors, the verdict's identifiability search at the fit's own length)
+_MEMO: dict[tuple[Any, ...], np.ndarray] = {}
+MEMO_SIZE = 64
+_MEMO_LOCK = threading.Lock()
+
+
+def _wv_covariance(model: Model, theta: np.ndarray, tau: np.ndarray, T: int, excl: set[str],
+                   sin_interaction: bool) -> np.ndarray:
+    """:func:`wv_covariance` after its checks."""
     sins: list[tuple[Process, float, float]] = []
     wn = rw = qn = omega = 0.0
     ar_phi: list[float] = []
