@@ -44,6 +44,12 @@ so :func:`rerank` gives another criterion without refitting, and its notes
 (:func:`gmwm.criteria.ranking_notes`) name the near ties of the best model and the components
 they disagree on, with their z-values.
 Ties (a superset whose extra component is estimated at 0) go to the smaller model.
+
+Consistency with the goodness-of-fit test (:func:`order`): candidates the test accepts rank
+above those it rejects, and a first-ranked accepted candidate loses each SIN/GM/AR1 component
+whose removal gives another accepted candidate (the parsimony step; those components' shape
+parameter is unidentified at scale 0, so the parameter-count penalty does not price them). A
+ranking in which every candidate is rejected is the criterion's alone.
 """
 
 from __future__ import annotations
