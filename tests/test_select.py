@@ -74,7 +74,7 @@ def test_auto_candidates_bounded_and_complete() -> None:
 
 def test_rank_picks_generating_linear_model() -> None:
     """WN+RW at T = 2^14 among six linear candidates: 30 of 30 seeds picked WN+RW (WIC-log; WIC
-    too). The default criterion is WIC (k = 2)."""
+    too). The default criterion is WIC-HQ (k = 2 log log T)."""
     cands = ["WN", "RW", "WN+RW", "QN+WN+RW", "WN+RW+DR", "QN+WN"]
     for seed in range(4):
         ranking = rank_models(_signal(seed), cands)
@@ -85,9 +85,10 @@ def test_rank_picks_generating_linear_model() -> None:
         for group in (False, True):
             crit = [e.criterion for e in ranking.ranked if e.rejected() is group]
             assert crit == sorted(crit)
-        assert ranking.criterion == "wic" and ranking.factor == 2.0
+        assert ranking.criterion == "wic-hq"
+        assert ranking.factor == pytest.approx(2 * np.log(np.log(2**14)))
         for e in ranking.ranked:
-            assert e.criterion == pytest.approx(e.objective + 2.0 * e.penalty)
+            assert e.criterion == pytest.approx(e.objective + ranking.factor * e.penalty)
         assert rerank(ranking, "wic-log").best.model == "WN+RW"
 
 
@@ -264,7 +265,7 @@ def test_parsimony_removes_an_added_ar1_on_real_fits(tmp_path, capsys) -> None:
     x = WN_RW.simulate(THETA_WN_RW, 2**13, np.random.default_rng([41, 41]))
     from gmwm.select import order
 
-    ranking = rank_models(x, ["WN+RW", "WN+AR1+RW"])
+    ranking = rank_models(x, ["WN+RW", "WN+AR1+RW"], criterion="wic")
     plain, none = order(ranking.ranked, parsimony=())
     assert plain[0].model == "WN+AR1+RW" and none == []
     by_model = {e.model: e for e in ranking.ranked}
@@ -278,6 +279,6 @@ def test_parsimony_removes_an_added_ar1_on_real_fits(tmp_path, capsys) -> None:
     assert "parsimony: AR1 removed from WN+AR1+RW" in ranking.summary()
     npy = tmp_path / "x.npy"
     np.save(npy, x)
-    assert main(["select", str(npy), "WN+RW", "WN+AR1+RW"]) == 0
+    assert main(["select", str(npy), "WN+RW", "WN+AR1+RW", "--criterion", "wic"]) == 0
     out = capsys.readouterr().out
     assert "parsimony: AR1 removed from WN+AR1+RW: WN+RW passes the goodness-of-fit test" in out
