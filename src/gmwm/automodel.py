@@ -410,7 +410,7 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
     max_gm : the most GM (or ``slow``) terms of a candidate (0..5, default 3).
     sin : ``"auto"`` (SIN candidates when :func:`wv_bump` sees a bump), True or False.
     slow : ``"GM"`` (default) or ``"AR1"`` (also negative correlation) for the slow terms.
-    criterion : ranking criterion of :mod:`gmwm.criteria` (default WIC, k = 2).
+    criterion : ranking criterion of :mod:`gmwm.criteria` (default :data:`DEFAULT`, WIC-HQ).
     alpha : level of the goodness-of-fit test a chosen model must pass (default 0.05).
     levels, robust, eff, seed, n_starts : as in :func:`gmwm.fit` (one WV for all candidates).
     progress : called as ``progress(i, n, model)`` before fitting candidate ``i`` (``n`` an

@@ -32,14 +32,14 @@ covariance), it costs nothing beyond the fits (cross-validating the WV would nee
 signals, whose halves have a different WV precision), and it is the GMWM analogue of AIC/Mallows'
 Cp, reducing to them in the efficient case.
 
-The penalty factor: ``criterion="wic"`` (the default) uses ``k = 2`` and estimates the
-prediction error; ``"wic-hq"`` (``k = 2 log log T``) and ``"wic-log"`` (``k = log T``, the BIC
-analogue, consistent) penalise more and need more data to admit a weak component
-(:mod:`gmwm.criteria` gives the factors and the reasons). The default keeps real components:
-over the grid of ``benchmarks/bench_selection.py`` (IMU-like models with weak but real
-components) ``wic`` ranked the generating model first most often and dropped a random walk at
-3 SE in at most a few per cent of the fits where ``wic-log`` dropped it in most; its price is an
-occasional spurious component on a fully strong model. ``Ranking`` keeps objective and trace,
+The penalty factor: ``criterion="wic"`` uses ``k = 2`` and estimates the prediction error;
+``"wic-hq"`` (the default, ``k = 2 log log T``) and ``"wic-log"`` (``k = log T``, the BIC
+analogue) penalise more and need more data to admit a weak component (:mod:`gmwm.criteria`
+gives the factors and the reasons). By the penalty alone ``wic`` kept weak real components best
+(``benchmarks/bench_selection.py``); with the goodness-of-fit split below, a penalty can drop a
+real component only where the model without it passes the test, and
+``benchmarks/selection_penalty.py`` found ``wic-hq`` at least as good as ``wic`` in every cell,
+with fewer spurious components. ``Ranking`` keeps objective and trace,
 so :func:`rerank` gives another criterion without refitting, and its notes
 (:func:`gmwm.criteria.ranking_notes`) name the near ties of the best model and the components
 they disagree on, with their z-values.
@@ -331,9 +331,9 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = DE
     ----------
     data : 1-D signal (per-sample units) or a :class:`~gmwm.wv.WaveletVariance`.
     models : model strings or Models (duplicates are fitted once). See :func:`auto_candidates`.
-    criterion : ``"wic"`` (default; objective + 2 x optimism, the estimated WV prediction
-        error), ``"wic-hq"`` (factor 2 log log T) or ``"wic-log"`` (factor log T, consistent
-        selection); see the module docstring and :mod:`gmwm.criteria`.
+    criterion : ``"wic-hq"`` (default; factor 2 log log T), ``"wic"`` (objective + 2 x
+        optimism, the estimated WV prediction error) or ``"wic-log"`` (factor log T); see the
+        module docstring and :mod:`gmwm.criteria`.
     levels, freq, alpha : as in :func:`gmwm.fit` (the WV is computed once and shared).
     weights : as in :func:`gmwm.fit`; a (J, J) covariance also becomes V of the penalty.
     robust, eff : rank on the robust WV (``wvar(x, robust=True, eff=eff)``; needs a signal).
