@@ -11,6 +11,7 @@ import pytest
 
 import gmwm
 from gmwm.automodel import REQUIRED, Choice, _sin_variants, candidate_models, choose_model, wv_bump
+from gmwm.criteria import DEFAULT
 from gmwm.datasheet import datasheet
 from gmwm.errors import InputError
 from gmwm.model import Model, parse_model
@@ -140,7 +141,7 @@ def test_ranking_is_exposed(six_axes) -> None:
     assert c.rank == 1 if c.passed else all(r["rejected"] for r in rows)
     assert all(set(REQUIRED["gyroscope"]) <= set(parse_model(r["model"])) for r in rows)
     d = json.loads(json.dumps(c.to_json_dict(), allow_nan=False))
-    assert d["model"] == c.model.spec and d["kind"] == "gyroscope" and d["criterion"] == "wic"
+    assert d["model"] == c.model.spec and d["kind"] == "gyroscope" and d["criterion"] == DEFAULT
     assert len(d["candidates"]) == len(rows) and d["result"]["model"] == c.model.spec
     assert d["cpu_seconds"] > 0
     text = c.summary()
@@ -237,7 +238,7 @@ def test_report_renders_the_choice_and_its_warning(tmp_path) -> None:
     page = (tmp_path / "report.html").read_text()
     gx, gy = md.split("## gx", 1)[1].split("## gy", 1)
     assert "every candidate model is rejected" in gx and "No warnings" not in gx
-    assert "| rank | model | params | WIC - best [chi2] | GOF p | choice |" in gx
+    assert f"| rank | model | params | {DEFAULT.upper()} - best [chi2] | GOF p | choice |" in gx
     assert axes["gy"]["choice"].headline()[1:] in gy and "| chosen |" in gy
     assert "every candidate model is rejected" not in gy
     assert "every candidate model is rejected" in page and "GOF p" in page

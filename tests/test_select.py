@@ -74,7 +74,7 @@ def test_auto_candidates_bounded_and_complete() -> None:
 
 def test_rank_picks_generating_linear_model() -> None:
     """WN+RW at T = 2^14 among six linear candidates: 30 of 30 seeds picked WN+RW (WIC-log; WIC
-    too). The default criterion is WIC (k = 2)."""
+    too). The default criterion is WIC-HQ (k = 2 log log T)."""
     cands = ["WN", "RW", "WN+RW", "QN+WN+RW", "WN+RW+DR", "QN+WN"]
     for seed in range(4):
         ranking = rank_models(_signal(seed), cands)
@@ -85,9 +85,10 @@ def test_rank_picks_generating_linear_model() -> None:
         for group in (False, True):
             crit = [e.criterion for e in ranking.ranked if e.rejected() is group]
             assert crit == sorted(crit)
-        assert ranking.criterion == "wic" and ranking.factor == 2.0
+        assert ranking.criterion == "wic-hq"
+        assert ranking.factor == pytest.approx(2 * np.log(np.log(2**14)))
         for e in ranking.ranked:
-            assert e.criterion == pytest.approx(e.objective + 2.0 * e.penalty)
+            assert e.criterion == pytest.approx(e.objective + ranking.factor * e.penalty)
         assert rerank(ranking, "wic-log").best.model == "WN+RW"
 
 
@@ -112,12 +113,14 @@ def test_a_rejected_model_is_never_ranked_above_an_accepted_one() -> None:
     th = m.theta({"WN[1].sigma2": 1.0, "RW[1].gamma2": 1e-6, "AR1[1].phi": 0.995,
                   "AR1[1].sigma2": 2e-3})
     x = m.simulate(th, 2**20, np.random.default_rng([40, 2]))
-    ranking = rank_models(x, ["WN+AR1", "WN+AR1+RW"], criterion="wic-log")
+    ranking = rank_models(x, ["WN+AR1", "WN+AR1+RW", "WN+RW"], criterion="wic-log")
     by_model = {e.model: e for e in ranking.ranked}
     small, full = by_model["WN+AR1"], by_model["WN+AR1+RW"]
     assert small.rejected() and not full.rejected()
     assert ranking.best.model == full.model
-    assert [e.model for e in ranking.ranked] == [full.model, small.model]
+    # the parsimony step keeps the AR1: the model without it is rejected too (the data show it)
+    assert by_model["WN+RW"].rejected() and ranking.simplified == ()
+    assert [e.rejected() for e in ranking.ranked] == [False, True, True]
     for crit in ("wic", "wic-hq", "wic-log"):
         assert rerank(ranking, crit).best.model == full.model
     parts = [rank_models(x, [s], criterion="wic-log") for s in ("WN+AR1", "WN+AR1+RW")]
@@ -202,3 +205,80 @@ def test_cli_select_json_columns_auto_and_progress(tmp_path, capsys, monkeypatch
     monkeypatch.undo()
     assert main(["select", str(npy), "WN+XX"]) == 1
     assert "unknown process" in capsys.readouterr().err
+
+
+# -- the parsimony step (gmwm.select.order) -------------------------------------------------------
+def _entry(spec: str, crit: float, p: float, n: int | None = None):
+    from gmwm.select import RankedModel
+
+    return RankedModel(spec, crit, crit, 0.0, Model(spec).n_params if n is None else n, True,
+                       p_value=p)
+
+
+def test_parsimony_removes_a_component_the_data_do_not_show() -> None:
+    """The criterion prefers WN+SIN+AR1+RW, but WN+AR1+RW (no SIN) passes the test: the SIN goes;
+    then WN+RW passes too: the AR1 goes. A removal whose model the test rejects is not made, and
+    of two admissible removals the lower criterion wins."""
+    from gmwm.select import order
+
+    entries = [_entry("WN+SIN+AR1+RW", 1.0, 0.6), _entry("WN+AR1+RW", 1.5, 0.4),
+               _entry("WN+SIN+RW", 1.2, 0.3), _entry("WN+RW", 2.0, 0.2),
+               _entry("WN+AR1", 9.0, 0.001)]
+    ranked, steps = order(entries)
+    # of the two removals (SIN -> WN+AR1+RW at 1.5, AR1 -> WN+SIN+RW at 1.2) the lower criterion
+    # is taken first; then the SIN of WN+SIN+RW goes (WN+RW passes); WN+RW has no SIN/GM/AR1
+    assert [(s.removed_from, s.component, s.model) for s in steps] == [
+        ("WN+SIN+AR1+RW", "AR1", "WN+SIN+RW"), ("WN+SIN+RW", "SIN", "WN+RW")]
+    assert steps[-1].p_value == 0.2
+    assert [e.model for e in ranked] == ["WN+RW", "WN+SIN+AR1+RW", "WN+SIN+RW", "WN+AR1+RW",
+                                         "WN+AR1"]
+    # off: the criterion alone (accepted first)
+    plain, none = order(entries, parsimony=())
+    assert none == [] and plain[0].model == "WN+SIN+AR1+RW"
+    # the model without the SIN rejected: the SIN stays (the data show it)
+    kept, steps = order([_entry("WN+SIN+RW", 1.0, 0.5), _entry("WN+RW", 3.0, 0.01)])
+    assert steps == [] and kept[0].model == "WN+SIN+RW"
+    # a regular component (RW) is never removed by the step, nor is an untested reduced model
+    # (NaN p-value: no evidence) a reason to remove
+    kept, steps = order([_entry("WN+RW", 1.0, 0.5), _entry("WN", 3.0, 0.4)])
+    assert steps == [] and kept[0].model == "WN+RW"
+    kept, steps = order([_entry("WN+GM", 0.5, 0.5), _entry("WN", 3.0, np.nan)])
+    assert steps == [] and kept[0].model == "WN+GM"
+
+
+def test_parsimony_leaves_an_all_rejected_ranking_unchanged() -> None:
+    """Every candidate rejected (the rule on long real recordings): the step does nothing, the
+    criterion alone orders them."""
+    from gmwm.select import order
+
+    entries = [_entry("WN+GM+RW", 1.0, 1e-40), _entry("WN+RW", 2.0, 1e-3),
+               _entry("WN+2*GM+RW", 0.8, 1e-30), _entry("WN+SIN+GM+RW", 0.9, 0.04)]
+    with_step, steps = order(entries)
+    without, _ = order(entries, parsimony=())
+    assert steps == [] and with_step == without
+    assert [e.model for e in with_step] == ["WN+2*GM+RW", "WN+SIN+GM+RW", "WN+GM+RW", "WN+RW"]
+
+
+def test_parsimony_removes_an_added_ar1_on_real_fits(tmp_path, capsys) -> None:
+    """WN + RW data (seed found by a scan of 60: the one where WIC prefers the added AR1): WIC
+    ranks WN+AR1+RW first, but WN+RW passes the test, so the AR1 is removed; select says so."""
+    x = WN_RW.simulate(THETA_WN_RW, 2**13, np.random.default_rng([41, 41]))
+    from gmwm.select import order
+
+    ranking = rank_models(x, ["WN+RW", "WN+AR1+RW"], criterion="wic")
+    plain, none = order(ranking.ranked, parsimony=())
+    assert plain[0].model == "WN+AR1+RW" and none == []
+    by_model = {e.model: e for e in ranking.ranked}
+    assert by_model["WN+AR1+RW"].criterion < by_model["WN+RW"].criterion
+    assert ranking.best.model == "WN+RW" and not ranking.best.rejected()
+    (step,) = ranking.simplified
+    assert (step.removed_from, step.component, step.model) == ("WN+AR1+RW", "AR1", "WN+RW")
+    assert step.p_value == pytest.approx(by_model["WN+RW"].p_value)
+    assert rerank(ranking, "wic").best.model == "WN+RW"
+    assert json.loads(json.dumps(ranking.to_json_dict()))["simplified"][0]["component"] == "AR1"
+    assert "parsimony: AR1 removed from WN+AR1+RW" in ranking.summary()
+    npy = tmp_path / "x.npy"
+    np.save(npy, x)
+    assert main(["select", str(npy), "WN+RW", "WN+AR1+RW", "--criterion", "wic"]) == 0
+    out = capsys.readouterr().out
+    assert "parsimony: AR1 removed from WN+AR1+RW: WN+RW passes the goodness-of-fit test" in out

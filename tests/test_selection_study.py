@@ -73,7 +73,8 @@ def test_ranking_notes_name_the_disagreement():
     model, theta = s.truth(2**14)
     x = model.simulate_fast(theta, 2**14, np.random.default_rng(7))
     ranking = rank_models(wvar(x), ["WN", "WN+RW", "WN+RW+DR"])
-    assert ranking.criterion == DEFAULT == "wic" and ranking.factor == 2.0
+    assert ranking.criterion == DEFAULT == "wic-hq"
+    assert ranking.factor == pytest.approx(2 * math.log(math.log(2**14)))
     assert rerank(ranking, "wic-log").factor == pytest.approx(14 * math.log(2))
     notes = ranking_notes(ranking, tol=1e9)          # every other accepted model counted as a tie
     best = ranking.ranked[0].model
@@ -101,7 +102,7 @@ def test_ranking_output_carries_the_notes():
     theta[1] /= 4.0   # RW at about 3/4 x 2 = 1.5 SE: the criteria disagree within ~2 chi2
     for seed in range(3):
         x = model.simulate_fast(theta, 2**14, np.random.default_rng([8, seed]))
-        ranking = rank_models(wvar(x), ["WN", "WN+RW", "WN+RW+DR"])
+        ranking = rank_models(wvar(x), ["WN", "WN+RW", "WN+RW+DR"], criterion="wic")
         assert ranking.best.model == "WN+RW"
         wn = next(e for e in ranking.ranked if e.model == "WN")
         assert wn.rejected() and ranking.ranked[-1].model == "WN"

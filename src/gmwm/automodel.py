@@ -248,7 +248,8 @@ class Choice:
     @property
     def notes(self) -> list[str]:
         """Why this model: candidates with a lower criterion that the test rejects (ranked below
-        every accepted one), the ranking's near ties, the bump, the stages not fitted."""
+        every accepted one), the parsimony steps, the ranking's near ties, the bump, the stages
+        not fitted."""
         out = []
         chosen = self.result.model.spec
         mine = next((e.criterion for e in self.ranking.ranked if e.model == chosen), np.inf)
@@ -259,6 +260,8 @@ class Choice:
             out.append(f"lower {self.ranking.criterion.upper()} than {chosen} but rejected by "
                        f"the goodness-of-fit test, so ranked below every accepted candidate: "
                        f"{rej}")
+        # the parsimony step (gmwm.select.order): components the data do not show, removed
+        out += [f"parsimony: {st.describe()}" for st in self.ranking.simplified]
         out += self.ranking.notes
         if self.bump is not None:
             out.append(f"SIN candidates tried: {self.bump.describe()}")
@@ -407,7 +410,7 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
     max_gm : the most GM (or ``slow``) terms of a candidate (0..5, default 3).
     sin : ``"auto"`` (SIN candidates when :func:`wv_bump` sees a bump), True or False.
     slow : ``"GM"`` (default) or ``"AR1"`` (also negative correlation) for the slow terms.
-    criterion : ranking criterion of :mod:`gmwm.criteria` (default WIC, k = 2).
+    criterion : ranking criterion of :mod:`gmwm.criteria` (default :data:`DEFAULT`, WIC-HQ).
     alpha : level of the goodness-of-fit test a chosen model must pass (default 0.05).
     levels, robust, eff, seed, n_starts : as in :func:`gmwm.fit` (one WV for all candidates).
     progress : called as ``progress(i, n, model)`` before fitting candidate ``i`` (``n`` an

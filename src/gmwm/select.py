@@ -32,18 +32,24 @@ covariance), it costs nothing beyond the fits (cross-validating the WV would nee
 signals, whose halves have a different WV precision), and it is the GMWM analogue of AIC/Mallows'
 Cp, reducing to them in the efficient case.
 
-The penalty factor: ``criterion="wic"`` (the default) uses ``k = 2`` and estimates the
-prediction error; ``"wic-hq"`` (``k = 2 log log T``) and ``"wic-log"`` (``k = log T``, the BIC
-analogue, consistent) penalise more and need more data to admit a weak component
-(:mod:`gmwm.criteria` gives the factors and the reasons). The default keeps real components:
-over the grid of ``benchmarks/bench_selection.py`` (IMU-like models with weak but real
-components) ``wic`` ranked the generating model first most often and dropped a random walk at
-3 SE in at most a few per cent of the fits where ``wic-log`` dropped it in most; its price is an
-occasional spurious component on a fully strong model. ``Ranking`` keeps objective and trace,
+The penalty factor: ``criterion="wic"`` uses ``k = 2`` and estimates the prediction error;
+``"wic-hq"`` (the default, ``k = 2 log log T``) and ``"wic-log"`` (``k = log T``, the BIC
+analogue) penalise more and need more data to admit a weak component (:mod:`gmwm.criteria`
+gives the factors and the reasons). By the penalty alone ``wic`` kept weak real components best
+(``benchmarks/bench_selection.py``); with the goodness-of-fit split below, a penalty can drop a
+real component only where the model without it passes the test, and
+``benchmarks/selection_penalty.py`` found ``wic-hq`` at least as good as ``wic`` in every cell,
+with fewer spurious components. ``Ranking`` keeps objective and trace,
 so :func:`rerank` gives another criterion without refitting, and its notes
 (:func:`gmwm.criteria.ranking_notes`) name the near ties of the best model and the components
 they disagree on, with their z-values.
 Ties (a superset whose extra component is estimated at 0) go to the smaller model.
+
+Consistency with the goodness-of-fit test (:func:`order`): candidates the test accepts rank
+above those it rejects, and a first-ranked accepted candidate loses each SIN/GM/AR1 component
+whose removal gives another accepted candidate (the parsimony step; those components' shape
+parameter is unidentified at scale 0, so the parameter-count penalty does not price them). A
+ranking in which every candidate is rejected is the criterion's alone.
 """
 
 from __future__ import annotations
@@ -66,14 +72,20 @@ from .search import shared_memo
 from .settings import prepare_wv
 from .wv import WaveletVariance
 
-__all__ = ["CRITERIA", "DEFAULT", "RankedModel", "Ranking", "auto_candidates", "merge",
-           "optimism", "rank_models", "rerank", "select_model"]
+__all__ = ["CRITERIA", "DEFAULT", "PARSIMONY", "RankedModel", "Ranking", "Simplification",
+           "auto_candidates", "merge", "optimism", "order", "rank_models", "rerank",
+           "select_model"]
 
 _LOG10E = np.log10(np.e)
 # caps of the automatic candidate set: up to 3 AR1/GM and 2 SIN components
 MAX_AR = 3
 MAX_SIN = 2
 _SINGLE = tuple(n for n in PROCESSES if n in SINGLETONS)  # QN, WN, RW, DR
+#: component types the parsimony step may remove from the first-ranked candidate: those whose
+#: shape parameter (a sinusoid's frequency, a GM's beta, an AR1's phi) is not identified when
+#: their scale is 0, so neither their z-value nor the criterion's parameter-count penalty
+#: measures whether the data hold them (see :func:`order`)
+PARSIMONY = ("SIN", "GM", "AR1")
 
 
 @dataclass(frozen=True)
@@ -112,11 +124,32 @@ def _num(v: float) -> float | None:
 
 
 @dataclass(frozen=True)
+class Simplification:
+    """One step of the parsimony rule (:func:`order`): one ``component`` (a process name) removed
+    from ``removed_from`` gives ``model``, which the goodness-of-fit test accepts (``p_value``)."""
+
+    removed_from: str
+    model: str
+    component: str
+    p_value: float
+
+    def describe(self) -> str:
+        return (f"{self.component} removed from {self.removed_from}: {self.model} passes the "
+                f"goodness-of-fit test (p = {self.p_value:.3g}), so the data do not show the "
+                f"{self.component}")
+
+    def to_json_dict(self) -> dict[str, Any]:
+        return {"removed_from": self.removed_from, "model": self.model,
+                "component": self.component, "p_value": _num(self.p_value)}
+
+
+@dataclass(frozen=True)
 class Ranking:
-    """Candidates ranked best first: the fitted ones the goodness-of-fit test does not reject
-    at ``gof_alpha`` by criterion, then the rejected ones by criterion, then failed ones. A
-    candidate the test rejects is never ranked above one it accepts (a lower criterion does not
-    make a wrong model right)."""
+    """Candidates ranked best first (:func:`order`): the fitted ones the goodness-of-fit test
+    does not reject at ``gof_alpha`` by criterion, then the rejected ones by criterion, then
+    failed ones; when the first is accepted, the parsimony step may put a candidate without one
+    of its SIN/GM/AR1 components first (:attr:`simplified`). A candidate the test rejects is
+    never ranked above one it accepts (a lower criterion does not make a wrong model right)."""
 
     entries: list[RankedModel]
     criterion: str
@@ -126,6 +159,10 @@ class Ranking:
     drift_sign: float | None = None
     #: level of the goodness-of-fit test that splits the ranking (accepted first)
     gof_alpha: float = GOF_ALPHA
+    #: component types the parsimony step may remove (:data:`PARSIMONY`; () = no such step)
+    parsimony: tuple[str, ...] = PARSIMONY
+    #: the parsimony steps that moved the first-ranked candidate, in order (:func:`order`)
+    simplified: tuple[Simplification, ...] = ()
 
     @property
     def best(self) -> RankedModel:
@@ -172,7 +209,9 @@ class Ranking:
         out: dict[str, Any] = {"criterion": self.criterion, "penalty_factor": self.factor,
                                "gof_alpha": self.gof_alpha,
                                "ranking": [e.to_json_dict() for e in self.ranked],
-                               "near_ties": self.near_ties(), "notes": self.notes}
+                               "near_ties": self.near_ties(), "notes": self.notes,
+                               "parsimony": list(self.parsimony),
+                               "simplified": [st.to_json_dict() for st in self.simplified]}
         if self.skipped:
             out["skipped"] = [{"model": e.model, "error": e.error} for e in self.skipped]
         return out
@@ -188,6 +227,7 @@ class Ranking:
                          f"{e.p_value:>10.3g}{'  REJECTED' if e.rejected(self.gof_alpha) else ''}")
         for e in self.skipped:
             lines.append(f"   -  {e.model:<24} skipped: {e.error}")
+        lines += [f"parsimony: {st.describe()}" for st in self.simplified]
         lines += [f"note: {n}" for n in self.notes]
         return "\n".join(lines)
 
@@ -283,16 +323,17 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = DE
                 alpha: float = 0.05, n_starts: int | None = None, seed: int = 0,
                 progress: Callable[[int, int, str], None] | None = None,
                 cov: str = "gaussian", fit_kwargs: dict[str, Any] | None = None,
-                gof_alpha: float = GOF_ALPHA) -> Ranking:
+                gof_alpha: float = GOF_ALPHA,
+                parsimony: Sequence[str] = PARSIMONY) -> Ranking:
     """Fit every candidate model to the WV of ``data`` and rank them, best first.
 
     Parameters
     ----------
     data : 1-D signal (per-sample units) or a :class:`~gmwm.wv.WaveletVariance`.
     models : model strings or Models (duplicates are fitted once). See :func:`auto_candidates`.
-    criterion : ``"wic"`` (default; objective + 2 x optimism, the estimated WV prediction
-        error), ``"wic-hq"`` (factor 2 log log T) or ``"wic-log"`` (factor log T, consistent
-        selection); see the module docstring and :mod:`gmwm.criteria`.
+    criterion : ``"wic-hq"`` (default; factor 2 log log T), ``"wic"`` (objective + 2 x
+        optimism, the estimated WV prediction error) or ``"wic-log"`` (factor log T); see the
+        module docstring and :mod:`gmwm.criteria`.
     levels, freq, alpha : as in :func:`gmwm.fit` (the WV is computed once and shared).
     weights : as in :func:`gmwm.fit`; a (J, J) covariance also becomes V of the penalty.
     robust, eff : rank on the robust WV (``wvar(x, robust=True, eff=eff)``; needs a signal).
@@ -306,6 +347,9 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = DE
         ``se_cov="gaussian"``, skipping the fit's own model-based WV covariance).
     gof_alpha : level of the goodness-of-fit test (:func:`gmwm.gof.gof_test`, run on every
         fitted candidate): a candidate it rejects is ranked below every candidate it accepts.
+    parsimony : component types the parsimony step may remove from the first-ranked accepted
+        candidate (default :data:`PARSIMONY`: SIN, GM, AR1; ``()`` turns the step off): see
+        :func:`order`; the steps taken are :attr:`Ranking.simplified`.
 
     Candidates that cannot be fitted (e.g. more parameters than scales) are listed as skipped.
     """
@@ -361,19 +405,69 @@ def rank_models(data: Any, models: Iterable[str | Model], *, criterion: str = DE
     if len(bad) == len(entries):
         raise GMWMError("no candidate model could be fitted: " + "; ".join(
             f"{e.model}: {e.error}" for e in bad))
-    return Ranking(_order([e for e in entries if e.error is None], gof_alpha) + bad, criterion,
-                   k, wv, drift_sign, gof_alpha)
+    kinds = _parsimony_kinds(parsimony)
+    ordered, steps = order([e for e in entries if e.error is None], gof_alpha, kinds)
+    return Ranking(ordered + bad, criterion, k, wv, drift_sign, gof_alpha, kinds, tuple(steps))
 
 
-def _order(entries: list[RankedModel], gof_alpha: float) -> list[RankedModel]:
-    """Best first: the candidates the goodness-of-fit test accepts at ``gof_alpha`` (or cannot
-    test), then those it rejects, each group by criterion. Criteria equal up to the optimiser's
-    precision (relative 1e-7: a superset whose extra component sits at 0 reproduces the
-    submodel's fit, and a variance-like parameter at 0 has a zero Jacobian column) count as
-    ties, won by fewer parameters."""
-    accepted = [e for e in entries if not e.rejected(gof_alpha)]
-    rejected = [e for e in entries if e.rejected(gof_alpha)]
-    return _by_criterion(accepted) + _by_criterion(rejected)
+def _parsimony_kinds(kinds: Sequence[str]) -> tuple[str, ...]:
+    out = tuple(kinds)
+    unknown = [k for k in out if k not in PROCESSES]
+    if unknown:
+        raise InputError(f"unknown process(es) for the parsimony step: {', '.join(unknown)}")
+    return out
+
+
+def order(entries: Sequence[RankedModel], gof_alpha: float = GOF_ALPHA,
+          parsimony: Sequence[str] = PARSIMONY
+          ) -> tuple[list[RankedModel], list[Simplification]]:
+    """Rank fitted candidates, best first, and say which parsimony steps moved the first.
+
+    1. The candidates the goodness-of-fit test accepts at ``gof_alpha`` (or cannot test) come
+       first, then those it rejects, each group by criterion. Criteria equal up to the
+       optimiser's precision (relative 1e-7: a superset whose extra component sits at 0
+       reproduces the submodel's fit, and a variance-like parameter at 0 has a zero Jacobian
+       column) count as ties, won by fewer parameters.
+    2. Parsimony (only when the first candidate is accepted, so a ranking where every candidate
+       is rejected is left as step 1 made it): while the first candidate has a component of a
+       type in ``parsimony`` whose removal gives another candidate that the test *accepts*
+       (a finite p-value >= ``gof_alpha``), that candidate becomes the first (of several such
+       removals, the one with the lowest criterion). The criterion's penalty counts parameters
+       as a regular model would, but a SIN, GM or AR1 at scale 0 leaves its frequency, beta or
+       phi unidentified, so the fit maximises over it and the objective drop it brings is
+       larger than the penalty allows for when the data hold no such component: such a
+       component is kept only when the model without it is rejected (the data show it).
+
+    Returns the ordered entries (the first as chosen, then the others in the order of step 1)
+    and the steps taken. Works on any entries with ``model``, ``criterion``, ``n_params`` and
+    ``p_value`` (e.g. :class:`RankedModel` rebuilt from stored values).
+    """
+    kinds = tuple(parsimony)
+    accepted = _by_criterion([e for e in entries if not e.rejected(gof_alpha)])
+    rejected = _by_criterion([e for e in entries if e.rejected(gof_alpha)])
+    steps: list[Simplification] = []
+    if accepted and kinds:
+        by_counts = {tuple(sorted(parse_model(e.model).items())): e for e in accepted
+                     if np.isfinite(e.p_value) and e.p_value >= gof_alpha}
+        top = accepted[0]
+        while True:
+            counts = parse_model(top.model)
+            options = []
+            for kind in kinds:
+                if not counts.get(kind):
+                    continue
+                less = {k: v - (k == kind) for k, v in counts.items()}
+                cand = by_counts.get(tuple(sorted((k, v) for k, v in less.items() if v > 0)))
+                if cand is not None:
+                    options.append((cand.criterion, cand.n_params, kind, cand))
+            if not options:
+                break
+            _, _, kind, nxt = min(options, key=lambda o: (o[0], o[1]))
+            steps.append(Simplification(top.model, nxt.model, kind, float(nxt.p_value)))
+            top = nxt
+        if steps:
+            accepted = [top] + [e for e in accepted if e is not top]
+    return accepted + rejected, steps
 
 
 def _by_criterion(entries: list[RankedModel]) -> list[RankedModel]:
@@ -395,8 +489,9 @@ def rerank(ranking: Ranking, criterion: str) -> Ranking:
     k = factor(criterion, ranking.wv.n_samples)
     entries = [dataclasses.replace(e, criterion=e.objective + k * e.penalty)
                for e in ranking.ranked]
-    return Ranking(_order(entries, ranking.gof_alpha) + ranking.skipped, criterion, k,
-                   ranking.wv, ranking.drift_sign, ranking.gof_alpha)
+    ordered, steps = order(entries, ranking.gof_alpha, ranking.parsimony)
+    return Ranking(ordered + ranking.skipped, criterion, k, ranking.wv, ranking.drift_sign,
+                   ranking.gof_alpha, ranking.parsimony, tuple(steps))
 
 
 def merge(rankings: Sequence[Ranking]) -> Ranking:
@@ -409,6 +504,7 @@ def merge(rankings: Sequence[Ranking]) -> Ranking:
     entries: list[RankedModel] = []
     for r in rankings:
         if r.criterion != first.criterion or r.gof_alpha != first.gof_alpha or \
+                r.parsimony != first.parsimony or \
                 r.wv.n_samples != first.wv.n_samples or \
                 not np.array_equal(r.wv.variance, first.wv.variance):
             raise InputError("rankings to merge must rank the same WV by the same criterion")
@@ -417,8 +513,10 @@ def merge(rankings: Sequence[Ranking]) -> Ranking:
                 seen.add(e.model)
                 entries.append(e)
     fitted = [e for e in entries if e.error is None]
-    return Ranking(_order(fitted, first.gof_alpha) + [e for e in entries if e.error is not None],
-                   first.criterion, first.factor, first.wv, first.drift_sign, first.gof_alpha)
+    ordered, steps = order(fitted, first.gof_alpha, first.parsimony)
+    return Ranking(ordered + [e for e in entries if e.error is not None], first.criterion,
+                   first.factor, first.wv, first.drift_sign, first.gof_alpha, first.parsimony,
+                   tuple(steps))
 
 
 def select_model(data: Any, models: Sequence[str | Model] | str | Model, **kwargs: Any) -> Any:

@@ -531,8 +531,11 @@ def _add_select_parser(sub: Any) -> None:
             "Fit each candidate model by GMWM to the signal's wavelet variance and rank them, best\n"
             "first, by the Wavelet Information Criterion WIC = objective + k x tr(Omega A G V), the\n"
             "objective plus k times the optimism of the fit (its effective number of parameters).\n"
-            "k = log T (default, wic-log): consistent choice of the generating model; k = 2 (wic):\n"
-            "an estimate of how well the fitted model predicts the WV of a new signal.\n"
+            "k = 2 log log T (default, wic-hq); k = log T (wic-log); k = 2 (wic): an estimate of\n"
+            "how well the fitted model predicts the WV of a new signal. Candidates the\n"
+            "goodness-of-fit test rejects rank below those it accepts; a first-ranked candidate\n"
+            "loses each SIN/GM/AR1 whose removal leaves a candidate the test accepts (printed\n"
+            "as 'parsimony:' lines).\n"
             "--auto adds, for each MODEL given, the models with one or two of its components\n"
             "removed and with one component added (WN, QN, RW, DR, up to 3 AR1/GM, up to 2 SIN)."
         ),
@@ -549,11 +552,11 @@ def _add_select_parser(sub: Any) -> None:
     p.add_argument("--auto", action="store_true",
                    help="build the candidate set from the MODEL(s) as base (see above)")
     # the library's criteria and default (gmwm.criteria), not a second choice made here
-    p.add_argument("--criterion", choices=("wic", "wic-hq", "wic-log"), default="wic",
-                   help="penalty factor of the ranking: wic 2 (the default, as the library's: "
-                        "the WV prediction error; keeps weak real components, a spurious one "
-                        "more often), wic-hq 2 log log T, wic-log log T (consistent, drops "
-                        "components below ~3.5 standard errors)")
+    p.add_argument("--criterion", choices=("wic", "wic-hq", "wic-log"), default="wic-hq",
+                   help="penalty factor of the ranking: wic-hq 2 log log T (the default, as "
+                        "the library's, gmwm.criteria.DEFAULT), wic 2 (the WV prediction "
+                        "error; a spurious component more often), wic-log log T (drops "
+                        "components below ~3.5 standard errors the test does not see)")
     p.add_argument("--freq", type=_positive_float, default=None,
                    help="sampling frequency in Hz (default: from the file, else 1)")
     p.add_argument("--levels", "-J", type=_positive_int, default=None, metavar="J",

@@ -57,10 +57,13 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
         if args.columns is None:
             r, sec = next(iter(rankings.values()))
             obj.update(ranking=[e.to_json_dict() for e in r.ranked], penalty_factor=r.factor,
+                       simplified=[st.to_json_dict() for st in r.simplified],
                        skipped=skipped(r), seconds=sec)
         else:
             obj["rankings"] = {c: [e.to_json_dict() for e in r.ranked]
                                for c, (r, _) in rankings.items()}
+            obj["simplified"] = {c: [st.to_json_dict() for st in r.simplified]
+                                 for c, (r, _) in rankings.items()}
             obj["skipped"] = {c: skipped(r) for c, (r, _) in rankings.items()}
             obj["seconds"] = {c: sec for c, (_, sec) in rankings.items()}
         out.write(json_text(obj))
@@ -80,6 +83,7 @@ def run(args: argparse.Namespace, out: TextIO, err: TextIO) -> int:
             if any(e.rejected(r.gof_alpha) for e in r.ranked):
                 out.write(f"candidates the goodness-of-fit test rejects at {r.gof_alpha:g} are "
                           "ranked below every accepted one, whatever their criterion\n")
+            out.writelines(f"parsimony: {st.describe()}\n" for st in r.simplified)
             out.writelines(f"skipped {e.model}: {e.error}\n" for e in r.skipped)
     for col, (r, _) in rankings.items():
         if not r.best.converged:
