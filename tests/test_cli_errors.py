@@ -25,7 +25,7 @@ KNOWN_FLAG_MESSAGES = {  # string pieces (an f-string's constant parts count one
     # the fleet: run.py builds Snakemake's own command line and job.py is a job's command line
     # (their flags are other programs' options, not messages; job.py parses a `gmwm report`
     # command line and answers in its terms); collect.py's one is a table note
-    "fleet/run.py": 17, "fleet/job.py": 4, "fleet/collect.py": 1,
+    "fleet/run.py": 18, "fleet/job.py": 4, "fleet/collect.py": 1,
 }
 
 
