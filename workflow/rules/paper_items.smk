@@ -26,30 +26,34 @@ def paper_items_targets():
     return PAPER_ITEMS_FILES if paper_items_enabled() and len(paper_items_lengths()) == 2 else []
 
 
-localrules:
-    paper_items,
+# Defined only when its inputs exist: with a STIM-300 study or SVO Case 1's coverage switched off
+# (a restricted run, the kill test's), the inputs' replicate lists cannot be built.
+if paper_items_enabled():
+
+    localrules:
+        paper_items,
 
 
-rule paper_items:
-    input:
-        tables=[f"reports/stim300/{n}_bias_sd_rmse.csv" for n in PAPER_ITEMS_STIM.values()],
-        replicates=[f for n in PAPER_ITEMS_STIM.values() for f in replicates_files(n)],
-        coverage="reports/svo/case1/coverage.csv",
-        coefficients="reports/svo/case1/coefficients.csv",
-    output:
-        json=PAPER_ITEMS_FILES[0],
-        md=PAPER_ITEMS_FILES[1],
-    params:
-        stim=PAPER_ITEMS_STIM,
-        sensors={k: STUDIES[n]["sensor"] for k, n in PAPER_ITEMS_STIM.items()},
-        lengths=paper_items_lengths(),
-        arrays=int(SVO["train"]),
-    log:
-        "logs/paper_items.log",
-    benchmark:
-        f"{BENCH}/paper_items/paper_items/paper_items.tsv"
-    resources:
-        runtime=5,
-        mem_mb=1000,
-    script:
-        "../scripts/paper_items.py"
+    rule paper_items:
+        input:
+            tables=[f"reports/stim300/{n}_bias_sd_rmse.csv" for n in PAPER_ITEMS_STIM.values()],
+            replicates=[f for n in PAPER_ITEMS_STIM.values() for f in replicates_files(n)],
+            coverage="reports/svo/case1/coverage.csv",
+            coefficients="reports/svo/case1/coefficients.csv",
+        output:
+            json=PAPER_ITEMS_FILES[0],
+            md=PAPER_ITEMS_FILES[1],
+        params:
+            stim=PAPER_ITEMS_STIM,
+            sensors={k: STUDIES[n]["sensor"] for k, n in PAPER_ITEMS_STIM.items()},
+            lengths=paper_items_lengths(),
+            arrays=int(SVO["train"]),
+        log:
+            "logs/paper_items.log",
+        benchmark:
+            f"{BENCH}/paper_items/paper_items/paper_items.tsv"
+        resources:
+            runtime=5,
+            mem_mb=1000,
+        script:
+            "../scripts/paper_items.py"
