@@ -137,6 +137,11 @@ def default_fit_options() -> tuple[str, str]:
     return str(d.weights), str(d.method)
 
 
+def _default_levels(n_samples: int) -> int:
+    """The levels a plan predicts at ``n_samples`` samples: J = floor(log2 T) - 1."""
+    return math.floor(math.log2(n_samples)) - 1
+
+
 def _expected_wv(model: Any, theta: np.ndarray, n_samples: int, levels: int | None = None) -> Any:
     """The WV a recording of ``n_samples`` samples has on average: ``nu(theta)`` on the default
     scales, with the eta_3 interval (the one the default ``ci`` weights read; the ``ci-mixture``
@@ -145,7 +150,7 @@ def _expected_wv(model: Any, theta: np.ndarray, n_samples: int, levels: int | No
     from gmwm.wv import WaveletVariance
 
     jmax = math.floor(math.log2(n_samples))
-    J = jmax - 1 if levels is None else int(levels)
+    J = _default_levels(n_samples) if levels is None else int(levels)
     if not 1 <= J <= jmax:
         raise InputError(f"{n_samples} samples allow 1 to {jmax} levels, got {J}")
     scales = 2.0 ** np.arange(1, J + 1)
@@ -335,7 +340,7 @@ def _prefetch_covariances(model: Any, theta: np.ndarray, lengths: Sequence[int])
         return
 
     def one(n: int) -> None:
-        scales = 2.0 ** np.arange(1, math.floor(math.log2(n)))  # _expected_wv's default levels
+        scales = 2.0 ** np.arange(1, _default_levels(n) + 1)  # the scales _expected_wv predicts
         if scales.size:
             with np.errstate(all="ignore"), contextlib.suppress(Exception):
                 wv_covariance(sub, sub_theta, scales, n)
