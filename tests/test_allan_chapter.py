@@ -179,3 +179,19 @@ def test_study_functions_tiny():
     assert {"Fig 4.2", "Example 4.2", "Lemma 4.2", "Sec 4.2.2", "Remark 4.3",
             "Example 4.1"} <= set(table["item"])
     assert pd.api.types.is_numeric_dtype(table["value"])
+
+
+def test_slope_estimand_is_the_exact_av_fit_over_the_same_clusters():
+    # Fig 4.2 at T = 1e5: clusters 1..16384; the RW slope is read on 4096-16384, where the WN's
+    # sigma^2/m still adds, so its estimand is below the chapter's 1/2
+    m = 2.0 ** np.arange(15)
+    sets = ac._slope_sets("fig42", m)
+    assert list(m[sets["slope_rw"]]) == [4096.0, 8192.0, 16384.0]
+    av = 100.0 / m + 9e-4 * (m / 3.0 + 1.0 / (6.0 * m))
+    x, y = np.log(m[sets["slope_rw"]]), 0.5 * np.log(av[sets["slope_rw"]])
+    by_hand = np.sum((x - x.mean()) * (y - y.mean())) / np.sum((x - x.mean()) ** 2)
+    assert by_hand == pytest.approx(0.49335, abs=1e-4)
+    assert ac._slope(m, ac._av_true("fig42", m)["exact"], sets["slope_rw"]) == pytest.approx(
+        by_hand, rel=1e-12)
+    assert ac._slope(m, ac._av_true("fig41", m)["exact"], ac._slope_sets("fig41", m)["slope_all"]
+                     ) == pytest.approx(-0.5, abs=1e-12)
