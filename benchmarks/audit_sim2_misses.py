@@ -43,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import yaml
 from scipy.optimize import least_squares
 
 import gmwm
@@ -62,6 +63,10 @@ TRUTH = ROOT / "reports" / "sim2" / "replicates" / "truth_T10000000.json"
 OUT = HERE / "audit_sim2_misses.json"
 TABLE = ROOT / "reports" / "design" / "sim2_audit.csv"
 STUDY, T, BASE_SEED, MODEL = "sim2", 10_000_000, 20240601, "2*AR1+2*SIN"
+#: the study's simulator (config/config.yaml ``studies.sim2.simulator``): the refits must see the
+#: committed run's signals (a run with another simulator draws other signals from the same stream)
+SIMULATOR = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["studies"][STUDY].get(
+    "simulator", "fast")
 #: the study's estimators (config/config.yaml ``estimators``)
 ESTIMATORS = {"gmwm": {"weights": "ci-eta3", "n_starts": 8, "reweight": 0},
               "gmwm_eff": {"weights": "efficient", "n_starts": 8, "reweight": 0}}
@@ -91,13 +96,20 @@ def misses() -> dict[str, list[int]]:
     return out
 
 
+def _stored_wvs(audit: dict) -> dict[str, list[float]]:
+    """The WVs an audit file stored, if they are of this study's simulator (files written before
+    the simulator was recorded are of ``"fast"``); else none."""
+    return dict(audit.get("wv", {})) if audit.get("simulator", "fast") == SIMULATOR else {}
+
+
 def replicate_wv(rep: int, base_seed: int = BASE_SEED) -> WaveletVariance:
     """The WV of replicate ``rep`` exactly as the pipeline builds it (simulate rule, then the
     fit rule's ``WaveletVariance.from_table``); another ``base_seed``: the same design with
     other signals."""
     m = Model(MODEL)
     theta = check_truth(MODEL, truth())
-    x = simulate_replicate(m, theta, T, replicate_rng(STUDY, T, rep, base_seed), "fast")
+    x = simulate_replicate(m, theta, T, replicate_rng(STUDY, T, rep, base_seed),
+                           SIMULATOR)
     wv = wvar(x)
     del x
     return WaveletVariance.from_table(wv.scales, wv.variance, n_samples=T, freq=1.0)
@@ -204,7 +216,7 @@ SIM2_CASES = HERE / "hard_cases_sim2.json"
 def store_cases(records: list[dict]) -> None:
     """Write the stored WVs of the hard-case class (``hard_cases.py`` reads them)."""
     data = {"_about": ("Simulation 2 WVs (2*AR1+2*SIN, the truth of config/config.yaml "
-                       "studies.sim2, T = 1e7, simulator 'fast', replicate streams "
+                       f"studies.sim2, T = 1e7, simulator {SIMULATOR!r}, replicate streams "
                        "gmwm_studies.seeds.replicate_rng('sim2', T, replicate, base_seed)) on "
                        "which the search before reseat_sins stopped at a local optimum: a "
                        "sinusoid below the noise at a short scale while the phi ~ 1 AR1 "
@@ -248,7 +260,7 @@ def refit_sample(n_other: int, out: Path) -> None:
     committed = pd.read_csv(CSV)
     true = truth()
     audit = json.loads(OUT.read_text()) if OUT.exists() else {}
-    wvs = dict(audit.get("wv", {}))
+    wvs = dict(_stored_wvs(audit))
     missed = sorted(set(miss["gmwm"]) | set(miss["gmwm_eff"]))
     others = [r for r in range(500) if r not in missed]
     sample = sorted(int(r) for r in np.random.default_rng(0).choice(others, n_other,
@@ -341,7 +353,9 @@ def main() -> int:
     theta_true = check_truth(MODEL, true)
     reps = sorted(set(miss["gmwm"]) | set(miss["gmwm_eff"])) if args.reps is None else args.reps
     previous = json.loads(args.out.read_text()) if args.out.exists() else {}
-    wvs = previous.get("wv", {})
+    wvs = _stored_wvs(previous)
+    if previous and previous.get("simulator", "fast") != SIMULATOR:
+        previous = {}  # another run's signals: none of its rows audited this run's fits
     rows = []
     gmwm.fit(replicate_wv(reps[0]) if str(reps[0]) not in wvs else
              WaveletVariance.from_table(2.0 ** np.arange(1, 23), wvs[str(reps[0])],
@@ -395,7 +409,8 @@ def main() -> int:
                   + ("" if args.default_only else
                      f" best {row['best']:.10g} excess {row['excess']:.2e} "
                      f"sin2<2x {row['best_sin2_within_2x']}"), flush=True)
-            args.out.write_text(json.dumps({"rows": rows, "wv": wvs}, indent=1) + "\n")
+            args.out.write_text(json.dumps({"rows": rows, "wv": wvs,
+                                                  "simulator": SIMULATOR}, indent=1) + "\n")
     summary = {}
     for est in ESTIMATORS:
         r = [x for x in rows if x["estimator"] == est]
@@ -415,7 +430,7 @@ def main() -> int:
         }
     out = {"_about": __doc__.splitlines()[0], "settings": {"n_random": args.n_random,
                                                           "n_profile": args.n_profile},
-           "summary": summary, "rows": rows, "wv": wvs}
+           "summary": summary, "rows": rows, "wv": wvs, "simulator": SIMULATOR}
     args.out.write_text(json.dumps(out, indent=1) + "\n")
     if not args.default_only and args.reps is None:
         write_table(rows, args.table)
