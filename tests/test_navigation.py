@@ -187,3 +187,34 @@ def test_concat_chunks_and_ratio_series():
     np.testing.assert_allclose(series["mean_sd_model1_m"], series["mean_err_model1_m"] / 2)
     with pytest.raises(InputError, match="no chunk"):
         nv.concat_chunks([])
+
+
+def test_both_profiles_configure_the_z_only_variant():
+    """config.yaml and config.yaml + quick.yaml (merged as --configfile does) run the z_only
+    sensitivity variant on the main study's settings, within the misspec replicates; the schema
+    refuses a variant that overrides anything but gyro_axes / iterations / chunk_size."""
+    import copy
+    from pathlib import Path
+
+    import yaml
+    pytest.importorskip("snakemake")
+    from snakemake.exceptions import WorkflowError
+    from snakemake.utils import update_config, validate
+
+    root = Path(__file__).resolve().parents[1]
+    schema = str(root / "workflow" / "schemas" / "config.schema.yaml")
+    full = yaml.safe_load((root / "config" / "config.yaml").read_text())
+    quick = copy.deepcopy(full)
+    update_config(quick, yaml.safe_load((root / "config" / "quick.yaml").read_text()))
+    for cfg, n in ((full, 100), (quick, 4)):
+        validate(cfg, schema)
+        nav = cfg["navigation"]
+        v = nv.variant_config(nav, "z_only")
+        assert v["gyro_axes"] == ["z"] and v["iterations"] == n
+        assert v["iterations"] <= cfg["studies"][nav["estimates_from"]]["replicates"]
+        assert {k: x for k, x in v.items() if k not in ("gyro_axes", "iterations", "variant")} == {
+            k: x for k, x in nav.items() if k not in ("gyro_axes", "iterations", "variants")}
+    bad = copy.deepcopy(full)
+    bad["navigation"]["variants"]["z_only"]["seed"] = 3
+    with pytest.raises(WorkflowError, match="seed"):
+        validate(bad, schema)
