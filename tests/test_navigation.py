@@ -148,3 +148,73 @@ def test_run_chunk_drops_bad_fits_and_ignores_chunking():
     # model1 assumes twice the gyro noise: a larger predicted position SD in the outage
     sd = whole["pos_sd"].sel(time=14.0, method="nearest")
     assert np.all(sd.sel(model="model1") > sd.sel(model="model2"))
+
+
+def test_variant_config_overrides_only_its_keys():
+    nav = {"iterations": 500, "chunk_size": 25, "seed": 7, "gyro_axes": ["x", "y", "z"],
+           "variants": {"z_only": {"gyro_axes": ["z"], "iterations": 100},
+                        "bad": {"seed": 3}}}
+    cfg = nv.variant_config(nav, "z_only")
+    assert cfg == {"iterations": 100, "chunk_size": 25, "seed": 7, "gyro_axes": ["z"],
+                   "variant": "z_only"}
+    assert list(cfg)[:4] == ["iterations", "chunk_size", "seed", "gyro_axes"]  # params repr stable
+    assert nav["gyro_axes"] == ["x", "y", "z"]  # the main config is not modified
+    with pytest.raises(InputError, match="cannot be varied"):
+        nv.variant_config(nav, "bad")  # the seed is the main study's: common random numbers
+    with pytest.raises(InputError, match="unknown variant"):
+        nv.variant_config(nav, "xy")
+
+
+def _chunk(iterations: list[int], dropped: dict[int, str], scale: float) -> xr.Dataset:
+    rng = np.random.default_rng(len(iterations))
+    e2 = rng.gamma(4.0, 1.0, size=(len(iterations), 4))
+    err = np.stack([scale * e2, e2], axis=1)
+    return xr.Dataset({"pos_err_norm": (("iteration", "model", "time"), err),
+                       "pos_sd": (("iteration", "model", "time"), err / 2)},
+                      coords={"iteration": iterations, "model": ["model1", "model2"],
+                              "time": [0.0, 1.0, 2.0, 3.0]},
+                      attrs={"dropped": json.dumps(dropped)})
+
+
+def test_concat_chunks_and_ratio_series():
+    ds, dropped = nv.concat_chunks([_chunk([3, 5], {4: "model1 fit did not converge"}, 1.5),
+                                    _chunk([0, 1], {2: "x"}, 1.5)])
+    assert list(ds["iteration"].values) == [0, 1, 3, 5] and dropped == {4: "model1 fit did not converge", 2: "x"}
+    series = nv.ratio_series(ds)
+    assert list(series.columns) == ["time_s", "ratio", "ci_lo", "ci_hi", "mean_err_model1_m",
+                                    "mean_err_model2_m", "mean_sd_model1_m", "mean_sd_model2_m"]
+    np.testing.assert_allclose(series["ratio"], 1.5)
+    np.testing.assert_allclose(series["mean_sd_model1_m"], series["mean_err_model1_m"] / 2)
+    with pytest.raises(InputError, match="no chunk"):
+        nv.concat_chunks([])
+
+
+def test_both_profiles_configure_the_z_only_variant():
+    """config.yaml and config.yaml + quick.yaml (merged as --configfile does) run the z_only
+    sensitivity variant on the main study's settings, within the misspec replicates; the schema
+    refuses a variant that overrides anything but gyro_axes / iterations / chunk_size."""
+    import copy
+    from pathlib import Path
+
+    import yaml
+    pytest.importorskip("snakemake")
+    from snakemake.exceptions import WorkflowError
+    from snakemake.utils import update_config, validate
+
+    root = Path(__file__).resolve().parents[1]
+    schema = str(root / "workflow" / "schemas" / "config.schema.yaml")
+    full = yaml.safe_load((root / "config" / "config.yaml").read_text())
+    quick = copy.deepcopy(full)
+    update_config(quick, yaml.safe_load((root / "config" / "quick.yaml").read_text()))
+    for cfg, n in ((full, 100), (quick, 4)):
+        validate(cfg, schema)
+        nav = cfg["navigation"]
+        v = nv.variant_config(nav, "z_only")
+        assert v["gyro_axes"] == ["z"] and v["iterations"] == n
+        assert v["iterations"] <= cfg["studies"][nav["estimates_from"]]["replicates"]
+        assert {k: x for k, x in v.items() if k not in ("gyro_axes", "iterations", "variant")} == {
+            k: x for k, x in nav.items() if k not in ("gyro_axes", "iterations", "variants")}
+    bad = copy.deepcopy(full)
+    bad["navigation"]["variants"]["z_only"]["seed"] = 3
+    with pytest.raises(WorkflowError, match="seed"):
+        validate(bad, schema)

@@ -30,6 +30,7 @@ from .ekf import FilterSetup, exp_so3, log_so3, run_filter
 
 __all__ = [
     "Trajectory",
+    "concat_chunks",
     "convert_basic",
     "emulate",
     "filter_setup",
@@ -38,8 +39,10 @@ __all__ = [
     "make_trajectory",
     "plot_fig7",
     "plot_fig8",
+    "ratio_series",
     "ratio_summary",
     "ratio_with_ci",
+    "variant_config",
 ]
 
 DEG = np.pi / 180.0
@@ -320,6 +323,45 @@ def run_chunk(cfg: Mapping[str, Any], fits: Mapping[str, xr.Dataset], truth: Map
     return emulation_dataset(res, kept, models, params, attrs)
 
 
+# Keys a variant (config navigation.variants.<name>) may override; everything else (trajectory,
+# sensors, filter, seeds) is the main study's, so a variant isolates the effect of these keys.
+VARIANT_KEYS = ("gyro_axes", "iterations", "chunk_size")
+RESERVED_VARIANT_NAMES = ("chunks", "replicates")  # directories of the main study
+
+
+def variant_config(nav: Mapping[str, Any], name: str) -> dict[str, Any]:
+    """The ``navigation`` config of variant ``name``: the main study's keys (same order, without
+    ``variants``) with the variant's overrides (:data:`VARIANT_KEYS`) substituted. The seed is the
+    main study's and :func:`run_chunk` keys the streams by the study name ``navigation``, so
+    iteration b of a variant draws the same accelerometer, GNSS and initial errors as iteration b
+    of the main study (and its gyro errors from the same stream)."""
+    variants = nav.get("variants") or {}
+    if name not in variants:
+        raise InputError(f"navigation: unknown variant {name!r} (configured: {sorted(variants)})")
+    if name in RESERVED_VARIANT_NAMES:
+        raise InputError(f"navigation: variant name {name!r} is reserved ({RESERVED_VARIANT_NAMES})")
+    over = dict(variants[name])
+    bad = sorted(set(over) - set(VARIANT_KEYS))
+    if bad:
+        raise InputError(f"navigation.variants.{name}: keys {bad} cannot be varied "
+                         f"(allowed: {list(VARIANT_KEYS)})")
+    out = {k: over.get(k, v) for k, v in nav.items() if k != "variants"}
+    out["variant"] = name
+    return out
+
+
+def concat_chunks(parts: Sequence[xr.Dataset]) -> tuple[xr.Dataset, dict[int, str]]:
+    """The chunk Datasets of :func:`run_chunk` joined along ``iteration`` (sorted), and the
+    dropped iterations of all chunks (iteration -> reason)."""
+    import json
+
+    if not parts:
+        raise InputError("navigation: no chunk to gather")
+    ds = xr.concat(list(parts), dim="iteration", combine_attrs="override").sortby("iteration")
+    dropped = {int(k): v for p in parts for k, v in json.loads(p.attrs["dropped"]).items()}
+    return ds, dropped
+
+
 # ---------------------------------------------------------------------------------------------
 # statistics
 # ---------------------------------------------------------------------------------------------
@@ -377,6 +419,21 @@ def ratio_summary(ds: xr.Dataset, models: tuple[str, str] = ("model1", "model2")
             "share_ratio_ci_above_1": float(np.mean(ci["lo"][mask] > 1)),
         })
     return pd.DataFrame(rows)
+
+
+def ratio_series(ds: xr.Dataset, models: tuple[str, str] = ("model1", "model2"),
+                 level: float = 0.95) -> pd.DataFrame:
+    """Fig. 8 in numbers (``ratio_series.csv``): per recorded epoch ``time_s``, the ratio of mean
+    position errors with its pointwise delta-method CI, both filters' mean errors [m] and mean
+    predicted position SDs [m]. The columns name the models as model1 / model2 (first / second)."""
+    e1 = ds["pos_err_norm"].sel(model=models[0]).values
+    e2 = ds["pos_err_norm"].sel(model=models[1]).values
+    ci = ratio_with_ci(e1, e2, level)
+    return pd.DataFrame({"time_s": ds["time"].values, "ratio": ci["ratio"], "ci_lo": ci["lo"],
+                         "ci_hi": ci["hi"], "mean_err_model1_m": e1.mean(0),
+                         "mean_err_model2_m": e2.mean(0),
+                         "mean_sd_model1_m": ds["pos_sd"].sel(model=models[0]).values.mean(0),
+                         "mean_sd_model2_m": ds["pos_sd"].sel(model=models[1]).values.mean(0)})
 
 
 def iteration_table(ds: xr.Dataset, dropped: Mapping[int, str], iterations: Sequence[int],

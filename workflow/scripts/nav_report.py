@@ -2,25 +2,23 @@
 
 from wflog import get_logger  # first: it sets the thread limits before numpy/numba load
 
-import json
 from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
-import pandas as pd
-import xarray as xr
 
 from gmwm.atomic import save_figure, write_text_atomic
 from gmwm_studies.montecarlo import write_table
 from gmwm_studies.navigation import (
+    concat_chunks,
     gnss_schedule,
     iteration_table,
     make_trajectory,
     plot_fig7,
     plot_fig8,
+    ratio_series,
     ratio_summary,
-    ratio_with_ci,
 )
 from gmwm_studies.store import read_dataset
 
@@ -30,8 +28,7 @@ nav = snakemake.params.nav
 fmt = snakemake.params.formats
 out = snakemake.output
 parts = [read_dataset(f) for f in snakemake.input]
-ds = xr.concat(parts, dim="iteration", combine_attrs="override").sortby("iteration")
-dropped = {k: v for p in parts for k, v in json.loads(p.attrs["dropped"]).items()}
+ds, dropped = concat_chunks(parts)
 outage = tuple(nav["outage"])
 models = tuple(nav["models"])
 
@@ -46,16 +43,9 @@ table.insert(1, "n_dropped", len(dropped))
 write_table(table, out.csv, out.md,
             title=(f"Navigation emulation: maximum of the mean position error ratio "
                    f"{models[0]} / {models[1]} (paper: 1.1789 in the outage)"))
-e1 = ds["pos_err_norm"].sel(model=models[0]).values
-e2 = ds["pos_err_norm"].sel(model=models[1]).values
-ci = ratio_with_ci(e1, e2, float(nav["level"]))
-series = pd.DataFrame({"time_s": ds["time"].values, "ratio": ci["ratio"], "ci_lo": ci["lo"],
-                       "ci_hi": ci["hi"], "mean_err_model1_m": e1.mean(0),
-                       "mean_err_model2_m": e2.mean(0),
-                       "mean_sd_model1_m": ds["pos_sd"].sel(model=models[0]).values.mean(0),
-                       "mean_sd_model2_m": ds["pos_sd"].sel(model=models[1]).values.mean(0)})
+series = ratio_series(ds, models, float(nav["level"]))
 write_text_atomic(out.series, series.to_csv(index=False, float_format="%.8g"))
-per_it = iteration_table(ds, {int(k): v for k, v in dropped.items()}, range(int(nav["iterations"])),
+per_it = iteration_table(ds, dropped, range(int(nav["iterations"])),
                          float(table["time_s"].iloc[0]), outage)
 write_text_atomic(out.iterations, per_it.to_csv(index=False, float_format="%.10g"))
 log.info("%d iterations (%d dropped: %s); chunk seconds %s", ds.sizes["iteration"], len(dropped),
