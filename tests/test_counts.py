@@ -207,3 +207,16 @@ def test_committed_reproduction_quotes_match_counts():
         assert n == 0, "count markers in REPRODUCTION.md but no reports/counts.json"
     assert bad == [], "\n".join(f"line {b.line}: [{b.quote}] {b.name} = {b.value} ({b.counts_file})"
                                 for b in bad)
+
+
+def test_cell_value_argmax_picks_the_row_where_another_column_peaks(tmp_path):
+    from gmwm_studies.counts import cell_value
+
+    f = tmp_path / "s.csv"
+    pd.DataFrame({"time_s": [200.0, 210.0, 211.0, 212.9, 214.0],
+                  "ratio": [1.3, 1.01, 1.05, 1.09, 1.02]}).to_csv(f, index=False)
+    assert cell_value(f, "time_s>=210&col=time_s&argmax=ratio") == 212.9
+    assert cell_value(f, "col=time_s&argmax=ratio") == 200.0
+    assert cell_value(f, "time_s>=210&col=ratio&argmin=ratio") == 1.01
+    with pytest.raises(Exception, match="no column"):
+        cell_value(f, "col=time_s&argmax=nope")

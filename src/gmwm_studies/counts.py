@@ -31,6 +31,9 @@ target is the CSV or JSON file and the fragment selects the cell,
   RMSE over the GMWM's); ``less.<key>=<value>`` likewise subtracts that cell (a difference);
   ``plus=<column>`` / ``minus=<column>`` add / subtract another column of the same row (before
   ``agg``, ``over``, ``less``);
+  ``argmax=<column>`` / ``argmin=<column>`` keep, of the selected rows, the one where that
+  column is largest / smallest (e.g. the time of a series' peak: ``time_s>=210&col=time_s&
+  argmax=ratio``);
   ``mul=100`` multiplies (a percentage), ``abs=1`` takes |x| before that;
   a space or ``&`` in a value is written ``%20`` / ``%26`` (URL encoding);
 * JSON: ``[1.00004](allan/summary.json#fig41/N/mc_mean)``: keys (a list's index) separated by
@@ -561,7 +564,7 @@ def check_markers(md_path: str | os.PathLike) -> tuple[int, list[Mismatch]]:
     return len(markers), bad
 
 
-_OPTIONS = ("col", "agg", "mul", "abs", "plus", "minus")
+_OPTIONS = ("col", "agg", "mul", "abs", "plus", "minus", "argmax", "argmin")
 
 
 def _same(cell: str, want: str) -> bool:
@@ -640,6 +643,13 @@ def cell_value(path: str | os.PathLike, selector: str) -> float:
                     raise InputError(f"{path.name}: no key column {k!r}")
                 x = pd.to_numeric(df[k], errors="coerce").to_numpy(float)
                 mask &= {"<": x < bound, ">": x > bound, "<=": x <= bound, ">=": x >= bound}[op]
+            for op in ("argmax", "argmin"):  # the selected row where another column peaks
+                if op in opts and mask.any():
+                    if opts[op] not in df.columns:
+                        raise InputError(f"{path.name}: no column {opts[op]!r} ({op}=)")
+                    x = pd.to_numeric(df[opts[op]], errors="coerce").to_numpy(float)
+                    x = np.where(mask, x if op == "argmax" else -x, -np.inf)
+                    mask = np.arange(len(df)) == int(np.argmax(x))
             values = df.loc[mask, col].tolist()
             for op in ("plus", "minus"):  # another column of the same row, added / subtracted
                 if op in opts:
