@@ -55,9 +55,11 @@ def test_both_profiles_validate_and_keep_the_cost_settings():
     q = quick["sim1"]
     assert variant_replicate_caps(q["mle"]["variant_replicates"], list(q["mle"]["variants"]),
                                   _mle_caps(q)) == {"mle_sm": {10000: 3, 20000: 3}}
-    # SVO coverage: the paper's MBB in the full profile, both schemes in the quick one (tested)
-    assert cfg["full"]["svo"]["coverage"]["schemes"] == ["paper"]
+    # SVO coverage: both MBB schemes, the time-axis one on the first 200 replications (full) / 30
+    assert cfg["full"]["svo"]["coverage"]["schemes"] == ["paper", "time"]
+    assert cfg["full"]["svo"]["coverage"]["scheme_replicates"] == {"time": 200}
     assert cfg["quick"]["svo"]["coverage"]["schemes"] == ["paper", "time"]
+    assert cfg["quick"]["svo"]["coverage"]["scheme_replicates"] == {"time": 30}
     # Simulation 3 bootstrap coverage: R = 60, B = 100
     assert full["sim3_coverage"]["replicates"] == 60
     assert full["sim3_coverage"]["bootstrap"]["B"] == 100
@@ -68,6 +70,14 @@ def test_both_profiles_validate_and_keep_the_cost_settings():
 def test_schema_refuses_a_malformed_variant_cap(bad):
     cfg = _configs()["full"]
     cfg["studies"]["sim1"]["mle"]["variant_replicates"] = bad
+    with pytest.raises(WorkflowError):
+        validate(cfg, SCHEMA)
+
+
+@pytest.mark.parametrize("bad", [{"rdvg": 200}, {"time": 0}, {"time": "200"}, {"time": 2.5}])
+def test_schema_refuses_a_malformed_svo_scheme_cap(bad):
+    cfg = _configs()["full"]
+    cfg["svo"]["coverage"]["scheme_replicates"] = bad
     with pytest.raises(WorkflowError):
         validate(cfg, SCHEMA)
 

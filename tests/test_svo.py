@@ -448,8 +448,67 @@ def test_coverage_with_the_paper_scheme_only():
     assert all(np.isfinite(r["coverage"]) and np.isfinite(r["mean_se"]) for r in rows)
     fig = figure_coverage(rows)
     labels = fig.axes[0].get_legend_handles_labels()[1]
-    assert [x for x in labels if x.startswith("MBB")] == ["MBB paper: coverage (Wilson 95 %)"]
+    assert [x for x in labels if x.startswith("MBB")] == [
+        "MBB paper, n = 2: coverage (Wilson 95 %)"]
     plt.close(fig)
+
+
+def test_capped_time_scheme_leaves_the_paper_numbers_bit_for_bit():
+    """scheme_replicates {time: 2}: the paper scheme's arrays equal those of a paper-only run bit
+    for bit (merged across chunks too); time cells exist for r < 2 only (NaN, not counted, no
+    replicate rows beyond), its table rows over its own 2 replications, both drawn with their n."""
+    import matplotlib.pyplot as plt
+
+    from gmwm_studies.svo_study import (
+        coverage_chunk,
+        coverage_replicate_table,
+        coverage_table,
+        figure_coverage,
+        merge,
+    )
+
+    args = ("case1", 2**12, 10, 20, 5.0, 0.05, 3)
+    caps = {"time": 2}
+    chunks = ([3], [0, 1, 2])  # merged out of order, as chunk files may come
+    capped = merge([coverage_chunk(args[0], c, *args[1:], ("paper", "time"), caps)
+                    for c in chunks])
+    paper = merge([coverage_chunk(args[0], c, *args[1:], ("paper",)) for c in chunks])
+    order = np.argsort(capped["replicates"])
+    both = coverage_chunk(args[0], [0, 1], *args[1:], ("paper", "time"))
+    for k in ("se", "hit"):
+        np.testing.assert_array_equal(capped[k][0], paper[k][0])
+    np.testing.assert_array_equal(capped["coef"], paper["coef"])
+    time_se = capped["se"][1][order]
+    assert np.isfinite(time_se[:2]).all() and np.isnan(time_se[2:]).all()
+    assert np.isnan(capped["hit"][1][order][2:]).all()
+    np.testing.assert_array_equal(time_se[:2], both["se"][1])  # = the uncapped time SEs
+    rows = coverage_table(capped)
+    ref = coverage_table(paper)
+    assert [r for r in rows if r["mbb"] == "paper"] == ref
+    t = [r for r in rows if r["mbb"] == "time"]
+    assert len(t) == 6 and {r["replicates"] for r in t} == {2}
+    c = paper["coef"][order][:2]
+    np.testing.assert_allclose([r["sd_coef"] for r in t], c.std(axis=0, ddof=1), rtol=1e-12)
+    np.testing.assert_allclose([r["mean_se"] for r in t], both["se"][1].mean(axis=0), rtol=1e-12)
+    np.testing.assert_allclose([r["coverage"] for r in t], both["hit"][1].mean(axis=0))
+    per_rep = coverage_replicate_table(capped, 0.05)
+    assert sorted({(r["mbb"], r["replicate"]) for r in per_rep}) == [
+        ("paper", 0), ("paper", 1), ("paper", 2), ("paper", 3), ("time", 0), ("time", 1)]
+    fig = figure_coverage(rows)
+    labels = fig.axes[0].get_legend_handles_labels()[1]
+    assert [x for x in labels if x.startswith("MBB")] == [
+        "MBB paper, n = 4: coverage (Wilson 95 %)", "MBB time, n = 2: coverage (Wilson 95 %)"]
+    assert [x for x in labels if x.startswith("MC band")] == [
+        "MC band at 0.95 (n = 4)", "MC band at 0.95 (n = 2)"]
+    plt.close(fig)
+
+
+@pytest.mark.parametrize("caps", [{"rdvg": 2}, {"time": 0}, {"time": 2.5}, {"time": True}])
+def test_scheme_caps_refuse_bad_entries(caps):
+    from gmwm_studies.svo_study import scheme_caps
+
+    with pytest.raises(InputError, match="scheme_replicates"):
+        scheme_caps(caps, ("paper", "time"))
 
 
 def test_svo_reuses_a_given_wccv_bit_for_bit():

@@ -200,13 +200,14 @@ def stim300_items(tables: Mapping[str, str | os.PathLike],
 def svo_theorems(coverage_csv: str | os.PathLike, coefficients_csv: str | os.PathLike,
                  n_arrays: int) -> dict[str, Any]:
     """Mean - c0 in Monte Carlo SEs: over the coverage replications (``coverage.csv``; the
-    coefficient statistics are the same for every MBB scheme, the first scheme's rows are used)
+    rows of the scheme with the most replications: a capped scheme, config
+    ``svo.coverage.scheme_replicates``, has its statistics over its own fewer replications)
     and over the ``n_arrays`` training arrays (``coefficients.csv``, config ``svo.train``;
     methods with a spread, i.e. not equal weights)."""
     if n_arrays < 2:
         raise InputError(f"SVO training arrays: need at least 2, got {n_arrays}")
     cov = pd.read_csv(coverage_csv)
-    cov = cov[cov.mbb == cov.mbb.iloc[0]]
+    cov = cov[cov.mbb == cov.loc[cov["replicates"].idxmax(), "mbb"]]
     n = cov["replicates"].to_numpy(float)
     z = (cov["mean_coef"] - cov["c0"]) / (cov["sd_coef"] / np.sqrt(n))
     out: dict[str, Any] = {

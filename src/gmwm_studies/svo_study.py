@@ -264,45 +264,76 @@ def train_chunk(case_name: str, replicates: Sequence[int], n_samples: int, level
             "gyro_wv": gyro, "seconds": secs}
 
 
+def scheme_caps(caps: Mapping[str, Any] | None, schemes: Sequence[str]) -> dict[str, int]:
+    """Validated per-scheme replication caps (config ``svo.coverage.scheme_replicates``): a
+    scheme named here runs on replications ``r < cap`` only, the others on all."""
+    out: dict[str, int] = {}
+    for name, cap in dict(caps or {}).items():
+        if str(name) not in [str(s) for s in schemes]:
+            raise InputError(f"scheme_replicates names MBB scheme {name!r}, which is not among "
+                             f"the schemes run ({', '.join(map(str, schemes))})")
+        if isinstance(cap, bool) or not isinstance(cap, (int, np.integer)) or cap < 1:
+            raise InputError(f"scheme_replicates[{name!r}] must be a positive integer, got "
+                             f"{cap!r}")
+        out[str(name)] = int(cap)
+    return out
+
+
 def coverage_chunk(case_name: str, replicates: Sequence[int], n_samples: int, levels: int,
                    n_boot: int, block_const: float, alpha: float, seed: int,
-                   schemes: Sequence[str] = ("paper",)) -> dict[str, np.ndarray]:
+                   schemes: Sequence[str] = ("paper",),
+                   scheme_replicates: Mapping[str, int] | None = None) -> dict[str, np.ndarray]:
     """Coverage replicates: c_hat(omega_2) with MBB SEs on a fresh array, one SE per MBB scheme
-    (same array and same draw stream for every scheme); ``hit[s]`` = |c_hat - c0| <= z se, c0 from
-    the true WCCV. Arrays: ``coef (R, p)``, ``se``/``hit`` ``(S, R, p)``."""
+    (same array; each scheme its own fresh draw stream); ``hit[s]`` = 1.0 if |c_hat - c0| <=
+    z se else 0.0, c0 from the true WCCV. A scheme capped in ``scheme_replicates`` runs only on
+    replications ``r < cap``: its other cells are NaN in ``se`` and ``hit``. Arrays: ``coef (R,
+    p)``, ``se``/``hit`` ``(S, R, p)`` (``hit`` float)."""
+    caps = scheme_caps(scheme_replicates, schemes)
     cs = case(case_name)
     om = omega("w2", levels)
     c0 = svo_coef(cs.wccv(2.0 ** np.arange(1, levels + 1)), om)
     z = ndtri(1.0 - alpha / 2.0)
     R, S = len(replicates), len(schemes)
-    coef, se, secs = np.empty((R, cs.p)), np.empty((S, R, cs.p)), np.empty(R)
+    coef, se, secs = np.empty((R, cs.p)), np.full((S, R, cs.p), np.nan), np.empty(R)
+    hit = np.full((S, R, cs.p), np.nan)
     block = 0
     for a, r in enumerate(replicates):
         t0 = time.perf_counter()
         X = cs.simulate(n_samples, array_rng(seed, case_name, "coverage", r))
-        # one WCCV and one pass over the array for all schemes; each scheme draws from its own
-        # fresh boot_rng stream, so every SE equals that of a separate svo() call bit for bit
-        fits = svo_schemes(X, om, levels=levels, n_boot=n_boot, block_const=block_const,
-                           alpha=alpha, seeds=[boot_rng(seed, case_name, r) for _ in schemes],
-                           mbb=schemes)
-        for k, res in enumerate(fits):
+        # only the schemes active at r go to svo_schemes, each with its own fresh boot_rng
+        # stream: every SE equals that of a separate svo() call bit for bit, so a capped scheme
+        # leaves the others' numbers unchanged (one WCCV and one pass over the array for all)
+        active = [k for k, s in enumerate(schemes) if int(r) < caps.get(str(s), math.inf)]
+        if active:
+            fits = svo_schemes(X, om, levels=levels, n_boot=n_boot, block_const=block_const,
+                               alpha=alpha, seeds=[boot_rng(seed, case_name, r) for _ in active],
+                               mbb=[schemes[k] for k in active])
+        else:  # every scheme capped below r: the estimate only (no draws)
+            fits = []
+            coef[a] = svo_schemes(X, om, levels=levels, n_boot=0, alpha=alpha, seeds=[0],
+                                  mbb=[schemes[0]])[0].coef
+        for k, res in zip(active, fits, strict=True):
             se[k, a] = res.se
-        coef[a], block = res.coef, res.block
+            coef[a], block = res.coef, res.block
+            hit[k, a] = (np.abs(res.coef - c0) <= z * res.se).astype(float)
         secs[a] = time.perf_counter() - t0
-    return {"replicates": np.asarray(replicates), "coef": coef, "se": se,
-            "hit": np.abs(coef - c0)[None] <= z * se, "c0": c0, "block": np.array(block),
-            "schemes": np.asarray(schemes), "seconds": secs}
+    return {"replicates": np.asarray(replicates), "coef": coef, "se": se, "hit": hit, "c0": c0,
+            "block": np.array(block), "schemes": np.asarray(schemes), "seconds": secs}
 
 
 def merge(parts: Sequence[Mapping[str, np.ndarray]]) -> dict[str, np.ndarray]:
-    """Concatenate chunk results along replicates (keys that are per-run are taken once)."""
+    """Concatenate chunk results along replicates (keys that are per-run are taken once; a
+    chunk whose capped schemes all ran nowhere has block 0, so the largest block is kept)."""
     once = {"gyro_wv", "c0", "block", "schemes"}
     axis1 = {"se", "hit"}                # (schemes, replicates, p)
     first = min(parts, key=lambda d: int(np.min(d["replicates"])))
     out = {k: np.asarray(first[k]) for k in once if k in first}
+    if "block" in first:
+        out["block"] = np.asarray(max(int(d["block"]) for d in parts))
     for k in parts[0]:
         if k not in once:
-            out[k] = np.concatenate([np.asarray(d[k]) for d in parts],
+            out[k] = np.concatenate([np.asarray(d[k], dtype=float if k == "hit" else None)
+                                     for d in parts],
                                     axis=1 if k in axis1 and "schemes" in parts[0] else 0)
     return out
 
@@ -451,26 +482,38 @@ def wv_table(res: Mapping[str, np.ndarray], freq: float,
     return rows
 
 
-def coverage_table(cov: Mapping[str, np.ndarray], conf: float = 0.95) -> list[dict[str, Any]]:
-    """Empirical coverage per MBB scheme and coefficient with its Wilson interval (MC error)."""
-    hits = np.asarray(cov["hit"], dtype=bool)
-    schemes = [str(x) for x in np.atleast_1d(cov.get("schemes", ["paper"]))]
+def _hits_ses(cov: Mapping[str, np.ndarray]) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """Scheme names, ``hit`` as float (NaN = not computed) and ``se``, both ``(S, R, p)``."""
+    hits = np.asarray(cov["hit"], dtype=float)  # old chunks stored bool: every cell computed
     if hits.ndim == 2:
         hits = hits[None]
-    ses = np.asarray(cov["se"]).reshape(hits.shape)
-    sd = cov["coef"].std(axis=0, ddof=1) if len(cov["coef"]) > 1 else np.full(hits.shape[2], np.nan)
+    ses = np.asarray(cov["se"], dtype=float).reshape(hits.shape)
+    schemes = [str(x) for x in np.atleast_1d(cov.get("schemes", ["paper"]))]
+    return schemes, hits, ses
+
+
+def coverage_table(cov: Mapping[str, np.ndarray], conf: float = 0.95) -> list[dict[str, Any]]:
+    """Empirical coverage per MBB scheme and coefficient with its Wilson interval (MC error),
+    each over the replications that scheme ran on (``replicates`` = their number; ``sd_coef``
+    and ``mean_coef`` over the same replications as ``mean_se``)."""
+    schemes, hits, ses = _hits_ses(cov)
+    coefs = np.asarray(cov["coef"], dtype=float)
     rows = []
     for s_i, scheme in enumerate(schemes):
-        hit = hits[s_i]
-        n = hit.shape[0]
-        for i in range(hit.shape[1]):
-            k = int(hit[:, i].sum())
+        for i in range(hits.shape[2]):
+            done = ~np.isnan(hits[s_i, :, i])
+            n = int(done.sum())
+            if n == 0:
+                continue
+            c = coefs[done, i]
+            sd = float(c.std(ddof=1)) if n > 1 else math.nan
+            k = int(hits[s_i, done, i].sum())
             lo, hi = wilson(k, n, conf)
+            mse = float(ses[s_i, done, i].mean())
             rows.append({"mbb": scheme, "gyro": i + 1, "coverage": k / n, "wilson_low": lo,
                          "wilson_high": hi, "c0": float(cov["c0"][i]),
-                         "mean_coef": float(cov["coef"][:, i].mean()), "sd_coef": float(sd[i]),
-                         "mean_se": float(ses[s_i, :, i].mean()),
-                         "se_over_sd": float(ses[s_i, :, i].mean() / sd[i]), "replicates": n})
+                         "mean_coef": float(c.mean()), "sd_coef": sd, "mean_se": mse,
+                         "se_over_sd": mse / sd, "replicates": n})
     return rows
 
 
@@ -507,20 +550,19 @@ def virtual_fit_table(res: Mapping[str, np.ndarray]) -> list[dict[str, Any]]:
 
 def coverage_replicate_table(cov: Mapping[str, np.ndarray], alpha: float
                              ) -> list[dict[str, Any]]:
-    """One row per MBB scheme, coverage replication and coefficient: the estimate, its MBB SE,
-    the interval ``coef -+ z se`` (z the normal ``1 - alpha/2`` quantile) and ``covered`` (1/0:
-    c0 inside, the ``hit`` :func:`coverage_table` averages; c0 per gyro is in that table)."""
-    hits = np.asarray(cov["hit"], dtype=bool)
-    if hits.ndim == 2:
-        hits = hits[None]
-    ses = np.asarray(cov["se"]).reshape(hits.shape)
-    schemes = [str(x) for x in np.atleast_1d(cov.get("schemes", ["paper"]))]
+    """One row per MBB scheme, coverage replication and coefficient that scheme ran on: the
+    estimate, its MBB SE, the interval ``coef -+ z se`` (z the normal ``1 - alpha/2``
+    quantile) and ``covered`` (1/0: c0 inside, the ``hit`` :func:`coverage_table` averages; c0
+    per gyro is in that table). A capped scheme (``scheme_replicates``) has no rows beyond it."""
+    schemes, hits, ses = _hits_ses(cov)
     z = float(ndtri(1.0 - alpha / 2.0))
     reps = np.asarray(cov["replicates"]).tolist()
     rows = []
     for s_i, scheme in enumerate(schemes):
         for a, r in enumerate(reps):
             for i in range(hits.shape[2]):
+                if np.isnan(hits[s_i, a, i]):
+                    continue
                 c, se = float(cov["coef"][a, i]), float(ses[s_i, a, i])
                 rows.append({"mbb": scheme, "replicate": int(r), "gyro": i + 1, "coef": c,
                              "se": se, "ci_low": c - z * se, "ci_high": c + z * se,
@@ -608,15 +650,18 @@ def figure_gmwm(res: Mapping[str, np.ndarray]) -> Any:
 
 def figure_coverage(rows: Sequence[Mapping[str, Any]], conf: float = 0.95) -> Any:
     """Paper Fig. 5: coverage per coefficient and MBB scheme with Wilson intervals; band = the
-    Wilson interval a nominal-coverage study of this size would give."""
+    Wilson interval a nominal-coverage study of each scheme's size n would give (one band per
+    distinct n; n in every legend entry)."""
     from gmwm.plots import PALETTE, new_axes
 
     ax = new_axes()
-    n = int(rows[0]["replicates"])
-    lo, hi = wilson(round(conf * n), n, 0.95)
-    ax.axhspan(lo, hi, color="grey", alpha=0.25, lw=0, label=f"MC band at {conf:g} (n = {n})")
-    ax.axhline(conf, color="k", lw=0.6)
     schemes = list(dict.fromkeys(r["mbb"] for r in rows))
+    n_of = {s: int(next(r["replicates"] for r in rows if r["mbb"] == s)) for s in schemes}
+    for j, n in enumerate(sorted(set(n_of.values()), reverse=True)):
+        lo, hi = wilson(round(conf * n), n, 0.95)
+        ax.axhspan(lo, hi, color="grey", alpha=0.25 if j == 0 else 0.12, lw=0,
+                   hatch=None if j == 0 else "//", label=f"MC band at {conf:g} (n = {n})")
+    ax.axhline(conf, color="k", lw=0.6)
     for k, scheme in enumerate(schemes):
         rs = [r for r in rows if r["mbb"] == scheme]
         g = np.array([r["gyro"] for r in rs]) + 0.12 * (k - (len(schemes) - 1) / 2)
@@ -624,7 +669,7 @@ def figure_coverage(rows: Sequence[Mapping[str, Any]], conf: float = 0.95) -> An
         err = np.array([[c - r["wilson_low"], r["wilson_high"] - c]
                         for c, r in zip(cov, rs, strict=True)]).T
         ax.errorbar(g, cov, yerr=err, fmt="os"[k % 2], color=PALETTE[1 + k],
-                    label=f"MBB {scheme}: coverage (Wilson 95 %)")
+                    label=f"MBB {scheme}, n = {n_of[scheme]}: coverage (Wilson 95 %)")
     ax.set_xlabel("coefficient (gyro)")
     ax.set_ylabel("coverage of 95 % CI")
     ax.legend(fontsize="small")

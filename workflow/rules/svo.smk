@@ -18,6 +18,13 @@
 
 SVO = config["svo"]  # defaults: config.schema.yaml; seed: common.smk
 SVO_COV = SVO["coverage"]
+from gmwm.errors import InputError
+from gmwm_studies.svo_study import scheme_caps
+
+try:  # names among `schemes`, positive ints (the schema checks the types, not the names)
+    SVO_CAPS = scheme_caps(SVO_COV["scheme_replicates"], SVO_COV["schemes"])
+except InputError as exc:
+    raise WorkflowError(f"config: svo.coverage.{exc}") from None
 
 
 def _svo_chunks(n, size):
@@ -77,7 +84,8 @@ if SVO["enabled"]:
             f"{SVO['test_per_train']} test arrays per case, SVO omega_1/omega_2, RDVG, equal "
             f"weights; coverage of MBB CIs ({SVO_COV['replicates']} replicates, "
             f"{SVO_COV['n_boot']} draws, l = {SVO_COV['block_const']:g} T^(1/3), schemes "
-            f"{'/'.join(SVO_COV['schemes'])}) for "
+            f"{'/'.join(SVO_COV['schemes'])}"
+            + "".join(f", {k} on the first {v}" for k, v in SVO_CAPS.items()) + ") for "
             + ", ".join(SVO_COV["cases"]) + ". [case1](svo/case1/wv.md)"
         ),
         "n_samples": [int(SVO["n_samples"])],
@@ -125,6 +133,8 @@ rule svo_coverage:
         block_const=float(SVO_COV["block_const"]),
         alpha=float(SVO_COV["alpha"]),
         schemes=list(SVO_COV["schemes"]),
+        # a scheme named here runs on replications r < cap only; in params so a change reruns
+        scheme_replicates=SVO_CAPS,
         seed=int(SVO["seed"]),
     log:
         "logs/svo/{svo_case}/coverage_{a}_{b}.log",
@@ -208,6 +218,8 @@ rule svo_coverage_report:
         formats=FIG_FORMATS,
         alpha=float(SVO_COV["alpha"]),
         schemes=list(SVO_COV["schemes"]),  # named in the caption
+        scheme_replicates=SVO_CAPS,  # named in the caption
+        replicates=int(SVO_COV["replicates"]),
     log:
         "logs/svo/{svo_case}/coverage_report.log",
     resources:

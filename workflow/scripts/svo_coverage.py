@@ -12,7 +12,7 @@ log = get_logger(snakemake)
 p, wc = snakemake.params, snakemake.wildcards
 reps = list(range(int(wc.a), int(wc.b)))
 res = coverage_chunk(wc.svo_case, reps, p.n_samples, p.levels, p.n_boot, p.block_const, p.alpha,
-                     p.seed, p.schemes)
+                     p.seed, p.schemes, dict(p.scheme_replicates))
 with atomic_path(snakemake.output[0]) as tmp, open(tmp, "wb") as fh:
     np.savez(fh, **res)
 log.info("%s replicates %s: %.2f s per replicate, block %d", wc.svo_case, reps,
