@@ -318,12 +318,15 @@ def _grid(n_lo: int, n_hi: int) -> list[int]:
     return sorted({round(n_lo * 2.0 ** k) for k in range(64) if n_lo * 2.0 ** k < n_hi} | {n_hi})
 
 
-def _prefetch_covariances(model: Any, theta: np.ndarray, lengths: Sequence[int]) -> None:
-    """Compute the WV covariances :func:`predict` will ask for at ``lengths`` (default levels)
-    in two threads, into :func:`gmwm.wvcov.wv_covariance`'s memo, where the predictions then
-    find them: the same numbers, computed side by side (the compiled kernel releases the GIL),
-    and the plan's answer comes ~0.15 s sooner on two idle cores. Nothing on one core; a length
-    that fails here is left to :func:`predict`, which reports it."""
+def _prefetch_covariances(model: Any, theta: np.ndarray, lengths: Sequence[int]) -> Any:
+    """Start computing the WV covariances :func:`predict` will ask for at ``lengths`` (default
+    levels) in two threads, into :func:`gmwm.wvcov.wv_covariance`'s memo, and return the thread
+    pool (None when nothing was started; the caller shuts it down). The predictions do not wait
+    for the whole batch: each finds its covariance in the memo, or waits for the thread computing
+    it, so their Python side and SciPy's import run beside the compiled kernel (which releases
+    the GIL). The same numbers, computed side by side; the lengths go in the order the plan asks
+    for them. Nothing on one core; a length that fails here is left to :func:`predict`, which
+    reports it."""
     import os
     from concurrent.futures import ThreadPoolExecutor
 
@@ -335,9 +338,11 @@ def _prefetch_covariances(model: Any, theta: np.ndarray, lengths: Sequence[int])
     except AttributeError:  # not Linux
         cores = os.cpu_count() or 1
     sub, sub_theta = nonzero_part(model, theta)
-    todo = sorted(set(lengths), reverse=True)[:MEMO_SIZE // 2]  # the costliest first
+    # the costliest ones, while the memo holds them beside the ones computed later
+    keep = set(sorted(set(lengths), reverse=True)[:MEMO_SIZE // 2])
+    todo = [n for n in dict.fromkeys(lengths) if n in keep]  # first asked, first computed
     if cores < 2 or sub is None or len(todo) < 2:
-        return
+        return None
 
     def one(n: int) -> None:
         scales = 2.0 ** np.arange(1, _default_levels(n) + 1)  # the scales _expected_wv predicts
@@ -345,8 +350,10 @@ def _prefetch_covariances(model: Any, theta: np.ndarray, lengths: Sequence[int])
             with np.errstate(all="ignore"), contextlib.suppress(Exception):
                 wv_covariance(sub, sub_theta, scales, n)
 
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        list(pool.map(one, todo))
+    pool = ThreadPoolExecutor(max_workers=2)
+    for n in todo:
+        pool.submit(one, n)
+    return pool
 
 
 def _search(cache: _Cache, ok: Callable[[Prediction], bool], n_lo: int, n_hi: int
@@ -393,9 +400,23 @@ def make_plan(model: Any, theta: Any, durations_s: Sequence[float], *, unit: str
     cache = _Cache(lambda n: predict(model, theta, n, unit=unit, bi=bi))
     n_min = 2 ** (model.n_params + 1)  # the default levels reach the number of parameters
     n_hi = max(round(max_search_s * model.freq), n_min)
-    _prefetch_covariances(model, theta, [round(float(s) * model.freq) for s in durations_s
-                                         if round(float(s) * model.freq) >= n_min]
-                          + _grid(n_min, n_hi))
+    pool = _prefetch_covariances(model, theta, [round(float(s) * model.freq) for s in durations_s
+                                                if round(float(s) * model.freq) >= n_min]
+                                 + _grid(n_min, n_hi))
+    try:
+        return _make_plan(model, theta, durations_s, cache, n_min, n_hi, unit=unit,
+                          targets=targets, bi=bi, notes=notes, labels=labels,
+                          max_search_s=max_search_s, weights=weights, method=method)
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _make_plan(model: Any, theta: np.ndarray, durations_s: Sequence[float], cache: _Cache,
+               n_min: int, n_hi: int, *, unit: str | None, targets: Sequence[tuple[str, float]],
+               bi: str | None, notes: Sequence[str], labels: Mapping[str, str] | None,
+               max_search_s: float, weights: str, method: str) -> Plan:
+    """:func:`make_plan` once the covariances are under way."""
     preds = []
     for s in durations_s:
         n = round(float(s) * model.freq)

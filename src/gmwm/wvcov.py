@@ -525,14 +525,28 @@ def wv_covariance(model: str | Model, theta: np.ndarray, scales: Iterable[float]
     excl = {str(e).upper() for e in exclude}
     key = (model.spec, model.freq, theta.tobytes(), tau.tobytes(), T, tuple(sorted(excl)),
            bool(sin_interaction))
-    hit = _MEMO.get(key)
-    if hit is not None:
-        return hit.copy()
-    V = _wv_covariance(model, theta, tau, T, excl, sin_interaction)
-    with _MEMO_LOCK:  # threads may fill it (gmwm.plan)
-        if len(_MEMO) >= MEMO_SIZE:
-            _MEMO.pop(next(iter(_MEMO)))  # the oldest
-        _MEMO[key] = V.copy()
+    while True:
+        with _MEMO_LOCK:  # threads may fill it (gmwm.plan)
+            hit = _MEMO.get(key)
+            if hit is not None:
+                return hit.copy()
+            busy = _BUSY.get(key)
+            if busy is None:
+                busy = _BUSY[key] = threading.Event()
+                break
+        # another thread is computing this one: wait for it rather than compute it twice (if it
+        # failed or its entry is gone already, the next round computes it here)
+        busy.wait()
+    try:
+        V = _wv_covariance(model, theta, tau, T, excl, sin_interaction)
+        with _MEMO_LOCK:
+            if len(_MEMO) >= MEMO_SIZE:
+                _MEMO.pop(next(iter(_MEMO)))  # the oldest
+            _MEMO[key] = V.copy()
+    finally:
+        with _MEMO_LOCK:
+            del _BUSY[key]
+        busy.set()
     return V
 
 
@@ -543,6 +557,8 @@ def wv_covariance(model: str | Model, theta: np.ndarray, scales: Iterable[float]
 _MEMO: dict[tuple[Any, ...], np.ndarray] = {}
 MEMO_SIZE = 64
 _MEMO_LOCK = threading.Lock()
+#: covariances being computed right now, by the key of :data:`_MEMO`: set when done
+_BUSY: dict[tuple[Any, ...], threading.Event] = {}
 
 
 def _wv_covariance(model: Model, theta: np.ndarray, tau: np.ndarray, T: int, excl: set[str],
