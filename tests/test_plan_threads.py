@@ -94,3 +94,29 @@ def _args(theta: np.ndarray, scales: np.ndarray) -> tuple:
 
     tau, T = wvcov._check_scales(scales, 4096)
     return (as_model("WN+RW"), theta, tau, T, {"SIN"}, True)
+
+
+def test_the_plan_cache_predicts_a_length_once_for_two_threads() -> None:
+    from gmwm.plan import _Cache
+
+    started, release = threading.Event(), threading.Event()
+    calls = []
+
+    def fn(n: int) -> object:
+        calls.append(n)
+        started.set()
+        release.wait(10)
+        return object()
+
+    cache = _Cache(fn)
+    got = []
+    threads = [threading.Thread(target=lambda: got.append(cache(7))) for _ in range(2)]
+    threads[0].start()
+    assert started.wait(10)
+    threads[1].start()
+    threads[1].join(0.2)
+    assert threads[1].is_alive()  # waiting for the first thread's prediction
+    release.set()
+    for t in threads:
+        t.join(10)
+    assert calls == [7] and len(got) == 2 and got[0] is got[1]

@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import math
 import re
+import threading
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from statistics import NormalDist
@@ -302,15 +303,32 @@ class Plan:
 
 
 class _Cache:
-    """Predictions by sample count (the searches revisit lengths)."""
+    """Predictions by sample count (the searches revisit lengths). Threads may share it: a
+    length asked for while another thread predicts it waits for that prediction."""
 
     def __init__(self, fn: Callable[[int], Prediction]):
         self.fn, self.store = fn, {}
+        self._lock = threading.Lock()
+        self._busy: dict[int, threading.Event] = {}
 
     def __call__(self, n: int) -> Prediction:
-        if n not in self.store:
-            self.store[n] = self.fn(n)
-        return self.store[n]
+        while True:
+            with self._lock:
+                if n in self.store:
+                    return self.store[n]
+                busy = self._busy.get(n)
+                if busy is None:
+                    busy = self._busy[n] = threading.Event()
+                    break
+            busy.wait()  # if that prediction failed, the next round repeats it here
+        try:
+            pred = self.fn(n)
+            self.store[n] = pred
+        finally:
+            with self._lock:
+                del self._busy[n]
+            busy.set()
+        return pred
 
 
 def _grid(n_lo: int, n_hi: int) -> list[int]:
@@ -404,7 +422,7 @@ def make_plan(model: Any, theta: Any, durations_s: Sequence[float], *, unit: str
                                                 if round(float(s) * model.freq) >= n_min]
                                  + _grid(n_min, n_hi))
     try:
-        return _make_plan(model, theta, durations_s, cache, n_min, n_hi, unit=unit,
+        return _make_plan(model, theta, durations_s, cache, n_min, n_hi, pool, unit=unit,
                           targets=targets, bi=bi, notes=notes, labels=labels,
                           max_search_s=max_search_s, weights=weights, method=method)
     finally:
@@ -413,10 +431,12 @@ def make_plan(model: Any, theta: Any, durations_s: Sequence[float], *, unit: str
 
 
 def _make_plan(model: Any, theta: np.ndarray, durations_s: Sequence[float], cache: _Cache,
-               n_min: int, n_hi: int, *, unit: str | None, targets: Sequence[tuple[str, float]],
+               n_min: int, n_hi: int, pool: Any, *, unit: str | None, targets: Sequence[tuple[str, float]],
                bi: str | None, notes: Sequence[str], labels: Mapping[str, str] | None,
                max_search_s: float, weights: str, method: str) -> Plan:
-    """:func:`make_plan` once the covariances are under way."""
+    """:func:`make_plan` once the covariances are under way (in ``pool``, None: one thread)."""
+    from concurrent.futures import ThreadPoolExecutor
+
     preds = []
     for s in durations_s:
         n = round(float(s) * model.freq)
@@ -430,17 +450,26 @@ def _make_plan(model: Any, theta: np.ndarray, durations_s: Sequence[float], cach
         if name not in known:
             raise InputError(f"target {name!r} is not a coefficient or parameter of this plan; "
                              f"use one of {', '.join(sorted(known))}")
-    min_len: dict[str, float | None] = {}
-    for c in model.components:
-        n = _search(cache, lambda p, c=c.name: p.identifiable[c], n_min, n_hi)
-        min_len[c.name] = None if n is None else n / model.freq
-    out_targets: dict[str, dict[str, Any]] = {}
+    oks: list[Callable[[Prediction], bool]] = [
+        lambda p, c=c.name: p.identifiable[c] for c in model.components]
     for name, rse in targets:
         def ok(p: Prediction, name: str = name, rse: float = rse) -> bool:
             v = _lookup(p, name)
             return v is not None and math.isfinite(v) and v <= rse
-
-        n = _search(cache, ok, n_min, n_hi)
+        oks.append(ok)
+    for n in _grid(n_min, n_hi):  # every search starts on this grid
+        cache(n)
+    if pool is not None and len(oks) > 1:
+        # the bisections side by side: their covariances are computed outside the GIL
+        with ThreadPoolExecutor(max_workers=len(oks)) as searches:
+            found = list(searches.map(lambda ok: _search(cache, ok, n_min, n_hi), oks))
+    else:
+        found = [_search(cache, ok, n_min, n_hi) for ok in oks]
+    min_len: dict[str, float | None] = {
+        c.name: None if n is None else n / model.freq
+        for c, n in zip(model.components, found, strict=False)}
+    out_targets: dict[str, dict[str, Any]] = {}
+    for (name, rse), n in zip(targets, found[len(model.components):], strict=True):
         out_targets[f"{name}={rse:g}"] = {
             "name": name, "relative_se": rse, "seconds": None if n is None else n / model.freq,
             "duration": (f"> {format_duration(max_search_s)}" if n is None
