@@ -120,3 +120,28 @@ def test_the_plan_cache_predicts_a_length_once_for_two_threads() -> None:
     for t in threads:
         t.join(10)
     assert calls == [7] and len(got) == 2 and got[0] is got[1]
+
+
+def test_the_python_sinh_minus_has_the_compiled_bits() -> None:
+    from numba import njit
+
+    compiled = njit(_sinh_minus_source())
+    xs = 10.0 ** np.random.default_rng(3).uniform(-12, 2.8, 2000)
+    for x in [*xs, 0.0, 0.5, np.nextafter(0.5, 0), 700.0]:
+        assert wvcov._sinh_minus(x) == compiled(x), x
+
+
+def _sinh_minus_source():
+    """The function as it was compiled (gmwm.wvcov before it became plain Python)."""
+    def sinh_minus(a: float) -> float:
+        if a < 0.5:
+            term = a * a * a / 6.0
+            s = term
+            for k in range(5, 40, 2):
+                term *= a * a / ((k - 1) * k)
+                s += term
+                if term <= 1e-17 * s:
+                    break
+            return s
+        return np.sinh(a) - a
+    return sinh_minus

@@ -38,6 +38,7 @@ at load ~20 (benchmarks/bench_wvcov.py).
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Iterable
 from functools import lru_cache
@@ -115,9 +116,11 @@ def _e2(x: float) -> float:
     return _exp_tail(x, 2)
 
 
-@njit(cache=True)
 def _sinh_minus(a: float) -> float:
-    """sinh(a) - a."""
+    """sinh(a) - a, for a >= 0. Plain Python: only :func:`_wv_covariance` calls it, once per AR1
+    component, and a kernel of its own would cost every process its load from Numba's cache;
+    same operations as compiled (libm's sinh), same bits (tests/test_plan_threads.py)."""
+    a = float(a)
     if a < 0.5:
         term = a * a * a / 6.0
         s = term
@@ -127,7 +130,7 @@ def _sinh_minus(a: float) -> float:
             if term <= 1e-17 * s:
                 break
         return s
-    return np.sinh(a) - a
+    return math.sinh(a) - a
 
 
 @njit(cache=True)
