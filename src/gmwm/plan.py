@@ -431,9 +431,10 @@ def make_plan(model: Any, theta: Any, durations_s: Sequence[float], *, unit: str
 
 
 def _make_plan(model: Any, theta: np.ndarray, durations_s: Sequence[float], cache: _Cache,
-               n_min: int, n_hi: int, pool: Any, *, unit: str | None, targets: Sequence[tuple[str, float]],
-               bi: str | None, notes: Sequence[str], labels: Mapping[str, str] | None,
-               max_search_s: float, weights: str, method: str) -> Plan:
+               n_min: int, n_hi: int, pool: Any, *, unit: str | None,
+               targets: Sequence[tuple[str, float]], bi: str | None, notes: Sequence[str],
+               labels: Mapping[str, str] | None, max_search_s: float, weights: str,
+               method: str) -> Plan:
     """:func:`make_plan` once the covariances are under way (in ``pool``, None: one thread)."""
     from concurrent.futures import ThreadPoolExecutor
 
