@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import math
 import re
+import threading
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from statistics import NormalDist
@@ -302,15 +303,32 @@ class Plan:
 
 
 class _Cache:
-    """Predictions by sample count (the searches revisit lengths)."""
+    """Predictions by sample count (the searches revisit lengths). Threads may share it: a
+    length asked for while another thread predicts it waits for that prediction."""
 
     def __init__(self, fn: Callable[[int], Prediction]):
         self.fn, self.store = fn, {}
+        self._lock = threading.Lock()
+        self._busy: dict[int, threading.Event] = {}
 
     def __call__(self, n: int) -> Prediction:
-        if n not in self.store:
-            self.store[n] = self.fn(n)
-        return self.store[n]
+        while True:
+            with self._lock:
+                if n in self.store:
+                    return self.store[n]
+                busy = self._busy.get(n)
+                if busy is None:
+                    busy = self._busy[n] = threading.Event()
+                    break
+            busy.wait()  # if that prediction failed, the next round repeats it here
+        try:
+            pred = self.fn(n)
+            self.store[n] = pred
+        finally:
+            with self._lock:
+                del self._busy[n]
+            busy.set()
+        return pred
 
 
 def _grid(n_lo: int, n_hi: int) -> list[int]:
@@ -318,12 +336,15 @@ def _grid(n_lo: int, n_hi: int) -> list[int]:
     return sorted({round(n_lo * 2.0 ** k) for k in range(64) if n_lo * 2.0 ** k < n_hi} | {n_hi})
 
 
-def _prefetch_covariances(model: Any, theta: np.ndarray, lengths: Sequence[int]) -> None:
-    """Compute the WV covariances :func:`predict` will ask for at ``lengths`` (default levels)
-    in two threads, into :func:`gmwm.wvcov.wv_covariance`'s memo, where the predictions then
-    find them: the same numbers, computed side by side (the compiled kernel releases the GIL),
-    and the plan's answer comes ~0.15 s sooner on two idle cores. Nothing on one core; a length
-    that fails here is left to :func:`predict`, which reports it."""
+def _prefetch_covariances(model: Any, theta: np.ndarray, lengths: Sequence[int]) -> Any:
+    """Start computing the WV covariances :func:`predict` will ask for at ``lengths`` (default
+    levels) in two threads, into :func:`gmwm.wvcov.wv_covariance`'s memo, and return the thread
+    pool (None when nothing was started; the caller shuts it down). The predictions do not wait
+    for the whole batch: each finds its covariance in the memo, or waits for the thread computing
+    it, so their Python side and SciPy's import run beside the compiled kernel (which releases
+    the GIL). The same numbers, computed side by side; the lengths go in the order the plan asks
+    for them. Nothing on one core; a length that fails here is left to :func:`predict`, which
+    reports it."""
     import os
     from concurrent.futures import ThreadPoolExecutor
 
@@ -335,9 +356,11 @@ def _prefetch_covariances(model: Any, theta: np.ndarray, lengths: Sequence[int])
     except AttributeError:  # not Linux
         cores = os.cpu_count() or 1
     sub, sub_theta = nonzero_part(model, theta)
-    todo = sorted(set(lengths), reverse=True)[:MEMO_SIZE // 2]  # the costliest first
+    # the costliest ones, while the memo holds them beside the ones computed later
+    keep = set(sorted(set(lengths), reverse=True)[:MEMO_SIZE // 2])
+    todo = [n for n in dict.fromkeys(lengths) if n in keep]  # first asked, first computed
     if cores < 2 or sub is None or len(todo) < 2:
-        return
+        return None
 
     def one(n: int) -> None:
         scales = 2.0 ** np.arange(1, _default_levels(n) + 1)  # the scales _expected_wv predicts
@@ -345,8 +368,10 @@ def _prefetch_covariances(model: Any, theta: np.ndarray, lengths: Sequence[int])
             with np.errstate(all="ignore"), contextlib.suppress(Exception):
                 wv_covariance(sub, sub_theta, scales, n)
 
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        list(pool.map(one, todo))
+    pool = ThreadPoolExecutor(max_workers=2)
+    for n in todo:
+        pool.submit(one, n)
+    return pool
 
 
 def _search(cache: _Cache, ok: Callable[[Prediction], bool], n_lo: int, n_hi: int
@@ -393,9 +418,26 @@ def make_plan(model: Any, theta: Any, durations_s: Sequence[float], *, unit: str
     cache = _Cache(lambda n: predict(model, theta, n, unit=unit, bi=bi))
     n_min = 2 ** (model.n_params + 1)  # the default levels reach the number of parameters
     n_hi = max(round(max_search_s * model.freq), n_min)
-    _prefetch_covariances(model, theta, [round(float(s) * model.freq) for s in durations_s
-                                         if round(float(s) * model.freq) >= n_min]
-                          + _grid(n_min, n_hi))
+    pool = _prefetch_covariances(model, theta, [round(float(s) * model.freq) for s in durations_s
+                                                if round(float(s) * model.freq) >= n_min]
+                                 + _grid(n_min, n_hi))
+    try:
+        return _make_plan(model, theta, durations_s, cache, n_min, n_hi, pool, unit=unit,
+                          targets=targets, bi=bi, notes=notes, labels=labels,
+                          max_search_s=max_search_s, weights=weights, method=method)
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _make_plan(model: Any, theta: np.ndarray, durations_s: Sequence[float], cache: _Cache,
+               n_min: int, n_hi: int, pool: Any, *, unit: str | None,
+               targets: Sequence[tuple[str, float]], bi: str | None, notes: Sequence[str],
+               labels: Mapping[str, str] | None, max_search_s: float, weights: str,
+               method: str) -> Plan:
+    """:func:`make_plan` once the covariances are under way (in ``pool``, None: one thread)."""
+    from concurrent.futures import ThreadPoolExecutor
+
     preds = []
     for s in durations_s:
         n = round(float(s) * model.freq)
@@ -409,17 +451,26 @@ def make_plan(model: Any, theta: Any, durations_s: Sequence[float], *, unit: str
         if name not in known:
             raise InputError(f"target {name!r} is not a coefficient or parameter of this plan; "
                              f"use one of {', '.join(sorted(known))}")
-    min_len: dict[str, float | None] = {}
-    for c in model.components:
-        n = _search(cache, lambda p, c=c.name: p.identifiable[c], n_min, n_hi)
-        min_len[c.name] = None if n is None else n / model.freq
-    out_targets: dict[str, dict[str, Any]] = {}
+    oks: list[Callable[[Prediction], bool]] = [
+        lambda p, c=c.name: p.identifiable[c] for c in model.components]
     for name, rse in targets:
         def ok(p: Prediction, name: str = name, rse: float = rse) -> bool:
             v = _lookup(p, name)
             return v is not None and math.isfinite(v) and v <= rse
-
-        n = _search(cache, ok, n_min, n_hi)
+        oks.append(ok)
+    for n in _grid(n_min, n_hi):  # every search starts on this grid
+        cache(n)
+    if pool is not None and len(oks) > 1:
+        # the bisections side by side: their covariances are computed outside the GIL
+        with ThreadPoolExecutor(max_workers=len(oks)) as searches:
+            found = list(searches.map(lambda ok: _search(cache, ok, n_min, n_hi), oks))
+    else:
+        found = [_search(cache, ok, n_min, n_hi) for ok in oks]
+    min_len: dict[str, float | None] = {
+        c.name: None if n is None else n / model.freq
+        for c, n in zip(model.components, found, strict=False)}
+    out_targets: dict[str, dict[str, Any]] = {}
+    for (name, rse), n in zip(targets, found[len(model.components):], strict=True):
         out_targets[f"{name}={rse:g}"] = {
             "name": name, "relative_se": rse, "seconds": None if n is None else n / model.freq,
             "duration": (f"> {format_duration(max_search_s)}" if n is None

@@ -38,6 +38,7 @@ at load ~20 (benchmarks/bench_wvcov.py).
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Iterable
 from functools import lru_cache
@@ -115,9 +116,11 @@ def _e2(x: float) -> float:
     return _exp_tail(x, 2)
 
 
-@njit(cache=True)
 def _sinh_minus(a: float) -> float:
-    """sinh(a) - a."""
+    """sinh(a) - a, for a >= 0. Plain Python: only :func:`_wv_covariance` calls it, once per AR1
+    component, and a kernel of its own would cost every process its load from Numba's cache;
+    same operations as compiled (libm's sinh), same bits (tests/test_plan_threads.py)."""
+    a = float(a)
     if a < 0.5:
         term = a * a * a / 6.0
         s = term
@@ -127,7 +130,7 @@ def _sinh_minus(a: float) -> float:
             if term <= 1e-17 * s:
                 break
         return s
-    return np.sinh(a) - a
+    return math.sinh(a) - a
 
 
 @njit(cache=True)
@@ -525,14 +528,28 @@ def wv_covariance(model: str | Model, theta: np.ndarray, scales: Iterable[float]
     excl = {str(e).upper() for e in exclude}
     key = (model.spec, model.freq, theta.tobytes(), tau.tobytes(), T, tuple(sorted(excl)),
            bool(sin_interaction))
-    hit = _MEMO.get(key)
-    if hit is not None:
-        return hit.copy()
-    V = _wv_covariance(model, theta, tau, T, excl, sin_interaction)
-    with _MEMO_LOCK:  # threads may fill it (gmwm.plan)
-        if len(_MEMO) >= MEMO_SIZE:
-            _MEMO.pop(next(iter(_MEMO)))  # the oldest
-        _MEMO[key] = V.copy()
+    while True:
+        with _MEMO_LOCK:  # threads may fill it (gmwm.plan)
+            hit = _MEMO.get(key)
+            if hit is not None:
+                return hit.copy()
+            busy = _BUSY.get(key)
+            if busy is None:
+                busy = _BUSY[key] = threading.Event()
+                break
+        # another thread is computing this one: wait for it rather than compute it twice (if it
+        # failed or its entry is gone already, the next round computes it here)
+        busy.wait()
+    try:
+        V = _wv_covariance(model, theta, tau, T, excl, sin_interaction)
+        with _MEMO_LOCK:
+            if len(_MEMO) >= MEMO_SIZE:
+                _MEMO.pop(next(iter(_MEMO)))  # the oldest
+            _MEMO[key] = V.copy()
+    finally:
+        with _MEMO_LOCK:
+            del _BUSY[key]
+        busy.set()
     return V
 
 
@@ -543,6 +560,8 @@ def wv_covariance(model: str | Model, theta: np.ndarray, scales: Iterable[float]
 _MEMO: dict[tuple[Any, ...], np.ndarray] = {}
 MEMO_SIZE = 64
 _MEMO_LOCK = threading.Lock()
+#: covariances being computed right now, by the key of :data:`_MEMO`: set when done
+_BUSY: dict[tuple[Any, ...], threading.Event] = {}
 
 
 def _wv_covariance(model: Model, theta: np.ndarray, tau: np.ndarray, T: int, excl: set[str],
