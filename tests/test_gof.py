@@ -248,6 +248,7 @@ def test_far_tail_skips_imhof_with_the_same_answer():
             assert _imhof_sf(x, lam) < SADDLE_BELOW
 
 
+@pytest.mark.slow
 def test_weak_sinusoid_fitted_elsewhere_leaves_its_wv_in_the_residual():
     """Issue 40, gyro WN+SIN+RW of benchmarks/selection_penalty.py at T = 2^17 (the SIN at an
     expected z of 4): the test's excess size there comes from fits whose sinusoid sits at another
