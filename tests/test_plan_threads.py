@@ -46,7 +46,7 @@ def test_a_covariance_asked_twice_at_once_is_computed_once(monkeypatch: pytest.M
     second.join(10)
     assert calls == [4096]
     np.testing.assert_array_equal(out["first"], out["second"])
-    assert not wvcov._BUSY
+    assert not wvcov._MEMO.computing
 
 
 def test_a_waiter_computes_it_itself_when_the_first_computation_fails(
@@ -86,7 +86,7 @@ def test_a_waiter_computes_it_itself_when_the_first_computation_fails(
     assert errors == ["first computation fails"]
     assert calls == ["t1", "t2"]
     np.testing.assert_array_equal(out["v"], real(*_args(theta, scales)))
-    assert not wvcov._BUSY
+    assert not wvcov._MEMO.computing
 
 
 def _args(theta: np.ndarray, scales: np.ndarray) -> tuple:
@@ -123,25 +123,10 @@ def test_the_plan_cache_predicts_a_length_once_for_two_threads() -> None:
 
 
 def test_the_python_sinh_minus_has_the_compiled_bits() -> None:
+    # the same source compiled by Numba (as it was before it became plain Python)
     from numba import njit
 
-    compiled = njit(_sinh_minus_source())
+    compiled = njit(wvcov._sinh_minus)
     xs = 10.0 ** np.random.default_rng(3).uniform(-12, 2.8, 2000)
     for x in [*xs, 0.0, 0.5, np.nextafter(0.5, 0), 700.0]:
         assert wvcov._sinh_minus(x) == compiled(x), x
-
-
-def _sinh_minus_source():
-    """The function as it was compiled (gmwm.wvcov before it became plain Python)."""
-    def sinh_minus(a: float) -> float:
-        if a < 0.5:
-            term = a * a * a / 6.0
-            s = term
-            for k in range(5, 40, 2):
-                term *= a * a / ((k - 1) * k)
-                s += term
-                if term <= 1e-17 * s:
-                    break
-            return s
-        return np.sinh(a) - a
-    return sinh_minus

@@ -22,7 +22,6 @@ from __future__ import annotations
 import contextlib
 import math
 import re
-import threading
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from statistics import NormalDist
@@ -30,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from gmwm._once import OnceMemo
 from gmwm.errors import InputError
 
 __all__ = ["DEFAULT_DURATIONS", "IDENTIFIABLE_RSE", "Plan", "Prediction", "format_duration",
@@ -307,28 +307,10 @@ class _Cache:
     length asked for while another thread predicts it waits for that prediction."""
 
     def __init__(self, fn: Callable[[int], Prediction]):
-        self.fn, self.store = fn, {}
-        self._lock = threading.Lock()
-        self._busy: dict[int, threading.Event] = {}
+        self.fn, self._memo = fn, OnceMemo()
 
     def __call__(self, n: int) -> Prediction:
-        while True:
-            with self._lock:
-                if n in self.store:
-                    return self.store[n]
-                busy = self._busy.get(n)
-                if busy is None:
-                    busy = self._busy[n] = threading.Event()
-                    break
-            busy.wait()  # if that prediction failed, the next round repeats it here
-        try:
-            pred = self.fn(n)
-            self.store[n] = pred
-        finally:
-            with self._lock:
-                del self._busy[n]
-            busy.set()
-        return pred
+        return self._memo.get(n, lambda: self.fn(n))
 
 
 def _grid(n_lo: int, n_hi: int) -> list[int]:

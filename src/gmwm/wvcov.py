@@ -39,15 +39,14 @@ at load ~20 (benchmarks/bench_wvcov.py).
 from __future__ import annotations
 
 import math
-import threading
 from collections.abc import Iterable
 from functools import lru_cache
 from math import comb
-from typing import Any
 
 import numpy as np
 from numba import njit
 
+from ._once import OnceMemo
 from .errors import InputError, ModelError
 from .model import Model, as_model
 from .processes import Process, Sinusoid
@@ -528,40 +527,17 @@ def wv_covariance(model: str | Model, theta: np.ndarray, scales: Iterable[float]
     excl = {str(e).upper() for e in exclude}
     key = (model.spec, model.freq, theta.tobytes(), tau.tobytes(), T, tuple(sorted(excl)),
            bool(sin_interaction))
-    while True:
-        with _MEMO_LOCK:  # threads may fill it (gmwm.plan)
-            hit = _MEMO.get(key)
-            if hit is not None:
-                return hit.copy()
-            busy = _BUSY.get(key)
-            if busy is None:
-                busy = _BUSY[key] = threading.Event()
-                break
-        # another thread is computing this one: wait for it rather than compute it twice (if it
-        # failed or its entry is gone already, the next round computes it here)
-        busy.wait()
-    try:
-        V = _wv_covariance(model, theta, tau, T, excl, sin_interaction)
-        with _MEMO_LOCK:
-            if len(_MEMO) >= MEMO_SIZE:
-                _MEMO.pop(next(iter(_MEMO)))  # the oldest
-            _MEMO[key] = V.copy()
-    finally:
-        with _MEMO_LOCK:
-            del _BUSY[key]
-        busy.set()
-    return V
+    # threads may fill it (gmwm.plan); the memo keeps its own copy, callers get theirs
+    return _MEMO.get(key, lambda: _wv_covariance(model, theta, tau, T, excl, sin_interaction)
+                     ).copy()
 
 
 #: covariances already computed in this process, by model, parameters, scales, length and
 #: options (first in, first out): an automatic model choice asks for the same one up to four
 #: times (the goodness-of-fit test of a candidate ranked in two stages, the chosen model's
 #: standard errors, the verdict's identifiability search at the fit's own length)
-_MEMO: dict[tuple[Any, ...], np.ndarray] = {}
 MEMO_SIZE = 64
-_MEMO_LOCK = threading.Lock()
-#: covariances being computed right now, by the key of :data:`_MEMO`: set when done
-_BUSY: dict[tuple[Any, ...], threading.Event] = {}
+_MEMO = OnceMemo(MEMO_SIZE)
 
 
 def _wv_covariance(model: Model, theta: np.ndarray, tau: np.ndarray, T: int, excl: set[str],
