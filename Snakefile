@@ -69,5 +69,5 @@ rule all:
         all_targets(),
         navchip_targets(),  # not index/archive inputs: missing data fails only navchip
         uncertainty_navchip_targets(),  # likewise (bootstrap/identifiability of Navchip fits)
-        design_targets(),  # likewise (its Navchip part reads the Navchip bootstrap draws)
-        paper_items_targets(),  # seconds; not an index/archive input, as design
+        design_targets(),  # archived where the Navchip data is on disk (report.smk)
+        paper_items_targets(),  # seconds; archived, not an index input

@@ -18,6 +18,10 @@ ARCHIVE_NAVCHIP = navchip_local_copy()
 NAVCHIP_REPORTS = [t for t in [*navchip_targets(), *uncertainty_navchip_targets()]
                    if t.startswith("reports/")] if ARCHIVE_NAVCHIP else []
 NAVCHIP_BENCHMARKS = [*navchip_benchmarks(), *unc_navchip_benchmarks()] if ARCHIVE_NAVCHIP else []
+# the design and paper-item tables join it too (REPRODUCTION.md quotes them), the design table
+# only where its inputs can be made (its Navchip part reads the Navchip bootstrap draws)
+ARCHIVE_DERIVED = [*paper_items_targets(),
+                   *(design_targets() if ARCHIVE_NAVCHIP or not design_navchip() else [])]
 
 
 rule index:
@@ -67,7 +71,8 @@ rule index:
 rule archive:
     input:
         files=[*all_study_targets(), *SECTION_TARGETS, *NAVCHIP_REPORTS, *COUNTS_FILES,
-               *[f for name in STUDIES for f in replicates_files(name)], "reports/index.md"],
+               *[f for name in STUDIES for f in replicates_files(name)], *ARCHIVE_DERIVED,
+               "reports/index.md"],
     output:
         f"results/archive/{CONFIG_ID}.json",
     params:
@@ -75,7 +80,8 @@ rule archive:
         archive_root="reports/archive",
         # the run's tracked outputs that rule all requests after (or beside) the archive: not
         # archived (they need the Navchip data), but rewriting them does not make git.txt dirty
-        produced=[*design_targets(), *paper_items_targets(), *NAVCHIP_DRAWS, *NAVCHIP_COUNTS],
+        produced=[f for f in [*design_targets(), *paper_items_targets(), *NAVCHIP_DRAWS,
+                              *NAVCHIP_COUNTS] if f not in ARCHIVE_DERIVED],
     log:
         "logs/archive.log",
     script:
