@@ -68,7 +68,7 @@ def test_c_kernel_matches_numba_bit_for_bit(case) -> None:
 
 
 @needs_c_kernel
-def test_the_installation_uses_the_c_kernel_and_it_releases_the_gil() -> None:
+def test_the_installation_uses_the_c_kernel_the_same_from_several_threads() -> None:
     from gmwm import _wvcov
 
     assert wvcov.kernels() is _wvcov
@@ -100,3 +100,18 @@ def test_c_kernel_rejects_arrays_that_do_not_fit() -> None:
     bad[6] = np.array([1.0, 2.0])  # ar_p longer than ar_a
     with pytest.raises(ValueError, match="one length"):
         _wvcov.all_pairs(*bad, np.empty((J, J)), np.empty((J, J)))
+
+
+def test_wv_covariance_is_the_same_through_either_kernel(monkeypatch) -> None:
+    """gmwm.wvcov falls back to the Numba twin when the C kernel is not built: the same V."""
+    from gmwm import _wvcovkernels
+
+    model, theta, T, levels = CASES[2]
+    scales = 2 ** np.arange(1, levels + 1)
+    wvcov._MEMO.clear()
+    first = wvcov.wv_covariance(model, theta, scales, T)
+    wvcov._MEMO.clear()
+    monkeypatch.setattr(wvcov, "kernels", lambda: _wvcovkernels)
+    again = wvcov.wv_covariance(model, theta, scales, T)
+    wvcov._MEMO.clear()
+    assert first.tobytes() == again.tobytes()
