@@ -41,7 +41,11 @@ class BuildKernels(build_ext):
 # change the bits the two kernels share.
 # (several threads: POSIX threads where there are some).
 _THREADS = [] if os.name == "nt" else ["-pthread"]
+# gmwm/_wvcov.c is the C twin of gmwm.wvcov's Numba kernels (same conditions, same reason for the
+# flag), so that `gmwm plan` does not load Numba.
 setup(ext_modules=[Extension("gmwm._haar", sources=["src/gmwm/_haar.c"],
                              extra_compile_args=["-O3", "-ffp-contract=off", *_THREADS],
-                             extra_link_args=_THREADS, optional=True)],
+                             extra_link_args=_THREADS, optional=True),
+                   Extension("gmwm._wvcov", sources=["src/gmwm/_wvcov.c"],
+                             extra_compile_args=["-O2", "-ffp-contract=off"], optional=True)],
       cmdclass={"build_ext": BuildKernels})
