@@ -69,6 +69,17 @@ EXPLORE_NFEV = 60
 RESEAT_NOISE = 3.0
 #: ... and moved at least this far in ln beta from where it was.
 RESEAT_AWAY = 1.0
+#: A SIN whose WV stays below this many standard deviations at every scale is also moved to the
+#: best minima of its tangent profile (``_VP.tangent_hops``), each followed by a joint polish.
+HOP_NOISE = 10.0
+#: points of the tangent profile over the whole ln-beta range (phase-resolving: ~0.002 apart)
+HOP_POINTS = 8000
+#: how many of the tangent profile's best local minima are polished
+HOP_MINIMA = 3
+#: a minimum this close (ln beta) to the SIN's current frequency is its current basin
+HOP_SAME = 0.02
+#: at most this many successive hops
+HOP_ROUNDS = 3
 
 
 # -- NNLS ---------------------------------------------------------------------------------------
@@ -484,6 +495,64 @@ class _VP:
         c, coef = self.cost()
         return c, self.theta(shapes, coef)
 
+    def tangent_hops(self, theta: np.ndarray, noise: np.ndarray) -> list[np.ndarray]:
+        """Starts that move each SIN ``theta`` leaves within ``HOP_NOISE`` standard deviations
+        of the WV (``noise``, per scale) to another basin of its frequency. A weak SIN trades
+        variance with its neighbours: at high frequency with the fast AR1 (both raise the
+        short scales), next to a strong SIN as a beat pair, and the strong SIN's phase at the
+        long scales moves by ~1e-6 with it. Its profile with the other shapes held fixed then
+        has its minimum where it is, while the joint optimum sits in another basin. The
+        tangent profile projects out, besides the other columns, their derivatives in their
+        shapes (the first-order response of the others, Frisch-Waugh); its ``HOP_MINIMA`` best
+        local minima away from the current frequency are returned as starts (the SIN there,
+        the other shapes at ``theta``'s, the scales by NNLS), best first."""
+        sins = [k for k in self.shaped if self.procs[k].oscillating]
+        if not sins:
+            return []
+        comp = self.model.component_wv(theta, self.tau)
+        weak = [k for k in sins
+                if np.max(comp[self.model.components[k].name] / noise) < HOP_NOISE]
+        if not weak:
+            return []
+        from scipy.signal import argrelmin
+
+        base = _shapes_of(self.model, theta, self.tau)
+        found: list[tuple[float, np.ndarray]] = []
+        for k in weak:
+            self.set_shapes(base)
+            others = [i for i in range(self.ncomp) if i != k]
+            X = [self.cols[:, others]]
+            for i in others:
+                if self.grids[i] is None:
+                    continue
+                # central difference in the shape coordinate; a SIN's long-scale phase needs a
+                # small step, a smooth shape a larger one for accuracy
+                h = 1e-6 if self.procs[i].oscillating else 1e-4
+                d = self.white @ self.procs[i].unit_wv_columns(
+                    np.array([base[i] + h, base[i] - h]), self.tau)
+                X.append(((d[:, 0] - d[:, 1]) / (2 * h))[:, None])
+            Q, _ = np.linalg.qr(np.column_stack(X))
+            y = self.yw - Q @ (Q.T @ self.yw)
+            grid = np.linspace(self.grids[k][0], self.grids[k][-1], HOP_POINTS)
+            key = (self.procs[k].name, "hop", HOP_POINTS)
+            if key not in self._cols:
+                self._cols[key] = self.white @ self.procs[k].unit_wv_columns(grid, self.tau)
+            G = self._cols[key] - Q @ (Q.T @ self._cols[key])
+            num = G.T @ y
+            den = np.einsum("jg,jg->g", G, G)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                cost = -np.where((num > 0) & (den > 0), num**2 / den, 0.0)
+            mins = argrelmin(cost)[0]
+            mins = mins[np.abs(grid[mins] - base[k]) > HOP_SAME]
+            for m in mins[np.argsort(cost[mins])][:HOP_MINIMA]:
+                shapes = list(base)
+                shapes[k] = float(grid[m])
+                self.set_shapes(shapes)
+                found.append((float(cost[m]), self.theta(shapes, self.cost()[1])))
+        self.set_shapes(base)
+        found.sort(key=lambda x: x[0])
+        return [th for _, th in found]
+
     def pair_scan(self, fixed: list[int], j: int, S: np.ndarray,
                   allowed: np.ndarray | None = None) -> tuple[int, int]:
         """(grid index of component j, column of S) with the least LS cost of the whitened WV
@@ -681,6 +750,25 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
             again = prob.solve(seat[1], max_nfev=max_nfev)
             if again.objective < sols[i].objective:
                 sols.append(again)
+        i = int(np.argmin([s_.objective for s_ in sols]))
+        # the joint move of a weak SIN to another basin of its frequency: solved in the full
+        # parameters (the analytic Jacobian follows the strong SIN's ~1e-6 phase shift)
+        # (again from where a hop lands: its tangent profile is the new point's, up to
+        # HOP_ROUNDS times while the objective drops)
+        for _ in range(HOP_ROUNDS):
+            i = int(np.argmin([s_.objective for s_ in sols]))
+            hops = [prob.solve(th, max_nfev=budget)
+                    for th in vp.tangent_hops(sols[i].theta, noise)]
+            if not hops:
+                break
+            j = int(np.argmin([h.objective for h in hops]))
+            if hops[j].objective >= sols[i].objective * (1 - 1e-9):
+                break
+            again = prob.solve(hops[j].theta, max_nfev=max_nfev) if hops[j].capped \
+                else hops[j]
+            if again.objective >= sols[i].objective:
+                break
+            sols.append(again)
     for sol in sols:
         runs.append((sol.objective, model.canonical(sol.theta), sol.message, sol.ok, sol.edge,
                      None))
