@@ -72,12 +72,11 @@ RESEAT_AWAY = 1.0
 #: A SIN whose WV stays below this many standard deviations at every scale is also moved to the
 #: best minima of its tangent profile (``_VP.tangent_hops``), each followed by a joint polish.
 HOP_NOISE = 10.0
-#: points of the tangent profile over the whole ln-beta range (phase-resolving: ~0.002 apart)
-HOP_POINTS = 8000
+#: points of the tangent profile over the whole ln-beta range (~0.004 apart; each chosen minimum
+#: is refined on a 16x finer local grid)
+HOP_POINTS = 4000
 #: how many of the tangent profile's best local minima are polished
 HOP_MINIMA = 3
-#: a minimum this close (ln beta) to the SIN's current frequency is its current basin
-HOP_SAME = 0.02
 #: at most this many successive hops
 HOP_ROUNDS = 3
 
@@ -504,8 +503,9 @@ class _VP:
         has its minimum where it is, while the joint optimum sits in another basin. The
         tangent profile projects out, besides the other columns, their derivatives in their
         shapes (the first-order response of the others, Frisch-Waugh); its ``HOP_MINIMA`` best
-        local minima away from the current frequency are returned as starts (the SIN there,
-        the other shapes at ``theta``'s, the scales by NNLS), best first."""
+        local minima below its value at the current frequency (a predicted drop) are returned
+        as starts (the SIN there, the other shapes at ``theta``'s, the scales by NNLS), best
+        first."""
         sins = [k for k in self.shaped if self.procs[k].oscillating]
         if not sins:
             return []
@@ -514,8 +514,6 @@ class _VP:
                 if np.max(comp[self.model.components[k].name] / noise) < HOP_NOISE]
         if not weak:
             return []
-        from scipy.signal import argrelmin
-
         base = _shapes_of(self.model, theta, self.tau)
         found: list[tuple[float, np.ndarray]] = []
         for k in weak:
@@ -542,11 +540,39 @@ class _VP:
             den = np.einsum("jg,jg->g", G, G)
             with np.errstate(divide="ignore", invalid="ignore"):
                 cost = -np.where((num > 0) & (den > 0), num**2 / den, 0.0)
-            mins = argrelmin(cost)[0]
-            mins = mins[np.abs(grid[mins] - base[k]) > HOP_SAME]
+            # the profile at the current frequency is the current cost (there the others'
+            # derivatives are orthogonal to the residual): only predicted drops are tried
+            here = self.col(k, base[k])[:, None]
+            here = here - Q @ (Q.T @ here)
+            g_here = float(here[:, 0] @ y)
+            c_here = -g_here**2 / float(here[:, 0] @ here[:, 0]) if g_here > 0 else 0.0
+            mins = np.flatnonzero((cost[1:-1] < cost[:-2]) & (cost[1:-1] < cost[2:])) + 1
+            mins = mins[cost[mins] < c_here - 1e-9 * (y @ y)]
+            shaped_others = [i for i in others if self.grids[i] is not None]
+            dg = float(grid[1] - grid[0])
             for m in mins[np.argsort(cost[mins])][:HOP_MINIMA]:
+                # the grid resolves the SIN's ripples only roughly at the long scales: the same
+                # profile on 33 points over +-1 grid step around the minimum
+                loc = np.clip(grid[m] + dg * np.linspace(-1, 1, 33), grid[0], grid[-1])
+                L = self.white @ self.procs[k].unit_wv_columns(loc, self.tau)
+                L = L - Q @ (Q.T @ L)
+                nl = L.T @ y
+                dl = np.einsum("jg,jg->g", L, L)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    gl = np.where((nl > 0) & (dl > 0), nl**2 / dl, 0.0)
                 shapes = list(base)
-                shapes[k] = float(grid[m])
+                shapes[k] = float(loc[int(np.argmax(gl))])
+                # the others take the first-order response the profile assumed: in the least
+                # squares on [their columns, their derivatives, the SIN's column] the
+                # derivative's coefficient over the column's is the Gauss-Newton shape step
+                A = np.column_stack([*X, self.col(k, shapes[k])])
+                b = np.linalg.lstsq(A, self.yw, rcond=None)[0]
+                for n_, i in enumerate(shaped_others):
+                    a_i = b[others.index(i)]
+                    if a_i > 0:
+                        step = float(np.clip(b[len(others) + n_] / a_i, -self.STEP, self.STEP))
+                        lo_i, hi_i = self.grids[i][0], self.grids[i][-1]
+                        shapes[i] = float(np.clip(base[i] + step, lo_i, hi_i))
                 self.set_shapes(shapes)
                 found.append((float(cost[m]), self.theta(shapes, self.cost()[1])))
         self.set_shapes(base)
@@ -764,8 +790,13 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
             j = int(np.argmin([h.objective for h in hops]))
             if hops[j].objective >= sols[i].objective * (1 - 1e-9):
                 break
-            again = prob.solve(hops[j].theta, max_nfev=max_nfev) if hops[j].capped \
-                else hops[j]
+            again = hops[j]
+            if again.capped:  # crawling along a valley: as the starts above, polish and go on
+                sh, _, coef = vp.polish(_shapes_of(model, again.theta, tau))
+                redo = prob.solve(vp.theta(sh, coef), max_nfev=budget)
+                again = redo if redo.objective < again.objective else again
+                if again.capped and max_nfev > budget:
+                    again = prob.solve(again.theta, max_nfev=max_nfev - budget)
             if again.objective >= sols[i].objective:
                 break
             sols.append(again)
