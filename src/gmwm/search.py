@@ -70,12 +70,12 @@ RESEAT_NOISE = 3.0
 #: ... and moved at least this far in ln beta from where it was.
 RESEAT_AWAY = 1.0
 #: A SIN whose WV stays below this many standard deviations at every scale is also moved to the
-#: best minima of its tangent profile (``_VP.tangent_hops``), each followed by a joint polish.
+#: best minima of its tangent profile (``_VP.tangent_hops``), each solved in all the parameters.
 HOP_NOISE = 10.0
 #: points of the tangent profile over the whole ln-beta range (~0.004 apart; each chosen minimum
 #: is refined on a 16x finer local grid)
 HOP_POINTS = 4000
-#: how many of the tangent profile's best local minima are polished
+#: how many of the tangent profile's best local minima are solved (per weak SIN)
 HOP_MINIMA = 3
 #: at most this many successive hops
 HOP_ROUNDS = 3
