@@ -32,7 +32,11 @@ nested submodels, and the refinement of the best starts (no user starting values
    from the best distinct starts; the best objective wins. The winner's SIN frequencies are
    then rescanned (``hop_sins``), and a SIN it leaves below the WV's noise at every scale is
    re-seated jointly with another shape (``reseat_sins``: a slow SIN absorbed by a phi ~ 1 AR1
-   while the SIN keeps a spurious bump elsewhere).
+   while the SIN keeps a spurious bump elsewhere). Last, a SIN within a few standard deviations
+   of the noise hops to the best minima of its tangent profile (``tangent_hops``: the profile
+   with the other shapes' first-order response projected out), each solved in all the
+   parameters: the weak SIN's joint optimum with the fast AR1 or beside the strong SIN lies in
+   another basin of its frequency than its one-at-a-time profile shows.
 
 :class:`Search` runs it for one model and problem and keeps the fitted submodels, from which
 :func:`gmwm.fit` judges whether each component is supported by the data. Inside
