@@ -507,9 +507,9 @@ class _VP:
         has its minimum where it is, while the joint optimum sits in another basin. The
         tangent profile projects out, besides the other columns, their derivatives in their
         shapes (the first-order response of the others, Frisch-Waugh); its ``HOP_MINIMA`` best
-        local minima below its value at the current frequency (a predicted drop) are returned
-        as starts (the SIN there, the other shapes at ``theta``'s, the scales by NNLS), best
-        first."""
+        local minima below its value at the current frequency (a predicted drop), each refined
+        locally, are returned as starts (the SIN there, the other shapes moved by the
+        Gauss-Newton step of that profile, the scales by NNLS), best first."""
         sins = [k for k in self.shaped if self.procs[k].oscillating]
         if not sins:
             return []
@@ -780,11 +780,9 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
             again = prob.solve(seat[1], max_nfev=max_nfev)
             if again.objective < sols[i].objective:
                 sols.append(again)
-        i = int(np.argmin([s_.objective for s_ in sols]))
-        # the joint move of a weak SIN to another basin of its frequency: solved in the full
-        # parameters (the analytic Jacobian follows the strong SIN's ~1e-6 phase shift)
-        # (again from where a hop lands: its tangent profile is the new point's, up to
-        # HOP_ROUNDS times while the objective drops)
+        # the joint move of a weak SIN to another basin of its frequency, solved in the full
+        # parameters (the analytic Jacobian follows the strong SIN's ~1e-6 phase shift); again
+        # from where a hop lands (its own tangent profile), while the objective drops
         for _ in range(HOP_ROUNDS):
             i = int(np.argmin([s_.objective for s_ in sols]))
             hops = [prob.solve(th, max_nfev=budget)
