@@ -32,7 +32,11 @@ nested submodels, and the refinement of the best starts (no user starting values
    from the best distinct starts; the best objective wins. The winner's SIN frequencies are
    then rescanned (``hop_sins``), and a SIN it leaves below the WV's noise at every scale is
    re-seated jointly with another shape (``reseat_sins``: a slow SIN absorbed by a phi ~ 1 AR1
-   while the SIN keeps a spurious bump elsewhere).
+   while the SIN keeps a spurious bump elsewhere). Last, a SIN within a few standard deviations
+   of the noise hops to the best minima of its tangent profile (``tangent_hops``: the profile
+   with the other shapes' first-order response projected out), each solved in all the
+   parameters: the weak SIN's joint optimum with the fast AR1 or beside the strong SIN lies in
+   another basin of its frequency than its one-at-a-time profile shows.
 
 :class:`Search` runs it for one model and problem and keeps the fitted submodels, from which
 :func:`gmwm.fit` judges whether each component is supported by the data. Inside
@@ -69,6 +73,16 @@ EXPLORE_NFEV = 60
 RESEAT_NOISE = 3.0
 #: ... and moved at least this far in ln beta from where it was.
 RESEAT_AWAY = 1.0
+#: A SIN whose WV stays below this many standard deviations at every scale is also moved to the
+#: best minima of its tangent profile (``_VP.tangent_hops``), each solved in all the parameters.
+HOP_NOISE = 10.0
+#: points of the tangent profile over the whole ln-beta range (~0.004 apart; each chosen minimum
+#: is refined on a 16x finer local grid)
+HOP_POINTS = 4000
+#: how many of the tangent profile's best local minima are solved (per weak SIN)
+HOP_MINIMA = 3
+#: at most this many successive hops
+HOP_ROUNDS = 3
 
 
 # -- NNLS ---------------------------------------------------------------------------------------
@@ -484,6 +498,91 @@ class _VP:
         c, coef = self.cost()
         return c, self.theta(shapes, coef)
 
+    def tangent_hops(self, theta: np.ndarray, noise: np.ndarray) -> list[np.ndarray]:
+        """Starts that move each SIN ``theta`` leaves within ``HOP_NOISE`` standard deviations
+        of the WV (``noise``, per scale) to another basin of its frequency. A weak SIN trades
+        variance with its neighbours: at high frequency with the fast AR1 (both raise the
+        short scales), next to a strong SIN as a beat pair, and the strong SIN's phase at the
+        long scales moves by ~1e-6 with it. Its profile with the other shapes held fixed then
+        has its minimum where it is, while the joint optimum sits in another basin. The
+        tangent profile projects out, besides the other columns, their derivatives in their
+        shapes (the first-order response of the others, Frisch-Waugh); its ``HOP_MINIMA`` best
+        local minima below its value at the current frequency (a predicted drop), each refined
+        locally, are returned as starts (the SIN there, the other shapes moved by the
+        Gauss-Newton step of that profile, the scales by NNLS), best first."""
+        sins = [k for k in self.shaped if self.procs[k].oscillating]
+        if not sins:
+            return []
+        comp = self.model.component_wv(theta, self.tau)
+        weak = [k for k in sins
+                if np.max(comp[self.model.components[k].name] / noise) < HOP_NOISE]
+        if not weak:
+            return []
+        base = _shapes_of(self.model, theta, self.tau)
+        found: list[tuple[float, np.ndarray]] = []
+        for k in weak:
+            self.set_shapes(base)
+            others = [i for i in range(self.ncomp) if i != k]
+            X = [self.cols[:, others]]
+            for i in others:
+                if self.grids[i] is None:
+                    continue
+                # central difference in the shape coordinate; a SIN's long-scale phase needs a
+                # small step, a smooth shape a larger one for accuracy
+                h = 1e-6 if self.procs[i].oscillating else 1e-4
+                d = self.white @ self.procs[i].unit_wv_columns(
+                    np.array([base[i] + h, base[i] - h]), self.tau)
+                X.append(((d[:, 0] - d[:, 1]) / (2 * h))[:, None])
+            Q, _ = np.linalg.qr(np.column_stack(X))
+            y = self.yw - Q @ (Q.T @ self.yw)
+            grid = np.linspace(self.grids[k][0], self.grids[k][-1], HOP_POINTS)
+            key = (self.procs[k].name, "hop", HOP_POINTS)
+            if key not in self._cols:
+                self._cols[key] = self.white @ self.procs[k].unit_wv_columns(grid, self.tau)
+            G = self._cols[key] - Q @ (Q.T @ self._cols[key])
+            num = G.T @ y
+            den = np.einsum("jg,jg->g", G, G)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                cost = -np.where((num > 0) & (den > 0), num**2 / den, 0.0)
+            # the profile at the current frequency is the current cost (there the others'
+            # derivatives are orthogonal to the residual): only predicted drops are tried
+            here = self.col(k, base[k])[:, None]
+            here = here - Q @ (Q.T @ here)
+            g_here = float(here[:, 0] @ y)
+            c_here = -g_here**2 / float(here[:, 0] @ here[:, 0]) if g_here > 0 else 0.0
+            mins = np.flatnonzero((cost[1:-1] < cost[:-2]) & (cost[1:-1] < cost[2:])) + 1
+            mins = mins[cost[mins] < c_here - 1e-9 * (y @ y)]
+            shaped_others = [i for i in others if self.grids[i] is not None]
+            dg = float(grid[1] - grid[0])
+            for m in mins[np.argsort(cost[mins])][:HOP_MINIMA]:
+                # the grid resolves the SIN's ripples only roughly at the long scales: the same
+                # profile on 33 points over +-1 grid step around the minimum
+                loc = np.clip(grid[m] + dg * np.linspace(-1, 1, 33), grid[0], grid[-1])
+                L = self.white @ self.procs[k].unit_wv_columns(loc, self.tau)
+                L = L - Q @ (Q.T @ L)
+                nl = L.T @ y
+                dl = np.einsum("jg,jg->g", L, L)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    gl = np.where((nl > 0) & (dl > 0), nl**2 / dl, 0.0)
+                shapes = list(base)
+                shapes[k] = float(loc[int(np.argmax(gl))])
+                # the others take the first-order response the profile assumed: in the least
+                # squares on [their columns, their derivatives, the SIN's column] the
+                # derivative's coefficient over the column's is the Gauss-Newton shape step
+                A = np.column_stack([*X, self.col(k, shapes[k])])
+                b = np.linalg.lstsq(A, self.yw, rcond=None)[0]
+                for n_, i in enumerate(shaped_others):
+                    a_i = b[others.index(i)]
+                    if a_i > 0:
+                        step = float(np.clip(b[len(others) + n_] / a_i, -self.STEP, self.STEP))
+                        lo_i, hi_i = self.grids[i][0], self.grids[i][-1]
+                        shapes[i] = float(np.clip(base[i] + step, lo_i, hi_i))
+                self.set_shapes(shapes)
+                found.append((float(cost[m]), self.theta(shapes, self.cost()[1])))
+        self.set_shapes(base)
+        found.sort(key=lambda x: x[0])
+        return [th for _, th in found]
+
     def pair_scan(self, fixed: list[int], j: int, S: np.ndarray,
                   allowed: np.ndarray | None = None) -> tuple[int, int]:
         """(grid index of component j, column of S) with the least LS cost of the whitened WV
@@ -681,6 +780,28 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
             again = prob.solve(seat[1], max_nfev=max_nfev)
             if again.objective < sols[i].objective:
                 sols.append(again)
+        # the joint move of a weak SIN to another basin of its frequency, solved in the full
+        # parameters (the analytic Jacobian follows the strong SIN's ~1e-6 phase shift); again
+        # from where a hop lands (its own tangent profile), while the objective drops
+        for _ in range(HOP_ROUNDS):
+            i = int(np.argmin([s_.objective for s_ in sols]))
+            hops = [prob.solve(th, max_nfev=budget)
+                    for th in vp.tangent_hops(sols[i].theta, noise)]
+            if not hops:
+                break
+            j = int(np.argmin([h.objective for h in hops]))
+            if hops[j].objective >= sols[i].objective * (1 - 1e-9):
+                break
+            again = hops[j]
+            if again.capped:  # crawling along a valley: as the starts above, polish and go on
+                sh, _, coef = vp.polish(_shapes_of(model, again.theta, tau))
+                redo = prob.solve(vp.theta(sh, coef), max_nfev=budget)
+                again = redo if redo.objective < again.objective else again
+                if again.capped and max_nfev > budget:
+                    again = prob.solve(again.theta, max_nfev=max_nfev - budget)
+            if again.objective >= sols[i].objective:
+                break
+            sols.append(again)
     for sol in sols:
         runs.append((sol.objective, model.canonical(sol.theta), sol.message, sol.ok, sol.edge,
                      None))
