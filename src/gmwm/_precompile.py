@@ -2,7 +2,8 @@
 when a command has to compile anyway.
 
 Why a cache built at install time (and not C ports or Numba's AOT compiler): the classical WV
-kernel is C (``_haar.c``), but some thirty further kernels (AR1 and covariance formulas of the
+kernel and the WV estimate's covariance (what ``gmwm plan`` needs, so that it never loads Numba)
+are C (``_haar.c``, ``_wvcov.c``, with their Numba twins as the fallback), but some thirty further kernels (AR1 and covariance formulas of the
 fit, the simulators, the robust WV, SVO) would need a second,
 separately maintained implementation each; ``numba.pycc`` is deprecated and compiles for a generic
 CPU. Numba's own cache (``cache=True`` on every kernel) keys an entry on the source file's
@@ -166,11 +167,13 @@ def announce_compiles(err: TextIO) -> None:
 def main() -> int:
     """``python -m gmwm._precompile``: compile the kernels into Numba's cache, report the time."""
     from gmwm.wv import kernel_name
+    from gmwm.wvcov import kernels as wvcov_kernels
 
     sys.stderr.write("gmwm: compiling the Numba kernels into their cache\n")
     seconds = warm()
+    cov = "c" if wvcov_kernels().__name__ == "gmwm._wvcov" else "numba"
     sys.stderr.write(f"gmwm: kernels compiled in {seconds:.1f} s (classical WV kernel: "
-                     f"{kernel_name()})\n")
+                     f"{kernel_name()}, WV covariance kernel: {cov})\n")
     return 0
 
 
