@@ -240,3 +240,17 @@ def test_phi_rounding_onto_one_is_reported_not_a_crash():
     assert 1 - 1e-12 < phi < 1.0
     res.model.check(res.params)
     assert any("edge of the stationary domain" in w for w in res.warnings)
+
+
+def test_gof_false_skips_only_the_test():
+    """``gof=False`` (the studies' fits) leaves ``result.gof`` None and changes nothing else."""
+    model = Model("WN+AR1+SIN")
+    theta = model.theta({"WN[1].sigma2": 1.0, "AR1[1].phi": 0.99, "AR1[1].sigma2": 0.01,
+                         "SIN[1].alpha": 0.05, "SIN[1].beta": 0.01})
+    wv = wvar(model.simulate(theta, 2**14, np.random.default_rng(7)))
+    full = gmwm.fit(wv, model, seed=3)
+    bare = gmwm.fit(wv, model, seed=3, gof=False)
+    assert full.gof is not None and bare.gof is None
+    np.testing.assert_array_equal(bare.params, full.params)
+    np.testing.assert_array_equal(bare.se, full.se)
+    assert bare.objective == full.objective and bare.converged == full.converged

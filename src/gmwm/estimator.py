@@ -214,7 +214,8 @@ class GMWMResult:
 # -- main entry -----------------------------------------------------------------------------------
 def fit(data: np.ndarray | WaveletVariance, model: str | Model, *,
         settings: FitSettings | None = None, freq: float | None = None,
-        estimate_only: bool = False, **options: Any) -> GMWMResult | AVSMResult:
+        estimate_only: bool = False, gof: bool = True,
+        **options: Any) -> GMWMResult | AVSMResult:
     """Estimate ``model`` from a signal or a precomputed wavelet variance.
 
     Parameters
@@ -230,6 +231,10 @@ def fit(data: np.ndarray | WaveletVariance, model: str | Model, *,
         goodness-of-fit test, ``diagnostics`` holds only ``estimate_only``, ``at_boundary`` and
         the non-convergence warning, and a signal's WV carries the eta_3 interval unless the
         weights are ``"ci-mixture"`` (the WV values and the weights are unchanged).
+    gof : run the goodness-of-fit test (:func:`gmwm.gof.gof_test`) on a fit with model-based
+        standard errors (the default). ``False`` leaves ``result.gof`` None and everything else
+        as it is: for callers that read no p-value, such as the Monte Carlo studies (a test on a
+        weak sinusoid refits the model at its competing frequencies, several times a fit's cost).
     **options : fit options replacing those of ``settings``: ``method`` (``"gmwm"``: f(x) = x,
         ``"armav"``: f = log10 of the Allan variance, ``"avsm"``: the Allan-variance slope
         method), ``weights``, ``n_starts``, ``seed``, ``reweight``, ``nested``, ``se_cov``,
@@ -259,14 +264,15 @@ def fit(data: np.ndarray | WaveletVariance, model: str | Model, *,
         from .avsm import avsm_fit
 
         return avsm_fit(wv, model, settings, seconds_wv)
-    return _fit_gmwm(wv, model, settings, drift_sign, seconds_wv, estimate_only)
+    return _fit_gmwm(wv, model, settings, drift_sign, seconds_wv, estimate_only, gof)
 
 
 def _fit_gmwm(wv: WaveletVariance, model: Model, settings: FitSettings,
               drift_sign: float | None, seconds_wv: float,
-              estimate_only: bool = False) -> GMWMResult:
+              estimate_only: bool = False, gof: bool = True) -> GMWMResult:
     """GMWM or ARMAV: the search, the boundary components, the sandwich and the warnings
-    (``estimate_only``: the search and the boundary components only, see :func:`fit`)."""
+    (``estimate_only``: the search and the boundary components only; ``gof``: the test, see
+    :func:`fit`)."""
     method = settings.method
     if model.n_params > wv.n_levels:
         raise IdentifiabilityError(
@@ -343,7 +349,7 @@ def _fit_gmwm(wv: WaveletVariance, model: Model, settings: FitSettings,
                      weights=omega, converged=converged, message=message, wv=wv,
                      diagnostics=diagnostics, seconds_wv=seconds_wv, seconds_fit=seconds_fit,
                      wv_cov=V, settings=settings)
-    if user_cov is None and settings.se_cov_kind == "gaussian":
+    if not gof or (user_cov is None and settings.se_cov_kind == "gaussian"):
         return res  # the fast path (bootstrap refits, ranking): no test (module docstring)
     from .gof import gof_test
 
