@@ -1,6 +1,7 @@
-"""The tangent-profile hop of a weak SIN (gmwm.search._VP.tangent_hops): on replicates where the
-default stopped in a local optimum (benchmarks/audit_sim2_misses.json, benchmarks/
-search_class.json), the fit reaches the best objective those searches found."""
+"""The tangent-profile hop of a weak SIN (gmwm.search._VP.tangent_hops): on Simulation 2
+replicates where the search before it stopped above a better optimum (tests/data/
+sim2_hop_cases.json, from benchmarks/audit_sim2_misses.py), the fit reaches the best objective
+that audit found."""
 
 import json
 from pathlib import Path
@@ -14,25 +15,21 @@ from gmwm.search import _VP
 from gmwm.wv import WaveletVariance
 from gmwm_studies.seeds import replicate_seed
 
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
-AUDIT = json.loads((BENCH / "audit_sim2_misses.json").read_text())
+CASES = json.loads((Path(__file__).resolve().parent / "data" / "sim2_hop_cases.json")
+                   .read_text())["cases"]
 T = 10_000_000
-
-
-def _audit_row(estimator: str, rep: int) -> dict:
-    return next(r for r in AUDIT["rows"] if r["estimator"] == estimator and r["replicate"] == rep)
 
 
 @pytest.mark.parametrize("rep", [148, 235])  # 148: a beat pair next to the strong SIN;
 def test_sim2_weak_sin_reaches_the_audited_best(rep):  # 235: a ripple of a fast weak SIN
-    row = _audit_row("gmwm", rep)
-    wv = WaveletVariance.from_table(2.0 ** np.arange(1, 23), AUDIT["wv"][str(rep)],
-                                    n_samples=T, freq=1.0)
+    case = CASES[str(rep)]
+    wv = WaveletVariance.from_table(2.0 ** np.arange(1, 23), case["variance"], n_samples=T,
+                                    freq=1.0)
     res = gmwm.fit(wv, Model("2*AR1+2*SIN"), seed=replicate_seed("sim2", T, rep, 20240601,
                                                                     stream=1),
                    weights="ci-eta3", n_starts=8, reweight=0, se_cov="gaussian")
-    assert row["default"] > row["best"] * (1 + 1e-4)  # the case is a miss of the old search
-    assert res.objective <= row["best"] * (1 + 1e-6)
+    assert case["old_default"] > case["best"] * (1 + 1e-4)  # a miss of the search before
+    assert res.objective <= case["best"] * (1 + 1e-6)
 
 
 def test_no_hop_without_a_weak_sin():
