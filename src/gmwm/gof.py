@@ -57,6 +57,43 @@ same reason. The first two are kept for comparison (:func:`objective_test`,
 :func:`generalised_wald`). The Satterthwaite (moment-matched) p-value of ``U`` has the same size
 at 5 % and is a little liberal at 1 %, hence the inversion.
 
+A sinusoid whose frequency the data do not identify
+---------------------------------------------------
+A weak SIN's frequency ``beta`` is barely pinned by the WV: the fit's objective, profiled over
+``ln beta`` (the other parameters at their best for each ``beta``), is nearly flat, and its
+global minimum can seat the SIN far from the true frequency, where it absorbs noise at scales
+the CI weights count, leaving the true sinusoid's WV in the residual at the long scales, which
+the weights nearly ignore but the normal scores count in full. The linearisation in ``beta``
+does not hold across such a profile: fits seated elsewhere are rejected more often than the
+level, fits near the true frequency less, and the p-values are not uniform (issue 40's gyro
+WN+SIN+RW, the sinusoid block of ``benchmarks/README.md``).
+
+*Rule.* The profile is evaluated by the fit's own variable projection (:mod:`gmwm.search`:
+NNLS for the scale parameters, coordinate moves for the other shapes) at ``SIN_PROFILE_POINTS``
+values of ``ln beta``, and the lowest point of each cell of ``SIN_CELL`` (the search's coarse
+step) is a seating. A seating competes with the fit's own when it lies more than 1.5x from the
+fitted frequency and the fit with ``beta`` held there has an objective within ``SIN_COMPETE``
+(6.63) times ``lambda_max`` of the fit's, ``lambda_max`` the largest eigenvalue of the
+objective's null law (:func:`objective_test`): the 99 % point of ``lambda_max chi2_1``, a
+profile interval for ``beta`` in the objective's own sampling noise. Only periods up to
+``SIN_MAX_PERIOD`` (1/20) of the signal are seatings: a slower SIN's WV depends on its phase,
+and past the longest scale it mimics a drift or a random walk's rise, so admitting it would take
+the test's power against a missing RW. A SIN with no competing seating (a strong one, or a fast
+one whose WV no other frequency reproduces) is identified, and the test is exactly the one at
+the fit's frequency.
+
+*Test.* Otherwise each competing held fit is tested as the model with ``beta`` known (its
+column out of the Jacobian: one more degree of freedom; ``V`` at the held fit), and the
+p-value is the largest of these and the fit's own. The result carries that seating's
+statistic, df and p-value, the fit's own residuals, and a note naming the frequency. Why it is
+valid: at the true frequency the held test is a test of the true model, and the maximum rejects
+only where it does, so its size is at most the level as long as a seating lies within a basin
+of the true frequency and inside the objective limit (the profile interval above). It is
+conservative by construction (the largest of several p-values); how much is in the sinusoid
+block of ``benchmarks/README.md``. Cost: one refit and one test per seating (about a dozen
+for the gyro model at T = 2^17, tens of ms). ARMAV fits and ``sin_frequency=False`` keep the
+test at the fit's own frequency.
+
 What the test assumes and where it loses validity
 --------------------------------------------------
 * First-order asymptotics: the estimator linear in ``nu_hat``, the joint law of the ``u_j``
@@ -69,13 +106,8 @@ What the test assumes and where it loses validity
 * Deterministic components (SIN, DR) enter ``V`` only through their interaction with the noise
   (a SIN's own term is O(T^-2) given its phase). A sinusoid whose period is not short against
   the signal, or a drift with few scales to separate it, makes the test liberal.
-* A weak sinusoid's frequency is not identified: the fit's global optimum can put the SIN at
-  another frequency, where it absorbs noise at scales the CI weights count, and leave the true
-  sinusoid's WV in the residual at scales they nearly ignore but the normal scores count in
-  full. Those fits are rejected more often than the level, the others less (a linearisation in
-  ``beta`` does not hold there); the calibration table of ``benchmarks/README.md`` splits the
-  rejections of its SIN rows by the fitted frequency. A test valid for that case would take the
-  largest p-value over the SIN's frequency (the model rejected only if no frequency fits).
+* A weak sinusoid's frequency is not identified (the section below): the p-value is then the
+  largest over the frequencies the objective cannot tell apart, valid but conservative.
 * ARMAV (log scale, the delta method on ``V``): conservative on short signals (2.5 % of
   p-values below 5 % at T = 2^14, 4 % at 2^17 in the benchmark).
 * A robust WV (``efficiency < 1``): the classical covariance is divided by the efficiency.
@@ -83,6 +115,7 @@ What the test assumes and where it loses validity
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from dataclasses import dataclass, field, fields
@@ -639,10 +672,18 @@ def _sin_seatings(result: Any, V: np.ndarray | None) -> list[tuple[str, float, f
 def _sin_frequency_max(result: Any, V: np.ndarray | None, g: GOFResult) -> GOFResult:
     """The test's p-value as the largest over the seatings of a sinusoid whose frequency the
     data do not identify (module docstring): ``g`` itself when no other seating competes."""
-    import dataclasses
-
     if not np.isfinite(g.p_value):
         return g
+    try:
+        with np.errstate(all="ignore"):
+            return _largest_over_seatings(result, V, g)
+    except (ValueError, FloatingPointError, np.linalg.LinAlgError) as err:
+        return dataclasses.replace(g, notes=[*g.notes, (
+            f"the scan of the sinusoid's frequency failed ({err}): the p-value is the test's "
+            "at the fitted frequency, liberal if that frequency is not identified")])
+
+
+def _largest_over_seatings(result: Any, V: np.ndarray | None, g: GOFResult) -> GOFResult:
     seats = _sin_seatings(result, V)
     if not seats:
         return g
@@ -660,7 +701,8 @@ def _sin_frequency_max(result: Any, V: np.ndarray | None, g: GOFResult) -> GOFRe
         gk = _test(res_k, V, held=held)
         if np.isfinite(gk.p_value) and gk.p_value > best.p_value:
             best, where = gk, (label, beta)
-    own = next(c for c in model.components if c.name == seats[0][0])
+    own = next(c for c in model.components if c.name == (seats[0][0] if where is None
+                                                          else where[0]))
     beta_hat = float(np.asarray(result.params)[own.start + 1])
     note = (f"{', '.join(sorted({s[0] for s in seats}))}: frequency not identified by the data "
             f"({len(seats)} other seating(s) within the objective's sampling noise); the p-value "
