@@ -342,6 +342,9 @@ def test_weak_sinusoid_p_value_is_the_largest_over_its_frequency():
     assert g.objective == own.objective
     # held near the truth, the test agrees with the true model too
     assert _held_at(res, 1, float(theta[2])).p_value > 0.05
+    # ARMAV (log scale: the variable projection is not its objective) keeps the fit's own test
+    arm = gmwm.fit(res.wv, model, method="armav")
+    assert arm.gof.p_value == gof_test(arm, sin_frequency=False).p_value
 
 
 def test_identified_or_no_sinusoid_leaves_the_test_unchanged():
