@@ -711,6 +711,6 @@ def _largest_over_seatings(result: Any, V: np.ndarray | None, g: GOFResult) -> G
         note += f"the fit's own, beta {beta_hat:.4g} rad/sample"
     else:
         note += (f"{where[0]} held at beta {where[1]:.4g} rad/sample (fitted {beta_hat:.4g}; "
-                 f"the fit's own p {fmt_p(g.p_value)})")
+                 f"the fit's own p {fmt_p(g.p_value)}; statistic and df are the held fit's)")
     return GOFResult(best.statistic, best.df, best.p_value, g.objective, best.eigenvalues,
                      g.residuals, g.scales, g.freq, best.method, [*g.notes, note])
