@@ -26,6 +26,17 @@ parameters. Power: ``R_power`` signals of each ``POWER_PLAIN`` generating
 model fitted with a model that lacks a component, at fixed strengths. ``--write`` replaces the
 calibration block of ``benchmarks/README.md`` (its own markers); ``--R-power 0`` skips the power
 rows, ``--seed`` and ``--models`` rerun rows on other seeds (printed, for a recheck).
+
+    python benchmarks/bench_gof.py --calibration --sin [--R 400] [--R-power 200] [--write]
+        [--sin-compete 6.635]
+
+The sinusoid rows (``SIN_CELLS``: the gyro WN+SIN+RW of the selection study at 2^17 and 2^18,
+WN+AR1+SIN at 2^15 and 2^18) before and after the frequency correction of
+:func:`gmwm.gof.gof_test` (before: ``sin_frequency=False``, the test at the fit's own frequency),
+on the same fits, with the test's CPU time per fit, and the power of ``SIN_POWER`` (a component
+missing beside a weak sinusoid). ``--write`` replaces its own block of ``benchmarks/README.md``
+(``bench_gof_sin``); ``--sin-compete`` sets :data:`gmwm.gof.SIN_COMPETE` (``inf``: every cell
+of the frequency grid, whatever its objective; printed only).
 """
 
 from __future__ import annotations
@@ -112,6 +123,21 @@ POWER_PLAIN: dict[str, tuple[str, dict[str, float], str, float]] = {
 }
 
 
+# the sinusoid rows of the frequency correction (--sin): label -> lengths (log2 T); the gyro
+# row is the selection study's (its SIN at an expected z of 4, period 2000 samples), WN+AR1+SIN
+# the size table's (a strong fast SIN beside an AR1)
+SIN_CELLS: dict[str, tuple[int, ...]] = {
+    "gyro WN+SIN+RW (selection study)": (17, 18),
+    "WN+AR1+SIN": (15, 18),
+}
+# a component missing beside a weak sinusoid: label -> (selection-study setting, fitted model,
+# values replacing the setting's at every length); the RW at fixed strengths (at the study's
+# expected z of 4 every fit without it is rejected)
+SIN_POWER: dict[str, tuple[str, str, dict[str, float]]] = {
+    f"WN+SIN fitted to the gyro WN+SIN+RW (RW missing, gamma2 {g:g})": (
+        "gyro WN+SIN+RW", "WN+SIN", {"RW[1].gamma2": g}) for g in (1e-8, 3e-9)}
+
+
 def cal_lengths(label: str) -> tuple[int, ...]:
     """The lengths (log2 T) of a calibration row."""
     return SELECTION_CELLS[label][1] if label in SELECTION_CELLS else CAL_LENGTHS
@@ -125,7 +151,7 @@ def cal_truth(label: str, k: int) -> tuple[Model, np.ndarray, float]:
         s = next(s for s in sp.settings() if s.label == SELECTION_CELLS[label][0])
         model, theta = s.truth(2**k)
         return model, theta, s.freq
-    spec, truth, freq = CALIBRATION[label]
+    spec, truth, freq = CALIBRATION[label] if label in CALIBRATION else SIZE[label][:3]
     model = Model(spec, freq)
     return model, model.theta(truth), freq
 
@@ -169,6 +195,140 @@ def plain_power_cell(label: str, k: int, R: int, seed: int = 2032) -> dict:
         before.append(gof_test(res, hold_boundary=True).p_value)
     return {"after": np.array(after), "before": np.array(before),
             "cpu": time.process_time() - t0}
+
+
+def sin_cell(label: str, k: int, R: int, seed: int = 2031) -> dict:
+    """p-values of the test after / before the sinusoid frequency correction on the same R
+    default fits of the true model ``label`` at 2^k, the CPU time of each test, and which fits
+    seat the SIN more than 1.5x from its true frequency."""
+    model, theta, freq = cal_truth(label, k)
+    T = 2**k
+    after, before, off, t_after, t_before, truth = [], [], [], 0.0, 0.0, []
+    beta = [c.start + 1 for c in model.components if c.process.name == "SIN"]
+    t0 = time.process_time()
+    for r in range(R):
+        x = model.simulate_fast(theta, T, np.random.default_rng([seed, T, r]))
+        res = gmwm.fit(x, model, freq=freq)
+        t1 = time.process_time()
+        before.append(gof_test(res, sin_frequency=False).p_value)
+        t2 = time.process_time()
+        after.append(gof_test(res).p_value)
+        t3 = time.process_time()
+        t_before += t2 - t1
+        t_after += t3 - t2
+        truth.append(held_at_truth(res, theta))
+        b = np.asarray(res.params, float)[beta]
+        off.append(bool(np.any(np.abs(np.log(b / theta[beta])) > math.log(1.5))))
+    return {"after": np.array(after), "before": np.array(before), "off": np.array(off),
+            "truth": np.array(truth),
+            "ms_before": 1e3 * t_before / R, "ms_after": 1e3 * t_after / R,
+            "cpu": time.process_time() - t0}
+
+
+def held_at_truth(res: gmwm.GMWMResult, theta: np.ndarray) -> float:
+    """Diagnostic (not available on data): the p-value of the test of ``res``'s model with every
+    SIN frequency held at the truth (the fit's own refit there, one more df per SIN)."""
+    import dataclasses
+
+    from gmwm import gof
+    from gmwm.inference import Problem
+    from gmwm.search import _VP, _shapes_of
+
+    model, prob = res.model, Problem.of(res)
+    vp = _VP(model, prob.tau, prob.nu_hat, prob.white, 1.0, np.random.default_rng(0))
+    shapes = _shapes_of(model, np.asarray(res.params, float), prob.tau)
+    held = np.zeros(model.n_params, bool)
+    sins = [k for k, c in enumerate(model.components) if c.process.name == "SIN"]
+    for k in sins:
+        c = model.components[k]
+        shapes[k] = math.log(theta[c.start + 1])
+        held[c.start + 1] = True
+    q, th = gof._held_fit(res, vp, shapes, sins[0], 1.0)
+    diag = dict(res.diagnostics, at_boundary=[
+        c.name for c in model.components if th[c.start + c.process.scale_index] == 0])
+    fit = dataclasses.replace(res, params=th, objective=q, wv_cov=None, diagnostics=diag,
+                              gof=None)
+    return gof._test(fit, None, held=held).p_value
+
+
+def sin_power_cell(label: str, k: int, R: int, seed: int = 2032) -> dict:
+    """p-values after / before the frequency correction of the misspecified fits ``label``."""
+    import selection_penalty as sp
+
+    setting, fitted, values = SIN_POWER[label]
+    s = next(s for s in sp.settings() if s.label == setting)
+    model, theta = s.truth(2**k)
+    for name, v in values.items():
+        theta[model.param_names.index(name)] = v
+    T = 2**k
+    after, before = [], []
+    t0 = time.process_time()
+    for r in range(R):
+        x = model.simulate_fast(theta, T, np.random.default_rng([seed, T, r]))
+        res = gmwm.fit(x, fitted, freq=s.freq)
+        before.append(gof_test(res, sin_frequency=False).p_value)
+        after.append(gof_test(res).p_value)
+    return {"after": np.array(after), "before": np.array(before),
+            "cpu": time.process_time() - t0}
+
+
+def sin_table(rows: list[tuple[str, int, dict]], R: int) -> list[str]:
+    lines = [("| true model | T | SIN frequency off: fits | before: 1 % / 5 % (KS p) | "
+              "after: 1 % / 5 % (KS p) | before, off / on: 5 % | after, off / on: 5 % | "
+              "frequency held at the truth: 1 % / 5 % (KS p); off / on: 5 % | "
+              "test CPU ms before / after |"), "|---|---|---|---|---|---|---|---|---|"]
+    for label, k, out in rows:
+        off, a, b = out["off"], out["after"], out["before"]
+
+        def split(q: np.ndarray, off: np.ndarray = off) -> str:
+            return " / ".join(f"{np.mean(v < .05):.3f}" if v.size else "-"
+                              for v in (q[off], q[~off]))
+        lines.append(f"| {label} | 2^{k} | {np.mean(off):.3f} | {_size_cell(b, R)} | "
+                     f"{_size_cell(a, R)} | {split(b)} | {split(a)} | "
+                     f"{_size_cell(out['truth'], R)}; {split(out['truth'])} | "
+                     f"{out['ms_before']:.1f} / {out['ms_after']:.1f} |")
+    lines += ["", (f"{R} seeded replicates per row (the seeds of the calibration block), default "
+              "fit (CI weights); before = `gof_test(res, sin_frequency=False)` (the test at the "
+              "fit's own frequency), after = the default `gof_test` (the largest p over the "
+              "competing seatings of a sinusoid whose frequency is not identified), on the same "
+              "fits; SIN frequency off: fits seating the SIN more than 1.5x from its true "
+              "frequency, and the rejections at 5 % among them / among the others; frequency "
+              "held at the truth: the test of the model with the SIN frequency known (the fit's "
+              "refit there; a diagnostic, not available on data); test CPU: per fit, mean. "
+              "Bold: beyond 2 Monte Carlo SE of the level, or KS p < 0.01.")]
+    return lines
+
+
+def sin_main(args: argparse.Namespace, t0: float) -> None:
+    import gmwm.gof as gof_module
+
+    if args.write and (args.seed != 2031 or args.sin_compete != gof_module.SIN_COMPETE):
+        sys.exit("--write renders the study at its defaults: no --seed or --sin-compete")
+    gof_module.SIN_COMPETE = args.sin_compete
+    srows, prows = [], []
+    for label, ks in SIN_CELLS.items():
+        for k in ks:
+            srows.append((label, k, sin_cell(label, k, args.R, args.seed)))
+            print(label, k, f"{srows[-1][2]['cpu']:.0f} s CPU", flush=True)
+    if args.R_power > 0:
+        for label in SIN_POWER:
+            for k in SIN_CELLS["gyro WN+SIN+RW (selection study)"]:
+                prows.append((label, k, sin_power_cell(label, k, args.R_power, args.seed + 1)))
+                print(label, k, f"{prows[-1][2]['cpu']:.0f} s CPU", flush=True)
+    cpu = sum(out["cpu"] for *_, out in [*srows, *prows])
+    lines = ["Sinusoid rows, before and after the frequency correction:", "",
+             *sin_table(srows, args.R)]
+    if prows:
+        lines += ["", "Power beside a weak sinusoid:", "", *plain_power_table(prows, args.R_power)]
+    print("\n".join(lines))
+    if args.write:
+        from bench_selection import commit
+
+        head = (f"Generated by `python benchmarks/bench_gof.py --calibration --sin --R {args.R} "
+                f"--R-power {args.R_power} --write` (commit {commit()}, "
+                f"{time.perf_counter() - t0:.0f} s wall, {cpu:.0f} s CPU, 1 process, 1-minute "
+                f"load {os.getloadavg()[0]:.1f} at the end).\n")
+        write_section(head + "\n" + "\n".join(lines), "bench_gof_sin")
 
 
 def _size_cell(p: np.ndarray, R: int) -> str:
@@ -230,6 +390,8 @@ def _run_cell(task: tuple[str, str, int, int, int]) -> tuple[str, str, int, dict
 
 
 def calibration_main(args: argparse.Namespace) -> None:
+    if args.sin:
+        return sin_main(args, time.perf_counter())
     if args.write and (args.models or args.seed != 2031 or args.R_power <= 0):
         sys.exit("--write renders the full study: no --models, --seed or --R-power 0 with it")
     t0 = time.perf_counter()
@@ -385,6 +547,10 @@ def main() -> None:
                     help="calibration: the size rows' seed (the power rows' is seed + 1)")
     ap.add_argument("--models", nargs="*", choices=[*CALIBRATION, *SELECTION_CELLS], default=None,
                     help="calibration: these true models only (default all)")
+    ap.add_argument("--sin", action="store_true",
+                    help="calibration: the sinusoid rows before/after the frequency correction")
+    ap.add_argument("--sin-compete", type=float, default=6.635,
+                    help="--sin: gmwm.gof.SIN_COMPETE for this run (inf: the whole grid)")
     args = ap.parse_args()
     if args.calibration:
         sys.path.insert(0, str(HERE))
