@@ -232,11 +232,11 @@ def held_at_truth(res: gmwm.GMWMResult, theta: np.ndarray) -> float:
 
     from gmwm import gof
     from gmwm.inference import Problem
-    from gmwm.search import _VP, _shapes_of
+    from gmwm.search import VP, shapes_of
 
     model, prob = res.model, Problem.of(res)
-    vp = _VP(model, prob.tau, prob.nu_hat, prob.white, 1.0, np.random.default_rng(0))
-    shapes = _shapes_of(model, np.asarray(res.params, float), prob.tau)
+    vp = VP(model, prob.tau, prob.nu_hat, prob.white, 1.0, np.random.default_rng(0))
+    shapes = shapes_of(model, np.asarray(res.params, float), prob.tau)
     held = np.zeros(model.n_params, bool)
     sins = [k for k, c in enumerate(model.components) if c.process.name == "SIN"]
     for k in sins:

@@ -301,11 +301,11 @@ def _held_at(res, k: int, beta: float):
 
     from gmwm import gof
     from gmwm.inference import Problem
-    from gmwm.search import _VP, _shapes_of
+    from gmwm.search import VP, shapes_of
 
     model, prob = res.model, Problem.of(res)
-    vp = _VP(model, prob.tau, prob.nu_hat, prob.white, 1.0, np.random.default_rng(0))
-    shapes = _shapes_of(model, np.asarray(res.params), prob.tau)
+    vp = VP(model, prob.tau, prob.nu_hat, prob.white, 1.0, np.random.default_rng(0))
+    shapes = shapes_of(model, np.asarray(res.params), prob.tau)
     shapes[k] = math.log(beta)
     q, theta = gof._held_fit(res, vp, shapes, k, 1.0)
     held = np.zeros(model.n_params, bool)

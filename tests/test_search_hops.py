@@ -1,4 +1,4 @@
-"""The tangent-profile hop of a weak SIN (gmwm.search._VP.tangent_hops): on Simulation 2
+"""The tangent-profile hop of a weak SIN (gmwm.search.VP.tangent_hops): on Simulation 2
 replicates where the search before it stopped above a better optimum (tests/data/
 sim2_hop_cases.json, from benchmarks/audit_sim2_misses.py), the fit reaches the best objective
 that audit found."""
@@ -11,7 +11,7 @@ import pytest
 
 import gmwm
 from gmwm.model import Model
-from gmwm.search import _VP
+from gmwm.search import VP
 from gmwm.wv import WaveletVariance
 from gmwm_studies.seeds import replicate_seed
 
@@ -38,5 +38,5 @@ def test_no_hop_without_a_weak_sin():
     theta = model.theta({"WN[1].sigma2": 1.0, "SIN[1].alpha": 1.0, "SIN[1].beta": 0.05})
     tau = 2.0 ** np.arange(1, 15)
     nu = model.wv(theta, tau)
-    vp = _VP(model, tau, nu, np.eye(tau.size), 1.0, np.random.default_rng(0))
+    vp = VP(model, tau, nu, np.eye(tau.size), 1.0, np.random.default_rng(0))
     assert vp.tangent_hops(theta, nu * 1e-3) == []

@@ -583,7 +583,7 @@ def _held_fit(result: Any, vp: Any, shapes: list[float], k: int, drift_sign: flo
     other shapes); components below the fit's vanishing share set to 0 as the fit does."""
     from .diagnostics import VANISH_SHARE
     from .inference import Problem
-    from .search import _theta_from_vp
+    from .search import theta_from_vp
 
     model = result.model
     shapes = list(shapes)
@@ -597,7 +597,7 @@ def _held_fit(result: Any, vp: Any, shapes: list[float], k: int, drift_sign: flo
         c, coef = vp.cost()
         if c >= previous * (1 - 1e-6):
             break
-    theta = _theta_from_vp(model, shapes, coef, drift_sign)
+    theta = theta_from_vp(model, shapes, coef, drift_sign)
     prob = Problem.of(result)
     with np.errstate(all="ignore"):
         comp = model.component_wv(theta, prob.tau)
@@ -612,7 +612,7 @@ def _sin_seatings(result: Any, V: np.ndarray | None) -> list[tuple[str, float, f
     theta of the fit with that beta held), those within ``SIN_COMPETE`` largest null eigenvalues
     of the fit's objective and ``SIN_AWAY`` from its frequency, lowest objective first."""
     from .inference import Problem
-    from .search import _VP, _shapes_of
+    from .search import VP, shapes_of
 
     model = result.model
     sins = [k for k, c in enumerate(model.components) if c.process.oscillating]
@@ -629,8 +629,8 @@ def _sin_seatings(result: Any, V: np.ndarray | None) -> list[tuple[str, float, f
     for c in model.components:
         if c.process.name == "DR" and theta_hat[c.start] < 0:
             drift_sign = -1.0
-    vp = _VP(model, prob.tau, prob.nu_hat, prob.white, drift_sign, np.random.default_rng(0))
-    base = _shapes_of(model, theta_hat, prob.tau)
+    vp = VP(model, prob.tau, prob.nu_hat, prob.white, drift_sign, np.random.default_rng(0))
+    base = shapes_of(model, theta_hat, prob.tau)
     out = []
     for k in sins:
         comp = model.components[k]

@@ -64,17 +64,17 @@ from .model import Model, spec_of
 from .processes import Process
 from .settings import N_STARTS
 
-__all__ = ["EXPLORE_NFEV", "Node", "Search", "shared_memo"]
+__all__ = ["EXPLORE_NFEV", "Node", "Search", "VP", "shapes_of", "shared_memo", "theta_from_vp"]
 
 #: Evaluation budget of each exploratory solve (the winner continues to max_nfev).
 EXPLORE_NFEV = 60
 #: A SIN whose WV stays below this many standard deviations of the WV estimate at every scale is
-#: re-seated jointly with another shape (``_VP.reseat_sins``).
+#: re-seated jointly with another shape (``VP.reseat_sins``).
 RESEAT_NOISE = 3.0
 #: ... and moved at least this far in ln beta from where it was.
 RESEAT_AWAY = 1.0
 #: A SIN whose WV stays below this many standard deviations at every scale is also moved to the
-#: best minima of its tangent profile (``_VP.tangent_hops``), each solved in all the parameters.
+#: best minima of its tangent profile (``VP.tangent_hops``), each solved in all the parameters.
 HOP_NOISE = 10.0
 #: points of the tangent profile over the whole ln-beta range (~0.004 apart; each chosen minimum
 #: is refined on a 16x finer local grid)
@@ -143,7 +143,7 @@ def _grid_columns(proc: Process, tau: tuple[float, ...], step: float
     return grid, cols
 
 
-def _theta_from_vp(model: Model, shapes: list[float], coef: np.ndarray, drift_sign: float,
+def theta_from_vp(model: Model, shapes: list[float], coef: np.ndarray, drift_sign: float,
                    floor: np.ndarray | None = None) -> np.ndarray:
     """Shape coordinates + NNLS scale coefficients -> parameter vector. Zero coefficients are
     lifted to ``floor`` (if given) so that free coordinates are defined."""
@@ -154,7 +154,7 @@ def _theta_from_vp(model: Model, shapes: list[float], coef: np.ndarray, drift_si
     return theta
 
 
-def _shapes_of(model: Model, theta: np.ndarray, tau: np.ndarray) -> list[float]:
+def shapes_of(model: Model, theta: np.ndarray, tau: np.ndarray) -> list[float]:
     """Shape coordinates of a parameter vector (0 for components without a shape)."""
     out = []
     for c in model.components:
@@ -163,7 +163,7 @@ def _shapes_of(model: Model, theta: np.ndarray, tau: np.ndarray) -> list[float]:
     return out
 
 
-class _VP:
+class VP:
     """Variable-projection search over the shapes of one model on one whitened WV."""
 
     STEP = 0.45          # grid spacing in shape coordinates
@@ -380,7 +380,7 @@ class _VP:
         return out, c, coef
 
     def theta(self, shapes: list[float], coef: np.ndarray) -> np.ndarray:
-        return self.model.canonical(_theta_from_vp(self.model, shapes, coef, self.drift_sign,
+        return self.model.canonical(theta_from_vp(self.model, shapes, coef, self.drift_sign,
                                                    self.floors(shapes)))
 
     def starts(self, n_starts: int, n_random: int | None = None, pairs: bool = True
@@ -429,7 +429,7 @@ class _VP:
         sins = [k for k in self.shaped if self.procs[k].oscillating]
         if not sins or len(self.shaped) < 2 or theta_best is None:
             return
-        c, th = self.pair_descents(_shapes_of(self.model, theta_best, self.tau), sins)
+        c, th = self.pair_descents(shapes_of(self.model, theta_best, self.tau), sins)
         add(c, th)
 
     def pair_descents(self, base: list[float], sins: list[int], away: float | None = None,
@@ -478,7 +478,7 @@ class _VP:
         partners = [j for j in self.shaped if not self.procs[j].oscillating]
         if not partners:
             return None
-        return self.pair_descents(_shapes_of(self.model, theta, self.tau), weak, RESEAT_AWAY,
+        return self.pair_descents(shapes_of(self.model, theta, self.tau), weak, RESEAT_AWAY,
                                   partners)
 
     def hop_sins(self, theta: np.ndarray) -> tuple[float, np.ndarray] | None:
@@ -488,7 +488,7 @@ class _VP:
         sins = [k for k in self.shaped if self.procs[k].oscillating]
         if not sins:
             return None
-        shapes = _shapes_of(self.model, theta, self.tau)
+        shapes = shapes_of(self.model, theta, self.tau)
         self.set_shapes(shapes)
         before = list(shapes)
         for k in sins:
@@ -518,7 +518,7 @@ class _VP:
                 if np.max(comp[self.model.components[k].name] / noise) < HOP_NOISE]
         if not weak:
             return []
-        base = _shapes_of(self.model, theta, self.tau)
+        base = shapes_of(self.model, theta, self.tau)
         found: list[tuple[float, np.ndarray]] = []
         for k in weak:
             self.set_shapes(base)
@@ -615,7 +615,7 @@ class _VP:
     def extend(self, theta_sub: np.ndarray, k_new: int) -> tuple[float, np.ndarray]:
         """Start from a submodel optimum (shapes of ``theta_sub``, embedded in this model, with
         component ``k_new`` off) and place component k_new at its best shape."""
-        shapes = _shapes_of(self.model, theta_sub, self.tau)
+        shapes = shapes_of(self.model, theta_sub, self.tau)
         self.set_shapes(shapes)
         dirty = set(self.shaped)
         if k_new in self.shaped:
@@ -708,13 +708,13 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
         gw = Whitener(weight_matrix(prob.wv, "gaussian", "gmwm"))
     else:
         gw = prob.white
-    vp = _VP(model, tau, nu_hat, gw, drift_sign, _node_seed(seed, model.spec),
+    vp = VP(model, tau, nu_hat, gw, drift_sign, _node_seed(seed, model.spec),
              cache.setdefault("__columns__", {}))  # type: ignore[arg-type]
 
     if model.is_linear and prob.method == "gmwm":
         # closed form: NNLS on the whitened system is the exact minimiser
         c, coef = vp.cost()
-        theta = _theta_from_vp(model, [0.0] * vp.ncomp, coef, drift_sign)
+        theta = theta_from_vp(model, [0.0] * vp.ncomp, coef, drift_sign)
         node = Node(theta, prob.objective(theta), True,
                      "closed-form non-negative weighted least squares", [], 0)
         cache[key] = node
@@ -757,7 +757,7 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
         # projected problem (the valley is straightened there), then solve again from there
         for i, sol in enumerate(sols):
             if sol.capped:
-                sh, _, coef = vp.polish(_shapes_of(model, sol.theta, tau))
+                sh, _, coef = vp.polish(shapes_of(model, sol.theta, tau))
                 again = prob.solve(vp.theta(sh, coef), max_nfev=budget)
                 if again.objective < sol.objective:
                     sols[i] = again
@@ -794,7 +794,7 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
                 break
             again = hops[j]
             if again.capped:  # crawling along a valley: as the starts above, polish and go on
-                sh, _, coef = vp.polish(_shapes_of(model, again.theta, tau))
+                sh, _, coef = vp.polish(shapes_of(model, again.theta, tau))
                 redo = prob.solve(vp.theta(sh, coef), max_nfev=budget)
                 again = redo if redo.objective < again.objective else again
                 if again.capped and max_nfev > budget:
