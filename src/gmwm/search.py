@@ -64,7 +64,7 @@ from .model import Model, spec_of
 from .processes import Process
 from .settings import N_STARTS
 
-__all__ = ["EXPLORE_NFEV", "Node", "Search", "VP", "shapes_of", "shared_memo", "theta_from_vp"]
+__all__ = ["EXPLORE_NFEV", "VP", "Node", "Search", "shapes_of", "shared_memo", "theta_from_vp"]
 
 #: Evaluation budget of each exploratory solve (the winner continues to max_nfev).
 EXPLORE_NFEV = 60
