@@ -311,9 +311,8 @@ def _fit_gmwm(wv: WaveletVariance, model: Model, settings: FitSettings,
             node = search.run(prob, extra_starts=[node.theta])
     seconds_fit = time.perf_counter() - t0
     theta = np.array(node.theta, dtype=float)
-    with np.errstate(all="ignore"):
-        comp_wv = model.component_wv(theta, prob.tau)
-    vanished = [k for k, v in comp_wv.items() if np.max(v / wv.variance) < dg.VANISH_SHARE]
+    gone = prob.vanished(theta)
+    vanished = [c.name for c in model.components if c.name in gone]
     fixed = np.zeros(model.n_params, bool)
     for c in model.components:
         if c.name in vanished:

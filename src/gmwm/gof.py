@@ -581,7 +581,6 @@ def _held_fit(result: Any, vp: Any, shapes: list[float], k: int, drift_sign: flo
     """(objective, theta) of the fit with component k's shape (a SIN's ln beta) held at
     ``shapes[k]``: the fit's own variable projection (NNLS scales, coordinate moves of the
     other shapes); components below the fit's vanishing share set to 0 as the fit does."""
-    from .diagnostics import VANISH_SHARE
     from .inference import Problem
     from .search import theta_from_vp
 
@@ -599,10 +598,9 @@ def _held_fit(result: Any, vp: Any, shapes: list[float], k: int, drift_sign: flo
             break
     theta = theta_from_vp(model, shapes, coef, drift_sign)
     prob = Problem.of(result)
-    with np.errstate(all="ignore"):
-        comp = model.component_wv(theta, prob.tau)
+    vanished = prob.vanished(theta)
     for comp_k in model.components:
-        if np.max(comp[comp_k.name] / prob.nu_hat) < VANISH_SHARE:
+        if comp_k.name in vanished:
             theta[comp_k.start + comp_k.process.scale_index] = 0.0
     return prob.objective(theta), theta
 
@@ -703,7 +701,8 @@ def _largest_over_seatings(result: Any, V: np.ndarray | None, g: GOFResult) -> G
             best, where = gk, (label, beta)
     own = next(c for c in model.components if c.name == (seats[0][0] if where is None
                                                           else where[0]))
-    beta_hat = float(np.asarray(result.params)[own.start + 1])
+    beta_hat = float(np.asarray(result.params)[own.start
+                                               + list(own.process.param_names).index("beta")])
     note = (f"{', '.join(sorted({s[0] for s in seats}))}: frequency not identified by the data "
             f"({len(seats)} other seating(s) within the objective's sampling noise); the p-value "
             "is the largest over them and the fit's own (conservative): ")

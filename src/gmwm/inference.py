@@ -295,6 +295,13 @@ class Problem:
         """Whitened residual ``L' (f(nu_hat) - f(nu(theta)))`` (unnormalised)."""
         return self.white @ (self.target - self.f(self.model.wv(theta, self.tau)))
 
+    def vanished(self, theta: np.ndarray) -> set[str]:
+        """Components whose WV at ``theta`` is below ``VANISH_SHARE`` of ``nu_hat`` at every scale
+        (set to exactly 0 by the fit: docs/METHODS.md §5.8)."""
+        with np.errstate(all="ignore"):
+            comp = self.model.component_wv(theta, self.tau)
+        return {k for k, v in comp.items() if np.max(v / self.nu_hat) < VANISH_SHARE}
+
     def objective(self, theta: np.ndarray) -> float:
         with np.errstate(all="ignore"):
             r = self.residual(np.asarray(theta, dtype=float))
@@ -375,8 +382,7 @@ class Problem:
         raw = model.from_free(sol.x)
         obj = self.objective(raw)
         ok = bool(sol.status > 0 and np.all(np.isfinite(raw)) and np.isfinite(obj))
-        vanished = {k for k, v in model.component_wv(raw, self.tau).items()
-                    if np.max(v / self.nu_hat) < VANISH_SHARE}
+        vanished = self.vanished(raw)
         edge = [n for n, e, a, b in zip(model.param_names, sol.x, lo, hi, strict=True)
                 if min(e - a, b - e) < 1e-3
                 and not (n.split(".")[0] in vanished and e - a < 1e-3)]
