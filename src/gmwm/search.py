@@ -752,15 +752,19 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
     # crawl); the winner, if it was stopped by the budget, continues with the full one
     budget = min(max_nfev, EXPLORE_NFEV)
     sols = [prob.solve(theta0, max_nfev=budget) for theta0 in cand]
+
+    def polished(sol: Any) -> Any:
+        """A solve stopped by the budget is crawling along a valley: its shapes polished in the
+        projected problem (the valley is straightened there) and solved again from there, if
+        that ends lower."""
+        if not sol.capped:
+            return sol
+        sh, _, coef = vp.polish(shapes_of(model, sol.theta, tau))
+        again = prob.solve(vp.theta(sh, coef), max_nfev=budget)
+        return again if again.objective < sol.objective else sol
+
     if prob.method == "gmwm" and vp.shaped:
-        # a solve stopped by the budget is crawling along a valley: polish its shapes in the
-        # projected problem (the valley is straightened there), then solve again from there
-        for i, sol in enumerate(sols):
-            if sol.capped:
-                sh, _, coef = vp.polish(shapes_of(model, sol.theta, tau))
-                again = prob.solve(vp.theta(sh, coef), max_nfev=budget)
-                if again.objective < sol.objective:
-                    sols[i] = again
+        sols = [polished(sol) for sol in sols]
     if sols:
         i = int(np.argmin([s_.objective for s_ in sols]))
         if sols[i].capped and max_nfev > budget:
@@ -792,13 +796,9 @@ def _search(problem: Problem, model: Model, n_starts: int, seed: int, drift_sign
             j = int(np.argmin([h.objective for h in hops]))
             if hops[j].objective >= sols[i].objective * (1 - 1e-9):
                 break
-            again = hops[j]
-            if again.capped:  # crawling along a valley: as the starts above, polish and go on
-                sh, _, coef = vp.polish(shapes_of(model, again.theta, tau))
-                redo = prob.solve(vp.theta(sh, coef), max_nfev=budget)
-                again = redo if redo.objective < again.objective else again
-                if again.capped and max_nfev > budget:
-                    again = prob.solve(again.theta, max_nfev=max_nfev - budget)
+            again = polished(hops[j])  # as the starts above, then the full budget
+            if again.capped and max_nfev > budget:
+                again = prob.solve(again.theta, max_nfev=max_nfev - budget)
             if again.objective >= sols[i].objective:
                 break
             sols.append(again)
