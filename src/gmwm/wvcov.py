@@ -32,8 +32,7 @@ Accuracy: exact for finite ``M_j`` (no asymptotic approximation) except the SIN 
 (5e-13 for phi = 0.999995); explicit sums over every lag at T = 5000 and 40000 to <= 9e-9
 (phi in {-0.95, -0.5, 0.3, 0.9, 0.99, 0.999995}, WN+RW, two AR1) and at T = 1e7 (Simulation 2
 AR1 pair and WN+AR1+RW; scale pairs (1,1), (1,22), (10,13), (22,22)) to <= 7e-12. Cost O(J^2),
-independent of T: Simulation 1-3 models at T = 1e7, J = 22 take 20-45 ms CPU on a 2-core machine
-at load ~20 (benchmarks/bench_wvcov.py).
+independent of T (timings: benchmarks/bench_wvcov.py).
 """
 
 from __future__ import annotations
