@@ -23,7 +23,8 @@ components' *realised* z-values (scale estimate / standard error) sort the repli
   component whose z-value is not a detection statistic (:data:`NONREGULAR`: a sinusoid's
   amplitude, a GM's or AR1's variance: at scale 0 the frequency, beta or phi is not identified,
   the fit maximises over it, and |scale| / SE is inflated where the data hold no such component),
-  the candidate without it is rejected by the goodness-of-fit test at 5 %: the data show it.
+  the candidate without it is rejected by the goodness-of-fit test at the library's level
+  (:data:`gmwm.gof.ALPHA`, 1 %): the data show it.
   A component the test cannot tell from its absence is one no criterion can be asked to keep.
 
 ``--evidence R`` tabulates what the data say about each non-regular component: among the
@@ -69,6 +70,7 @@ import gmwm
 from gmwm.atomic import write_json_atomic
 from gmwm.model import Model, parse_model, spec_of
 from gmwm.processes import PROCESSES
+from gmwm.gof import ALPHA as GOF_ALPHA
 from gmwm.select import PARSIMONY, RankedModel, order, rank_models
 from gmwm.wv import wvar
 
@@ -82,16 +84,18 @@ Z_QUALIFY = 3.0
 #: sinusoid's frequency, a GM's beta, an AR1's phi) is not identified, the fit maximises over it,
 #: and |scale| / SE is inflated under "no such component" (a non-regular test, Davies' problem)
 NONREGULAR = ("SIN", "GM", "AR1")
-#: level of the "the data show it" qualifier (the goodness-of-fit test of the model without it)
-ALPHA_SHOWN = 0.05
+#: level of the "the data show it" qualifier (the goodness-of-fit test of the model without it):
+#: the library's, at which the ranking splits
+ALPHA_SHOWN = GOF_ALPHA
 #: ranking rules compared on the same fits, as (component types of the parsimony step, level of
 #: the goodness-of-fit test): the criterion alone (accepted candidates first; the rule before the
 #: parsimony step), the library's rule (:func:`gmwm.select.order`: the parsimony step on
 #: SIN/GM/AR1) and, for comparison, the step on every component type, and the library's rule with
-#: the test at 1 % (what a test that rejects true models less often would give)
-RULES = {"criterion only": ((), 0.05), "parsimony (library)": (PARSIMONY, 0.05),
-         "parsimony, every component": (tuple(PROCESSES), 0.05),
-         "parsimony, test at 1 %": (PARSIMONY, 0.01)}
+#: the test at 5 % (the library's level before 2026-11-29: a test that rejects true models
+#: more often)
+RULES = {"criterion only": ((), GOF_ALPHA), "parsimony (library)": (PARSIMONY, GOF_ALPHA),
+         "parsimony, every component": (tuple(PROCESSES), GOF_ALPHA),
+         "parsimony, test at 5 %": (PARSIMONY, 0.05)}
 #: the rule the target is judged on (the library's)
 LIBRARY_RULE = "parsimony (library)"
 #: per-replicate results (the ranked candidates' objective, penalty, p-value; the z-values):
@@ -153,7 +157,7 @@ def realised_z(result) -> list[float]:
     return out
 
 
-def pick(entries, k: float, parsimony: tuple[str, ...] = (), alpha: float = 0.05) -> str:
+def pick(entries, k: float, parsimony: tuple[str, ...] = (), alpha: float = GOF_ALPHA) -> str:
     """The first-ranked model under penalty factor k by the library's ordering
     (:func:`gmwm.select.order`: candidates the test accepts at ``alpha`` first, by criterion,
     near ties to fewer parameters; then the parsimony step on the component types
@@ -335,7 +339,7 @@ def evidence_rows(s: Setting, kexp: int, reps: list[dict], null_reps: int, pool)
 
 def evidence_table(rows: list[tuple]) -> list[str]:
     lines = [("Evidence for each non-regular component (replicates qualifying by z): the share "
-              "whose model without it passes the goodness-of-fit test at 5 %; the objective "
+              f"whose model without it passes the goodness-of-fit test at {ALPHA_SHOWN:g}; the objective "
               "drop D = objective(without) - objective(with); D's 95 % quantile when the data "
               "hold no such component (R replicates simulated without it at the generating "
               "values of the others, both models fitted; beside it the share of those where the "
@@ -461,14 +465,15 @@ def main() -> None:
                 "the target is judged on this one). hit = share of qualifying replicates "
                 "ranking the generating model first (MC SE in brackets); candidates one "
                 "component away; every rule ranks the candidates the goodness-of-fit test "
-                "accepts at 0.05 first. Rules, on the same fits: \"criterion only\" (before "
+                f"accepts at {GOF_ALPHA:g} first. Rules, on the same fits: \"criterion only\" (before "
                 "the parsimony step), \"parsimony (library)\" (`gmwm.select.order`: the "
                 "first-ranked candidate loses each SIN/GM/AR1 whose removal gives an accepted "
                 "candidate), \"parsimony, every component\" (the same step on every component "
-                "type), \"parsimony, test at 1 %\" (the library's rule with the test's level "
-                "at 0.01 for both the split and the step: what a test rejecting true models less "
-                "often would give). \"gen. rejected\": qualifying replicates whose generating "
-                "model the test rejects at 0.05, which no rule at that level can rank first "
+                "type), \"parsimony, test at 5 %\" (the library's rule with the test's level "
+                "at 0.05 for both the split and the step, the library's level before 2026-11-29: "
+                "a test rejecting true models more often). \"gen. rejected\": qualifying "
+                f"replicates whose generating model the test rejects at {ALPHA_SHOWN:g}, which no "
+                "rule at that level can rank first "
                 "(the test's size, issue 40 item 6); the qualifier \"z + shown, gen. "
                 "accepted\" leaves them out.\n")
         bs.write_section(head + "\n" + "\n".join(lines), "selection_penalty")

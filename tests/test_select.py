@@ -236,7 +236,7 @@ def test_parsimony_removes_a_component_the_data_do_not_show() -> None:
     plain, none = order(entries, parsimony=())
     assert none == [] and plain[0].model == "WN+SIN+AR1+RW"
     # the model without the SIN rejected: the SIN stays (the data show it)
-    kept, steps = order([_entry("WN+SIN+RW", 1.0, 0.5), _entry("WN+RW", 3.0, 0.01)])
+    kept, steps = order([_entry("WN+SIN+RW", 1.0, 0.5), _entry("WN+RW", 3.0, 0.005)])
     assert steps == [] and kept[0].model == "WN+SIN+RW"
     # a regular component (RW) is never removed by the step, nor is an untested reduced model
     # (NaN p-value: no evidence) a reason to remove
@@ -252,7 +252,7 @@ def test_parsimony_leaves_an_all_rejected_ranking_unchanged() -> None:
     from gmwm.select import order
 
     entries = [_entry("WN+GM+RW", 1.0, 1e-40), _entry("WN+RW", 2.0, 1e-3),
-               _entry("WN+2*GM+RW", 0.8, 1e-30), _entry("WN+SIN+GM+RW", 0.9, 0.04)]
+               _entry("WN+2*GM+RW", 0.8, 1e-30), _entry("WN+SIN+GM+RW", 0.9, 0.004)]
     with_step, steps = order(entries)
     without, _ = order(entries, parsimony=())
     assert steps == [] and with_step == without

@@ -41,8 +41,8 @@ The rule
    candidate of a stage that has it is left out of the later stages (:attr:`Choice.dropped_terms`).
    All stages share one search memo (:func:`gmwm.search.shared_memo`).
 4. Choice. The candidates are ranked by the criterion (default :data:`gmwm.criteria.DEFAULT`,
-   WIC with k = 2). The chosen model is the best-ranked one whose goodness-of-fit p-value is at
-   least ``alpha`` (5 %); a candidate whose test cannot be computed does not pass. When every
+   WIC-HQ). The chosen model is the best-ranked one whose goodness-of-fit p-value is at
+   least ``alpha`` (:data:`gmwm.gof.ALPHA`, 1 %); a candidate whose test cannot be computed does not pass. When every
    candidate is rejected, the best-ranked one is returned with a warning saying so
    (:attr:`Choice.warnings`) and naming the likely causes in the order the data show them
    (:attr:`Choice.rejection_hint`, :func:`gmwm.verdict.rejection_causes`: too short, on-board
@@ -67,6 +67,7 @@ import numpy as np
 
 from .criteria import DEFAULT, TIE_CHI2, chi2_unit
 from .errors import GMWMError, InputError
+from .gof import ALPHA as GOF_ALPHA
 from .model import Model, parse_model, spec_of
 from .processes import PROCESSES
 from .search import shared_memo
@@ -394,7 +395,7 @@ def _sin_variants(spec: str, kind: str | None) -> list[str]:
 
 def choose_model(data: Any, *, freq: float | None = None, kind: str | None = None,
                  max_gm: int = MAX_GM, sin: bool | str = "auto", slow: str = "GM",
-                 criterion: str = DEFAULT, alpha: float = 0.05, levels: int | None = None,
+                 criterion: str = DEFAULT, alpha: float = GOF_ALPHA, levels: int | None = None,
                  robust: bool = False, eff: float = 0.6, seed: int = 0,
                  n_starts: int | None = None,
                  progress: Callable[[int, int, str], None] | None = None) -> Choice:
@@ -411,7 +412,7 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
     sin : ``"auto"`` (SIN candidates when :func:`wv_bump` sees a bump), True or False.
     slow : ``"GM"`` (default) or ``"AR1"`` (also negative correlation) for the slow terms.
     criterion : ranking criterion of :mod:`gmwm.criteria` (default :data:`DEFAULT`, WIC-HQ).
-    alpha : level of the goodness-of-fit test a chosen model must pass (default 0.05).
+    alpha : level of the goodness-of-fit test a chosen model must pass (default :data:`gmwm.gof.ALPHA`, 0.01).
     levels, robust, eff, seed, n_starts : as in :func:`gmwm.fit` (one WV for all candidates).
     progress : called as ``progress(i, n, model)`` before fitting candidate ``i`` (``n`` an
         upper bound: the number of candidates if every stage and SIN variant were fitted).
