@@ -222,3 +222,15 @@ def test_repeated_covariance_is_the_memo_copy():
     assert np.array_equal(wvcov.wv_covariance(model, theta, scales, 50_000), kept)
     other = wvcov.wv_covariance(model, theta, scales, 60_000)
     assert not np.array_equal(other, kept)
+
+
+def test_an_ar1_with_phi_near_zero_is_white_noise() -> None:
+    """An AR1 fitted at phi ~ 1e-310 (its -log(phi) > 710, where sinh overflows a double) is white
+    noise of variance sigma2: its covariance is that of WN, not an OverflowError (a model ranking
+    once stopped on such a candidate's goodness-of-fit test)."""
+    scales = 2.0 ** np.arange(1, 12)
+    T = 2**14
+    ar = wv_covariance(Model("WN+AR1"), np.array([1.0, 1e-310, 0.5]), scales, T)
+    wn = wv_covariance(Model("WN"), np.array([1.5]), scales, T)
+    assert np.all(np.isfinite(ar))
+    np.testing.assert_allclose(ar, wn, rtol=1e-9)

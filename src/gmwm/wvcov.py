@@ -122,6 +122,11 @@ def _sinh_minus(a: float) -> float:
             if term <= 1e-17 * s:
                 break
         return s
+    if a > 700.0:
+        # sinh overflows a double past ~710 (phi < 1e-304: an AR1 that is white noise); the
+        # kernels read this term only where a * tau <= 2, so the value is never used, and inf
+        # is what the compiled sinh returns (the Python one raises OverflowError)
+        return math.inf
     return math.sinh(a) - a
 
 
