@@ -8,7 +8,8 @@ Design. Generating models typical of gyroscopes and accelerometers (:func:`setti
 weak component set to an *expected* z-value of 4 at every length where that is reachable (scale
 parameter / its sandwich SE at the truth; ``bench_selection.calibrate``; where the z-value
 saturates below 4 at a length, e.g. a random walk beside a slow AR1 in a short record, the base
-value is kept), so that most replicates hold it at 3 SE or more and some do not. Each replicate is ranked once (:func:`gmwm.select.rank_models`: CI weights,
+value is kept), so that most replicates hold it at 3 SE or more and some do not. Each replicate is
+ranked once (:func:`gmwm.select.rank_models`: CI weights,
 the goodness-of-fit test on every candidate, accepted candidates first) over the candidates one
 component away from the generating model; the pick of each penalty factor is read off the same
 fits. The generating model is then refitted with :func:`gmwm.fit`'s defaults and its
@@ -68,9 +69,9 @@ import bench_selection as bs
 
 import gmwm
 from gmwm.atomic import write_json_atomic
+from gmwm.gof import ALPHA as GOF_ALPHA
 from gmwm.model import Model, parse_model, spec_of
 from gmwm.processes import PROCESSES
-from gmwm.gof import ALPHA as GOF_ALPHA
 from gmwm.select import PARSIMONY, RankedModel, order, rank_models
 from gmwm.wv import wvar
 
@@ -339,8 +340,8 @@ def evidence_rows(s: Setting, kexp: int, reps: list[dict], null_reps: int, pool)
 
 def evidence_table(rows: list[tuple]) -> list[str]:
     lines = [("Evidence for each non-regular component (replicates qualifying by z): the share "
-              f"whose model without it passes the goodness-of-fit test at {ALPHA_SHOWN:g}; the objective "
-              "drop D = objective(without) - objective(with); D's 95 % quantile when the data "
+              f"whose model without it passes the goodness-of-fit test at {ALPHA_SHOWN:g}; the "
+              "objective drop D = objective(without) - objective(with); D's 95 % quantile when the data "
               "hold no such component (R replicates simulated without it at the generating "
               "values of the others, both models fitted; beside it the share of those where the "
               "test rejects the true model without it: the size of the \"shown\" qualifier); "
@@ -465,8 +466,8 @@ def main() -> None:
                 "the target is judged on this one). hit = share of qualifying replicates "
                 "ranking the generating model first (MC SE in brackets); candidates one "
                 "component away; every rule ranks the candidates the goodness-of-fit test "
-                f"accepts at {GOF_ALPHA:g} first. Rules, on the same fits: \"criterion only\" (before "
-                "the parsimony step), \"parsimony (library)\" (`gmwm.select.order`: the "
+                f"accepts at {GOF_ALPHA:g} first. Rules, on the same fits: \"criterion only\" "
+                "(before the parsimony step), \"parsimony (library)\" (`gmwm.select.order`: the "
                 "first-ranked candidate loses each SIN/GM/AR1 whose removal gives an accepted "
                 "candidate), \"parsimony, every component\" (the same step on every component "
                 "type), \"parsimony, test at 5 %\" (the library's rule with the test's level "
