@@ -69,7 +69,7 @@ def _run(path: Path, models: dict[str, str]) -> tuple[dict[str, dict[str, tuple]
     res = calibrate(str(path), models, columns="all", units=dict(bs.UNITS), workers=1)
     sec = res.only()
     exp = noise_export({c: (a.units, a.result) for c, a in sec.axes.items()})
-    out = {c: {t: (ax.term(t).value, ax.term(t).ci95) for t in TERMS}
+    out = {c: {t: (ax.term(t).value, ax.term(t).ci95, ax.term(t).flag is not None) for t in TERMS}
            for c, ax in exp.axes.items()}
     v = sec.verdict
     state = ("refused" if not v.written else
@@ -90,14 +90,16 @@ def replicate(args: tuple[int, float, int]) -> dict:
     with tempfile.TemporaryDirectory() as d:
         s_fit, s_state = _run(_npz(Path(d) / "s.npz", static), models)
         k_fit, k_state = _run(_npz(Path(d) / "k.npz", knock), models)
-    pair, half = {}, {}
+    pair, half, flags = {}, {}, {}
     for c in bs.AXES:
         for t in TERMS:
-            (vs, ci), (vk, _) = s_fit[c][t], k_fit[c][t]
+            (vs, ci, fs), (vk, _, fk) = s_fit[c][t], k_fit[c][t]
+            flags[(c, t)] = (fs, fk)
             ok = vs is not None and vk is not None and vs > 0
             pair[(c, t)] = (vs, vk) if ok else (np.nan, np.nan)
             half[(c, t)] = (ci[1] - ci[0]) / 2 / vs if ok and ci is not None else np.nan
-    return {"profile": profile, "static": s_state, "knock": k_state, "pair": pair, "half": half}
+    return {"profile": profile, "static": s_state, "knock": k_state, "pair": pair, "half": half,
+            "flags": flags}
 
 
 def main() -> None:
@@ -117,8 +119,9 @@ def main() -> None:
         reps = [replicate(w) for w in work]
     lines = [("| profile | axis | term | knock left out | bias of the mean (relative) | MC SE | "
               "median relative change | static 95 % CI half-width (relative) | "
-              "static: mean / truth - 1 (MC SE) | knock left out: mean / truth - 1 (MC SE) |"),
-             "|---|---|---|---|---|---|---|---|---|---|"]
+              "static: mean / truth - 1 (MC SE) | knock left out: mean / truth - 1 (MC SE) | "
+              "flagged (upper bound written): static / knock left out |"),
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     worst = 0.0
     for p, (name, gp, ap_) in enumerate(bs.PROFILES):
         mine = [x for x in reps if x["profile"] == p and x["knock"] == "excluded"]
@@ -141,7 +144,9 @@ def main() -> None:
                     f"{np.mean(col) / truth - 1:+.4f} ({np.std(col, ddof=1) / np.sqrt(len(col)) / truth:.4f})"
                     for col in (v[:, 0], v[:, 1]))
                 lines.append(f"| {name} | {c} | {t} | {len(mine)} / {n_p} | {m:+.4f} | "
-                             f"{se:.4f} | {med:+.4f} | {float(np.nanmedian(h)):.3f} | {vs_truth} |")
+                             f"{se:.4f} | {med:+.4f} | {float(np.nanmedian(h)):.3f} | {vs_truth} | "
+                             f"{sum(x['flags'][(c, t)][0] for x in mine)} / "
+                             f"{sum(x['flags'][(c, t)][1] for x in mine)} |")
     false = [x for x in reps if x["static"] != "kept"]
     lines += ["", (f"Largest |bias| / MC SE over the rows: {worst:.2f}. False exclusions: "
               f"{len(false)} of {len(reps)} static recordings cut or refused "
