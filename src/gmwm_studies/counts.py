@@ -789,7 +789,8 @@ _NOT_QUOTES = [  # spans that hold no quoted number (blanked before numbers are 
     re.compile(r"\b[0-9a-f]{7,40}\b"),  # commits
 ]
 _NAMED = re.compile(  # a number naming a thing, not quoting a value ("Fig 4", "Simulation 2")
-    r"(?:\b(?:Figs?|Fig\.|Tables?|Sec|Sec\.|Section|Lemmas?|Cor\.?|Corollary|Theorems?|Remarks?|"
+    r"(?:\b(?:Figs?|Fig\.|Tables?|Secs?|Sec\.|Section|Lemmas?|Cor\.?|Corollary|Corollaries|"
+    r"Theorems?|Remarks?|Examples?|"
     r"Models?|Simulations?|[Cc]ases?|[Pp]apers?|issues?|items?|Eqs?\.?|SPEC|run|commit|"
     r"[Ss]tage|[Ss]tep|[Pp]hase|Hz|Mode|replicate|replicates|iteration|axis|Chapter|line|"
     r"Proposition|Prop\.|Definition|Algorithm|Assumption|[Cc]olumn|factor|gyros?|order|Sim|"
