@@ -268,18 +268,29 @@ At the boundary 0 in [304](counts.md#x) of 500, nominal 95 % and a 95 % CI; 0 of
     assert text.splitlines()[p.line - 1][p.start:].startswith("209.9 s")
 
 
-def test_committed_reproduction_unlinked_numbers_are_counted(capsys):
-    """How many plain-text numbers of reports/REPRODUCTION.md are still unlinked outside the
-    classes that stay plain (printed, not a failure); unlinking a quote raises the count."""
+def test_committed_reproduction_has_no_unlinked_number(capsys):
+    """Every number of reports/REPRODUCTION.md is a checked link, an untraced marker or in a
+    class that stays plain (the papers' own numbers, design values, computed clauses marked
+    "(= ...)"): a number quoted as plain text fails here, so a changed digit in a quote cannot
+    pass unchecked; unlinking a committed quote is caught the same way."""
     md = committed_md()
     text = md.read_text(encoding="utf-8")
     plain = plain_numbers(text)
+    lines = text.splitlines()
+    assert not plain, "plain-text numbers not linked to their source:\n" + "\n".join(
+        f"  line {p.line}: {p.text!r} in ...{lines[p.line - 1][max(0, p.start - 50):p.start + 20]}"
+        for p in plain)
     with capsys.disabled():
-        print(f"\n{md.name}: {len(find_quotes(text))} linked numbers, {len(plain)} plain-text "
-              "numbers unlinked outside the classes that stay plain "
-              "(gmwm_studies.counts.plain_numbers)")
+        print(f"\n{md.name}: {len(find_quotes(text))} linked numbers, none unlinked")
     raised = []
     for q in [q for q in find_quotes(text) if q.kind == "cell"][:10]:
         marker = f"[{q.quote}]({q.source}#{q.selector})"
         raised.append(len(plain_numbers(text.replace(marker, q.quote, 1))) - len(plain))
     assert set(raised) <= {0, 1} and 1 in raised, raised  # 0: the quote is in a plain class
+
+
+def test_a_seven_digit_number_is_not_taken_for_a_commit():
+    """Commits (7-40 hex digits with a letter) stay plain; an all-digit number of that length is a
+    number (a count of 1107083 samples quoted without a link is caught)."""
+    found = [p.text for p in plain_numbers("Run of 51db49f: 1107083 samples kept, 0.5 of them.\n")]
+    assert found == ["1107083", "0.5"]
