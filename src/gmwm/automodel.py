@@ -42,7 +42,8 @@ The rule
    All stages share one search memo (:func:`gmwm.search.shared_memo`).
 4. Choice. The candidates are ranked by the criterion (default :data:`gmwm.criteria.DEFAULT`,
    WIC-HQ). The chosen model is the best-ranked one whose goodness-of-fit p-value is at
-   least ``alpha`` (:data:`gmwm.gof.ALPHA`, 1 %); a candidate whose test cannot be computed does not pass. When every
+   least ``alpha`` (:data:`gmwm.gof.ALPHA`, 1 %); a candidate whose test cannot be computed
+   does not pass. When every
    candidate is rejected, the best-ranked one is returned with a warning saying so
    (:attr:`Choice.warnings`) and naming the likely causes in the order the data show them
    (:attr:`Choice.rejection_hint`, :func:`gmwm.verdict.rejection_causes`: too short, on-board
@@ -412,7 +413,8 @@ def choose_model(data: Any, *, freq: float | None = None, kind: str | None = Non
     sin : ``"auto"`` (SIN candidates when :func:`wv_bump` sees a bump), True or False.
     slow : ``"GM"`` (default) or ``"AR1"`` (also negative correlation) for the slow terms.
     criterion : ranking criterion of :mod:`gmwm.criteria` (default :data:`DEFAULT`, WIC-HQ).
-    alpha : level of the goodness-of-fit test a chosen model must pass (default :data:`gmwm.gof.ALPHA`, 0.01).
+    alpha : level of the goodness-of-fit test a chosen model must pass (default
+        :data:`gmwm.gof.ALPHA`, 0.01).
     levels, robust, eff, seed, n_starts : as in :func:`gmwm.fit` (one WV for all candidates).
     progress : called as ``progress(i, n, model)`` before fitting candidate ``i`` (``n`` an
         upper bound: the number of candidates if every stage and SIN variant were fitted).

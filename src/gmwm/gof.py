@@ -106,7 +106,7 @@ What the test assumes and where it loses validity
 * Deterministic components (SIN, DR) enter ``V`` only through their interaction with the noise
   (a SIN's own term is O(T^-2) given its phase). A sinusoid whose period is not short against
   the signal, or a drift with few scales to separate it, makes the test liberal.
-* A weak sinusoid's frequency is not identified (the section below): the p-value is then the
+* A weak sinusoid's frequency is not identified (the section above): the p-value is then the
   largest over the frequencies the objective cannot tell apart, valid but conservative.
 * ARMAV (log scale, the delta method on ``V``): conservative on short signals (2.5 % of
   p-values below 5 % at T = 2^14, 4 % at 2^17 in the benchmark).
@@ -131,13 +131,11 @@ __all__ = ["GOFResult", "generalised_wald", "gof_test", "objective_test", "weigh
 SADDLE_BELOW = 1e-6
 #: default level at which a fit is flagged as rejected, and at which model selection splits its
 #: ranking (:mod:`gmwm.select`, :func:`gmwm.automodel.choose_model`). 1 %, not 5 %: the p-values
-#: are calibrated at both levels (``benchmarks/README.md``, "Calibration of the p-values"), but a
-#: ranking consistent with the test can rank the generating model first only where the test
-#: accepts it, and at 5 % the test rejected the generating model in up to 11 % of the replicates
-#: where all its components are clearly present (``benchmarks/selection_penalty.py``: conditioning
-#: on visible components selects records with larger residuals), capping the hit rate below 90 %;
-#: at 1 % every cell of that study ranks it first in >= 95 %. Power against a missing component
-#: at fixed strength drops by 5-30 points at short lengths (the power tables give both levels).
+#: are calibrated at both levels, but a ranking consistent with the test ranks the generating
+#: model first only where the test accepts it, and records whose components are all clearly
+#: visible are those with larger residuals, so at 5 % the test's rejections capped the hit rate
+#: of ``benchmarks/selection_penalty.py`` below 90 %; the price of 1 % is power at short lengths
+#: (docs/METHODS.md §5.12 "Level"; both levels in ``benchmarks/README.md``'s tables).
 ALPHA = 0.01
 
 
@@ -631,10 +629,8 @@ def _sin_seatings(result: Any, V: np.ndarray | None) -> list[tuple[str, float, f
     theta_hat = np.asarray(result.params, dtype=float)
     q_hat = float(result.objective)
     limit = q_hat + SIN_COMPETE * lmax
-    drift_sign = 1.0
-    for c in model.components:
-        if c.process.name == "DR" and theta_hat[c.start] < 0:
-            drift_sign = -1.0
+    drift_sign = -1.0 if any(c.process.signed and theta_hat[c.start] < 0
+                             for c in model.components) else 1.0
     vp = VP(model, prob.tau, prob.nu_hat, prob.white, drift_sign, np.random.default_rng(0))
     base = shapes_of(model, theta_hat, prob.tau)
     out = []
@@ -675,6 +671,12 @@ def _sin_seatings(result: Any, V: np.ndarray | None) -> list[tuple[str, float, f
     return out
 
 
+def _beta_index(model: Any, label: str) -> int:
+    """Index in the parameter vector of the frequency ``beta`` of sinusoid ``label``."""
+    comp = next(c for c in model.components if c.name == label)
+    return comp.start + list(comp.process.param_names).index("beta")
+
+
 def _sin_frequency_max(result: Any, V: np.ndarray | None, g: GOFResult) -> GOFResult:
     """The test's p-value as the largest over the seatings of a sinusoid whose frequency the
     data do not identify (module docstring): ``g`` itself when no other seating competes."""
@@ -697,8 +699,7 @@ def _largest_over_seatings(result: Any, V: np.ndarray | None, g: GOFResult) -> G
     best, where = g, None
     for label, beta, q, theta in seats:
         held = np.zeros(model.n_params, bool)
-        comp = next(c for c in model.components if c.name == label)
-        held[comp.start + list(comp.process.param_names).index("beta")] = True
+        held[_beta_index(model, label)] = True
         diag = dict(result.diagnostics)
         diag["at_boundary"] = [c.name for c in model.components
                                if theta[c.start + c.process.scale_index] == 0]
@@ -707,10 +708,8 @@ def _largest_over_seatings(result: Any, V: np.ndarray | None, g: GOFResult) -> G
         gk = _test(res_k, V, held=held)
         if np.isfinite(gk.p_value) and gk.p_value > best.p_value:
             best, where = gk, (label, beta)
-    own = next(c for c in model.components if c.name == (seats[0][0] if where is None
-                                                          else where[0]))
-    beta_hat = float(np.asarray(result.params)[own.start
-                                               + list(own.process.param_names).index("beta")])
+    own = seats[0][0] if where is None else where[0]
+    beta_hat = float(np.asarray(result.params)[_beta_index(model, own)])
     note = (f"{', '.join(sorted({s[0] for s in seats}))}: frequency not identified by the data "
             f"({len(seats)} other seating(s) within the objective's sampling noise); the p-value "
             "is the largest over them and the fit's own (conservative): ")

@@ -786,7 +786,8 @@ _NOT_QUOTES = [  # spans that hold no quoted number (blanked before numbers are 
     re.compile(r"<[^>]+>"),  # HTML tags (anchors)
     re.compile(r"\[\^[^\]]+\]"),  # footnote references
     re.compile(r"\b\d{4}-\d\d-\d\d\b|\b\d\d:\d\d(?::\d\d)?\b"),  # dates, clock times
-    re.compile(r"\b(?=[0-9a-f]*[a-f])[0-9a-f]{7,40}\b"),  # commits (a letter in them: 1107083 is a number)
+    # commits (with a letter: an all-digit 1107083 is a number)
+    re.compile(r"\b(?=[0-9a-f]*[a-f])[0-9a-f]{7,40}\b"),
 ]
 _NAMED = re.compile(  # a number naming a thing, not quoting a value ("Fig 4", "Simulation 2")
     r"(?:\b(?:Figs?|Fig\.|Tables?|Secs?|Sec\.|Section|Lemmas?|Cor\.?|Corollary|Corollaries|"
