@@ -296,7 +296,6 @@ def test_weak_sinusoid_fitted_elsewhere_leaves_its_wv_in_the_residual():
 
 def _held_at(res, k: int, beta: float):
     """The test of ``res``'s model with SIN component k's frequency held at ``beta``."""
-    import dataclasses
     import math
 
     from gmwm import gof
@@ -308,11 +307,7 @@ def _held_at(res, k: int, beta: float):
     shapes = shapes_of(model, np.asarray(res.params), prob.tau)
     shapes[k] = math.log(beta)
     q, theta = gof._held_fit(res, vp, shapes, k, 1.0)
-    held = np.zeros(model.n_params, bool)
-    held[model.components[k].start + 1] = True
-    diag = dict(res.diagnostics, at_boundary=[])
-    return gof._test(dataclasses.replace(res, params=theta, objective=q, wv_cov=None,
-                                         diagnostics=diag, gof=None), None, held=held)
+    return gof._held_test(res, None, model.components[k].name, q, theta)
 
 
 # the gyro WN+SIN+RW of benchmarks/selection_penalty.py at T = 2^17 (SIN at an expected z of 4)

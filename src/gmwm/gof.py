@@ -677,6 +677,23 @@ def _beta_index(model: Any, label: str) -> int:
     return comp.start + list(comp.process.param_names).index("beta")
 
 
+def _held_test(result: Any, V: np.ndarray | None, labels: str | list[str], q: float,
+               theta: np.ndarray) -> GOFResult:
+    """The test of ``result``'s model with the frequencies of sinusoid(s) ``labels`` known: the
+    held fit ``theta`` (objective ``q``, :func:`_held_fit`), those frequencies out of the
+    Jacobian (one more df each)."""
+    model = result.model
+    held = np.zeros(model.n_params, bool)
+    for label in [labels] if isinstance(labels, str) else labels:
+        held[_beta_index(model, label)] = True
+    diag = dict(result.diagnostics)
+    diag["at_boundary"] = [c.name for c in model.components
+                           if theta[c.start + c.process.scale_index] == 0]
+    res_k = dataclasses.replace(result, params=theta, objective=q, wv_cov=None,
+                                diagnostics=diag, gof=None)
+    return _test(res_k, V, held=held)
+
+
 def _sin_frequency_max(result: Any, V: np.ndarray | None, g: GOFResult) -> GOFResult:
     """The test's p-value as the largest over the seatings of a sinusoid whose frequency the
     data do not identify (module docstring): ``g`` itself when no other seating competes."""
@@ -698,14 +715,7 @@ def _largest_over_seatings(result: Any, V: np.ndarray | None, g: GOFResult) -> G
     model = result.model
     best, where = g, None
     for label, beta, q, theta in seats:
-        held = np.zeros(model.n_params, bool)
-        held[_beta_index(model, label)] = True
-        diag = dict(result.diagnostics)
-        diag["at_boundary"] = [c.name for c in model.components
-                               if theta[c.start + c.process.scale_index] == 0]
-        res_k = dataclasses.replace(result, params=theta, objective=q, wv_cov=None,
-                                    diagnostics=diag, gof=None)
-        gk = _test(res_k, V, held=held)
+        gk = _held_test(result, V, label, q, theta)
         if np.isfinite(gk.p_value) and gk.p_value > best.p_value:
             best, where = gk, (label, beta)
     own = seats[0][0] if where is None else where[0]
